@@ -1,0 +1,162 @@
+"""Forward kinematics and Jacobians of any frame, over MuJoCo and over the report's transform chain.
+
+Two independent implementations:
+
+* :class:`Kinematics` evaluates MuJoCo (``mj_kinematics`` / ``mj_jac``) on a private ``MjData``, so it never
+  disturbs a running simulation.
+* :func:`chain_fk` multiplies one homogeneous transform per joint along a kinematic chain built from a
+  topology map written from the spec's joint table (:data:`NEXTAGE_TOPOLOGY`), as in the report:
+
+  .. math::
+
+      {}^{p}T_{c}(q) = \\begin{bmatrix} R(\\hat a, q) & o \\\\ 0 & 1 \\end{bmatrix},\\quad
+      R(\\hat a, q) = I + \\sin q\\,[\\hat a]_\\times + (1-\\cos q)\\,[\\hat a]_\\times^2
+
+  (Rodrigues' axis-angle rotation, report Eq. 1-2), with joint origin :math:`o` [m] and unit axis
+  :math:`\\hat a`; a frame's world pose is the product from the base down to the frame.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+
+from nextage_qp.errors import UnknownFrameError
+from nextage_qp.robot import JOINT_NAMES, Robot
+
+
+class Pose(NamedTuple):
+    """A frame pose in the world: position [m] and rotation matrix (columns = frame axes)."""
+
+    pos: np.ndarray
+    rot: np.ndarray
+
+    @property
+    def quat(self) -> np.ndarray:
+        """Unit quaternion (w, x, y, z) of the rotation."""
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, self.rot.reshape(-1))
+        return quat
+
+
+class Kinematics:
+    """FK and Jacobians of a robot's bodies and sites for a given joint vector.
+
+    Args:
+        robot: The robot (any scene).
+    """
+
+    def __init__(self, robot: Robot) -> None:
+        self.robot = robot
+        self.data = mujoco.MjData(robot.model)
+        self._jacp = np.zeros((3, robot.model.nv))
+        self._jacr = np.zeros((3, robot.model.nv))
+
+    def _update(self, q: np.ndarray) -> None:
+        self.data.qpos[self.robot.qpos_idx] = q
+        mujoco.mj_kinematics(self.robot.model, self.data)
+
+    def fk(self, frame: str, q: np.ndarray) -> Pose:
+        """World pose of a body or site at joint vector ``q`` [rad] (15 robot joints).
+
+        Raises:
+            UnknownFrameError: ``frame`` is neither a site nor a body.
+        """
+        kind, fid = self.robot.frame(frame)
+        self._update(np.asarray(q, dtype=float))
+        if kind == "site":
+            return Pose(self.data.site_xpos[fid].copy(), self.data.site_xmat[fid].reshape(3, 3).copy())
+        return Pose(self.data.xpos[fid].copy(), self.data.xmat[fid].reshape(3, 3).copy())
+
+    def jacobian(self, frame: str, q: np.ndarray) -> np.ndarray:
+        """The 6 x 15 world-frame Jacobian ``[J_v; J_w]`` of a frame's origin over the robot joints.
+
+        Rows 0-2 map joint velocities [rad/s] to the origin's linear velocity [m/s], rows 3-5 to the
+        frame's angular velocity [rad/s], both in world coordinates.
+        """
+        kind, fid = self.robot.frame(frame)
+        self._update(np.asarray(q, dtype=float))
+        mujoco.mj_comPos(self.robot.model, self.data)
+        if kind == "site":
+            mujoco.mj_jacSite(self.robot.model, self.data, self._jacp, self._jacr, fid)
+        else:
+            mujoco.mj_jacBody(self.robot.model, self.data, self._jacp, self._jacr, fid)
+        dofs = self.robot.dof_idx
+        return np.vstack([self._jacp[:, dofs], self._jacr[:, dofs]])
+
+
+# The report's method: a topology map written from the spec's joint table (not read from the MJCF).
+# joint -> (parent joint or None for the base, origin xyz in the parent frame [m], axis).
+_ARM_TOPOLOGY = {
+    0: ("CHEST_JOINT0", (0.04, 0.135, 0.1015), (0, 0, 1)),
+    1: (0, (0.0, 0.0, 0.066), (0, 1, 0)),
+    2: (1, (0.0, 0.095, -0.25), (0, 1, 0)),
+    3: (2, (0.1805, 0.0, -0.03), (1, 0, 0)),
+    4: (3, (0.1495, 0.0, 0.0), (0, 1, 0)),
+    5: (4, (0.0, 0.0, -0.1335), (0, 0, 1)),
+}
+
+
+def _build_topology() -> dict[str, tuple[str | None, tuple[float, ...], tuple[float, ...]]]:
+    topo: dict[str, tuple[str | None, tuple[float, ...], tuple[float, ...]]] = {
+        "CHEST_JOINT0": (None, (0.0, 0.0, 0.85 + 0.267), (0, 0, 1)),
+        "HEAD_JOINT0": ("CHEST_JOINT0", (0.0, 0.0, 0.302), (0, 0, 1)),
+        "HEAD_JOINT1": ("HEAD_JOINT0", (0.0, 0.0, 0.08), (0, 1, 0)),
+    }
+    for prefix, sign in (("LARM", 1.0), ("RARM", -1.0)):
+        for i, (parent, origin, axis) in _ARM_TOPOLOGY.items():
+            parent_name = parent if isinstance(parent, str) else f"{prefix}_JOINT{parent}"
+            topo[f"{prefix}_JOINT{i}"] = (parent_name, (origin[0], sign * origin[1], origin[2]), axis)
+    return topo
+
+
+NEXTAGE_TOPOLOGY = _build_topology()
+"""joint -> (parent joint, origin [m] in the parent link frame, axis); the base is the world at (0, 0, 0.85)."""
+
+
+def axis_angle_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rodrigues' rotation matrix for a unit ``axis`` and ``angle`` [rad] (report Eq. 1)."""
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+
+
+def joint_transform(origin: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+    """Homogeneous transform parent link -> child link of a revolute joint (report Eq. 2)."""
+    t = np.eye(4)
+    t[:3, :3] = axis_angle_rotation(axis, angle)
+    t[:3, 3] = origin
+    return t
+
+
+def chain_fk(
+    link: str,
+    q: Mapping[str, float] | np.ndarray,
+    topology: Mapping[str, tuple[str | None, tuple[float, ...], tuple[float, ...]]] = NEXTAGE_TOPOLOGY,
+) -> np.ndarray:
+    """World transform (4 x 4) of a joint's child link frame by chaining per-joint transforms.
+
+    Args:
+        link: A joint name (``LARM_JOINT5``) or its link (``LARM_JOINT5_Link``).
+        q: Joint angles [rad], as a name map or a vector in :data:`~nextage_qp.robot.JOINT_NAMES` order.
+        topology: joint -> (parent joint, origin, axis).
+
+    Raises:
+        UnknownFrameError: ``link`` is not in the topology.
+    """
+    joint = link.removesuffix("_Link")
+    if joint not in topology:
+        raise UnknownFrameError(link, [f"{j}_Link" for j in topology])
+    angles = q if isinstance(q, Mapping) else dict(zip(JOINT_NAMES, np.asarray(q, dtype=float), strict=True))
+    chain: list[str] = []
+    node: str | None = joint
+    while node is not None:
+        chain.append(node)
+        node = topology[node][0]
+    t = np.eye(4)
+    for name in reversed(chain):
+        _, origin, axis = topology[name]
+        t = t @ joint_transform(np.asarray(origin), np.asarray(axis, dtype=float), float(angles.get(name, 0.0)))
+    return t
