@@ -1,11 +1,11 @@
-"""Forward kinematics from a modified (Craig) Denavit-Hartenberg table, as taught in the lecture.
+r"""Forward kinematics from a modified (Craig) Denavit-Hartenberg table, as taught in the lecture.
 
-Row i of the table holds :math:`(\\alpha_{i-1}, a_{i-1}, d_i, \\theta_i^{0})` and the link transform is
+Row i of the table holds :math:`(\alpha_{i-1}, a_{i-1}, d_i, \theta_i^{0})` and the link transform is
 
 .. math::
 
-    {}^{i-1}T_i = R_x(\\alpha_{i-1})\\, D_x(a_{i-1})\\, R_z(\\theta_i)\\, D_z(d_i),
-    \\qquad \\theta_i = \\theta_i^{0} + q_i
+    {}^{i-1}T_i = R_x(\alpha_{i-1})\, D_x(a_{i-1})\, R_z(\theta_i)\, D_z(d_i),
+    \qquad \theta_i = \theta_i^{0} + q_i
 
 with angles in [rad] and lengths in [m]. All joints are revolute.
 """

@@ -1,4 +1,4 @@
-"""Forward kinematics and Jacobians of any frame, over MuJoCo and over the report's transform chain.
+r"""Forward kinematics and Jacobians of any frame, over MuJoCo and over the report's transform chain.
 
 Two independent implementations:
 
@@ -9,11 +9,11 @@ Two independent implementations:
 
   .. math::
 
-      {}^{p}T_{c}(q) = \\begin{bmatrix} R(\\hat a, q) & o \\\\ 0 & 1 \\end{bmatrix},\\quad
-      R(\\hat a, q) = I + \\sin q\\,[\\hat a]_\\times + (1-\\cos q)\\,[\\hat a]_\\times^2
+      {}^{p}T_{c}(q) = \begin{bmatrix} R(\hat a, q) & o \\ 0 & 1 \end{bmatrix},\quad
+      R(\hat a, q) = I + \sin q\,[\hat a]_\times + (1-\cos q)\,[\hat a]_\times^2
 
   (Rodrigues' axis-angle rotation, report Eq. 1-2), with joint origin :math:`o` [m] and unit axis
-  :math:`\\hat a`; a frame's world pose is the product from the base down to the frame.
+  :math:`\hat a`; a frame's world pose is the product from the base down to the frame.
 """
 
 from __future__ import annotations

@@ -1,0 +1,1 @@
+"""Subcommands of ``nextage-qp``: one module each, exposing ``register(subparsers)``."""

@@ -1,0 +1,78 @@
+"""``nextage-qp info [SCENE]``: joints with limits, actuators, sites, objects and collision groups of a scene."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from nextage_qp.commands.common import print_json
+from nextage_qp.robot import JOINT_NAMES, Robot
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``info`` subcommand."""
+    p = sub.add_parser("info", help="describe a scene: joints, actuators, sites, objects")
+    p.add_argument("scene", nargs="?", default="scene", help="bundled scene name or MJCF path (default: scene)")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
+    p.set_defaults(func=run)
+
+
+def describe(robot: Robot) -> dict:
+    """Everything ``info`` prints, as plain data."""
+    m = robot.model
+    joints = [
+        {
+            "name": name,
+            "lower_rad": float(robot.lower[i]),
+            "upper_rad": float(robot.upper[i]),
+            "axis": m.jnt_axis[robot.joint_ids[i]].tolist(),
+            "damping": float(m.dof_damping[robot.dof_idx[i]]),
+            "torque_limit_nm": float(robot.torque_limit[i]),
+        }
+        for i, name in enumerate(JOINT_NAMES)
+    ]
+    base = m.body("base_link").id
+    robot_bodies = [b for b in range(m.nbody) if m.body_rootid[b] == base]
+    moving = [b for b in robot_bodies if m.body_weldid[b] != 0]
+    return {
+        "scene": robot.scene,
+        "timestep_s": float(m.opt.timestep),
+        "joints": joints,
+        "actuators": [m.actuator(int(a)).name for a in robot.actuator_ids],
+        "sites": list(robot.site_names),
+        "objects": {
+            name: {"mass_kg": float(m.body(name).mass[0]), "start_pos": m.body(name).pos.tolist()}
+            for name in robot.object_names
+        },
+        "collision_groups": {k: len(v) for k, v in robot.collision_geoms().items()},
+        "robot_moving_mass_kg": float(np.sum(m.body_mass[moving])),
+        "robot_total_mass_kg": float(np.sum(m.body_mass[robot_bodies])),
+    }
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print the description of ``args.scene``."""
+    robot = Robot.from_scene(args.scene)
+    info = describe(robot)
+    if args.json:
+        print_json(info)
+        return 0
+    console = Console()
+    table = Table(title=f"{args.scene}: joints", title_justify="left")
+    for col in ("joint", "lower [rad]", "upper [rad]", "axis", "damping", "torque [N m]"):
+        table.add_column(col, justify="left" if col in ("joint", "axis") else "right")
+    for j in info["joints"]:
+        table.add_row(j["name"], f"{j['lower_rad']:.4f}", f"{j['upper_rad']:.4f}", str(j["axis"]),
+                      f"{j['damping']:g}", f"{j['torque_limit_nm']:g}")
+    console.print(table)
+    console.print(f"timestep: {info['timestep_s'] * 1e3:g} ms   actuators: {len(info['actuators'])} "
+                  f"(one motor per joint)   moving mass: {info['robot_moving_mass_kg']:.4f} kg   "
+                  f"total mass: {info['robot_total_mass_kg']:.4f} kg")
+    console.print(f"sites: {', '.join(info['sites'])}")
+    objects = ", ".join(f"{k} ({v['mass_kg']:g} kg at {v['start_pos']})" for k, v in info["objects"].items())
+    console.print(f"objects: {objects or 'none'}")
+    console.print("collision groups: " + ", ".join(f"{k} ({n})" for k, n in info["collision_groups"].items()))
+    return 0

@@ -1,0 +1,61 @@
+import json
+
+import numpy as np
+import pytest
+
+from nextage_qp.cli import main
+
+
+def run_json(capsys, argv):
+    assert main(argv) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_info_lists_joints_sites_objects(capsys):
+    info = run_json(capsys, ["info", "dock_dumbbell", "--json"])
+    assert [j["name"] for j in info["joints"]][:3] == ["CHEST_JOINT0", "HEAD_JOINT0", "HEAD_JOINT1"]
+    assert len(info["actuators"]) == 15
+    assert "left_tool" in info["sites"]
+    assert info["objects"]["dumbbell"]["mass_kg"] == pytest.approx(0.3)
+    assert info["robot_total_mass_kg"] == pytest.approx(65.678269, abs=1e-6)
+    assert info["collision_groups"]["obstacle"] == 1
+
+
+def test_info_table_output(capsys):
+    assert main(["info"]) == 0
+    out = capsys.readouterr().out
+    assert "LARM_JOINT3" in out and "sites:" in out
+
+
+def test_fk_json_at_home(capsys):
+    out = run_json(capsys, ["fk", "LARM_JOINT5_Link", "--keyframe", "home", "--json"])
+    np.testing.assert_allclose(out["position_m"], (0.504975, 0.23, 1.032149), atol=1e-6)
+    assert len(out["q"]) == 15
+    assert np.linalg.norm(out["quaternion_wxyz"]) == pytest.approx(1.0)
+
+
+def test_fk_with_joint_assignments(capsys):
+    out = run_json(capsys, ["fk", "RARM_JOINT5_Link", "--q", "RARM_JOINT1=-0.4", "--json"])
+    np.testing.assert_allclose(out["position_m"], (0.504975, -0.23, 1.032149), atol=1e-6)
+
+
+def test_fk_human_output(capsys):
+    assert main(["fk", "left_wrist"]) == 0
+    assert "position [m]" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["fk", "LARM_HAND"], "unknown frame 'LARM_HAND'; valid: left_wrist"),
+        (["fk", "left_wrist", "--q", "LARM_JOINT9=1"], "unknown joint 'LARM_JOINT9'; valid: CHEST_JOINT0"),
+        (["fk", "left_wrist", "--q", "LARM_JOINT1"], "expected NAME=RAD"),
+        (["fk", "left_wrist", "--keyframe", "rest"], "unknown keyframe 'rest'; valid: home, zero"),
+        (["info", "no_scene"], "bundled scenes:"),
+    ],
+)
+def test_cli_errors_are_one_line_exit_2(capsys, argv, message):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err
+    assert err.count("\n") == 1 and "Traceback" not in err
