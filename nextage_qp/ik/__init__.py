@@ -1,0 +1,20 @@
+"""Inverse kinematics: QP differential IK on mink (:class:`QPIK`) and the baselines it is compared with."""
+
+from nextage_qp.ik.config import CollisionPairConfig, IKConfig
+from nextage_qp.ik.limits import ActiveCollisionLimit, JointBoxLimit
+from nextage_qp.ik.model import kinematic_model
+from nextage_qp.ik.qp import QPIK
+from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, target_errors
+
+__all__ = [
+    "QPIK",
+    "ActiveCollisionLimit",
+    "CollisionPairConfig",
+    "FrameTarget",
+    "IKConfig",
+    "IKInfeasibleError",
+    "IKResult",
+    "JointBoxLimit",
+    "kinematic_model",
+    "target_errors",
+]

@@ -1,0 +1,112 @@
+"""Configuration of the QP inverse kinematics: costs, regularisation, limits and solver (YAML-ready).
+
+Every field has one default, a unit in its description, and a validator; unknown keys are errors. Names
+(frames, joints, geom groups) are checked against the robot when :class:`~nextage_qp.ik.qp.QPIK` is built.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import qpsolvers
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+
+class CollisionPairConfig(BaseModel):
+    """Collision avoidance between two named geom groups (see :meth:`Robot.collision_geoms`).
+
+    Every geom of group ``a`` is kept at least ``min_distance`` from every geom of group ``b``; the
+    constraint is sent to the QP only while the pair is closer than ``detection_distance``.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    a: str = Field(description="First geom group, e.g. 'left_arm'.")
+    b: str = Field(description="Second geom group, e.g. 'table'.")
+    min_distance: float = Field(default=0.005, ge=0.0, description="Distance kept between the groups [m].")
+    detection_distance: float = Field(
+        default=0.05, gt=0.0, description="Distance below which the pair becomes a QP constraint [m]."
+    )
+
+    @model_validator(mode="after")
+    def _detection_beyond_minimum(self) -> CollisionPairConfig:
+        if self.detection_distance <= self.min_distance:
+            raise ValueError(
+                f"detection_distance ({self.detection_distance} m) must exceed min_distance ({self.min_distance} m)"
+            )
+        return self
+
+
+class IKConfig(BaseModel):
+    """Differential IK as a QP: task costs, regularisation, limits and solver.
+
+    The QP solved each step (mink's formulation, :math:`\\Delta q = v\\,dt`) is
+
+    .. math::
+
+        \\min_{\\Delta q}\\ \\sum_i \\|W_i (J_i \\Delta q + e_i)\\|^2
+            + w_p^2 \\|\\Delta q + q - q_p\\|^2 + (\\lambda + \\mu \\|W e\\|^2) \\|\\Delta q\\|^2
+        \\quad \\text{s.t.}\\quad \\text{joint box},\\ \\text{collision rows}
+
+    with frame errors :math:`e_i` (position [m], rotation [rad]), weights :math:`W_i` from the position and
+    orientation costs, posture weight :math:`w_p`, constant damping :math:`\\lambda` and
+    Levenberg–Marquardt damping :math:`\\mu`.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    position_cost: float = Field(default=1.0, ge=0.0, description="Weight of frame position errors [1/m].")
+    orientation_cost: float = Field(default=1.0, ge=0.0, description="Weight of frame orientation errors [1/rad].")
+    posture_cost: float = Field(default=1e-3, ge=0.0, description="Weight of the posture task [1/rad].")
+    posture_target: Literal["home", "zero"] | dict[str, float] = Field(
+        default="home", description="Posture the redundancy is pulled towards: a keyframe or joint -> [rad]."
+    )
+    damping: float = Field(default=1e-6, ge=0.0, description="Constant Tikhonov damping on dq [unitless].")
+    lm_damping: float = Field(
+        default=1.0, ge=0.0, description="Levenberg–Marquardt damping, scaled by the squared task error [unitless]."
+    )
+    solver: str = Field(default="daqp", description="qpsolvers backend (daqp, osqp, proxqp, ...).")
+    dt: float = Field(default=0.1, gt=0.0, description="Integration step of solve() [s].")
+    max_iters: int = Field(default=200, ge=1, description="Iteration cap of solve().")
+    pos_tol: float = Field(default=1e-4, gt=0.0, description="Position tolerance of solve() [m].")
+    rot_tol: float = Field(default=1e-3, gt=0.0, description="Orientation tolerance of solve() [rad].")
+    velocity_limit: float | dict[str, float] = Field(
+        default=3.0, description="Joint speed limit [rad/s]: one value or joint -> value (others unlimited)."
+    )
+    limit_gain: float = Field(
+        default=0.95, gt=0.0, le=1.0, description="Fraction of the distance to a joint limit allowed per step."
+    )
+    restarts: int = Field(
+        default=10, ge=0, description="solve(): random in-limit restarts after a descent stalls (local minimum)."
+    )
+    seed: int = Field(default=0, description="Seed of the restart configurations (solve() is deterministic).")
+    collision_pairs: tuple[CollisionPairConfig, ...] = Field(
+        default=(), description="Geom-group pairs kept apart (e.g. left_arm/table)."
+    )
+    collision_gain: float = Field(
+        default=0.85, gt=0.0, le=1.0, description="Fraction of the gap to min_distance a pair may close per step."
+    )
+    stall_iters: int = Field(
+        default=30, ge=1, description="solve() stops as 'stalled' after this many iterations without 1 % progress."
+    )
+
+    @field_validator("solver")
+    @classmethod
+    def _solver_installed(cls, value: str) -> str:
+        if value not in qpsolvers.available_solvers:
+            raise ValueError(f"solver {value!r} is not installed; available: {', '.join(qpsolvers.available_solvers)}")
+        return value
+
+    @field_validator("velocity_limit")
+    @classmethod
+    def _positive_velocity(cls, value: float | dict[str, float]) -> float | dict[str, float]:
+        values = value.values() if isinstance(value, dict) else [value]
+        if not all(v > 0 for v in values):
+            raise ValueError(f"velocity_limit must be > 0 rad/s, got {value}")
+        return value
+
+    @model_validator(mode="after")
+    def _some_cost(self) -> IKConfig:
+        if self.position_cost == 0.0 and self.orientation_cost == 0.0:
+            raise ValueError("position_cost and orientation_cost are both 0: no frame target would have an effect")
+        return self

@@ -1,0 +1,151 @@
+"""Limits for the IK QP that send the solver only what matters: a joint box and active collision rows.
+
+Both subclass :class:`mink.Limit`, so they also work with plain :func:`mink.solve_ik`.
+
+* :class:`JointBoxLimit` merges mink's ``ConfigurationLimit`` and ``VelocityLimit`` into one box
+  (15 bounds instead of 60 rows), which :class:`~nextage_qp.ik.qp.QPIK` passes as ``lb``/``ub``.
+* :class:`ActiveCollisionLimit` is mink's ``CollisionAvoidanceLimit`` with per-pair distances, a
+  vectorised bounding-sphere broadphase on every call, and one row per *active* pair only (mink emits
+  a row for every pair, inactive ones as ``0 . dq <= inf``).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+
+import mink
+import mujoco
+import numpy as np
+from mink.limits.collision_avoidance_limit import (
+    _are_geom_bodies_parent_child,
+    _is_pass_contype_conaffinity_check,
+    _is_welded_together,
+    compute_contact_normal_jacobian,
+)
+from mink.limits.limit import Constraint
+
+
+class JointBoxLimit(mink.Limit):
+    """Joint position and velocity limits as one box on the step :math:`\\Delta q` [rad].
+
+    .. math::
+
+        \\max(-g (q - q_{min}), -v_{max} dt) \\le \\Delta q \\le \\min(g (q_{max} - q), v_{max} dt)
+
+    with limit gain :math:`g` and speed limit :math:`v_{max}` [rad/s] (``inf`` where unlimited).
+    """
+
+    def __init__(self, lower: np.ndarray, upper: np.ndarray, vmax: np.ndarray, gain: float = 0.95) -> None:
+        self.lower, self.upper, self.vmax, self.gain = lower, upper, vmax, gain
+        n = len(lower)
+        self._G = np.vstack([np.eye(n), -np.eye(n)])
+
+    def bounds(self, q: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(lb, ub)`` of :math:`\\Delta q` at configuration ``q`` for a step of ``dt`` [s]."""
+        step = self.vmax * dt
+        lb = np.maximum(-self.gain * (q - self.lower), -step)
+        ub = np.minimum(self.gain * (self.upper - q), step)
+        return lb, ub
+
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
+        """The box as rows ``[I; -I] dq <= [ub; -lb]`` (for use with plain mink)."""
+        lb, ub = self.bounds(configuration.q, dt)
+        return Constraint(G=self._G, h=np.concatenate([ub, -lb]))
+
+
+class ActiveCollisionLimit(mink.Limit):
+    """Keep geom pairs apart, emitting one QP row per pair closer than its detection distance.
+
+    For an active pair at distance :math:`d` [m] with contact normal :math:`n` and witness-point Jacobians
+    :math:`J_1, J_2`, the row is (mink's formulation)
+
+    .. math::
+
+        -n^T (J_2 - J_1) \\Delta q \\le g\\,\\max(d - d_{min}, 0)
+
+    with collision gain :math:`g`, so the gap closes by at most a fraction ``g`` of its excess per step.
+
+    Args:
+        model: Kinematic model.
+        group_pairs: ``(geoms_a, geoms_b, min_distance [m], detection_distance [m])`` per group pair.
+        gain: Collision gain in (0, 1].
+    """
+
+    def __init__(
+        self, model: mujoco.MjModel, group_pairs: Sequence[tuple[Sequence[int], Sequence[int], float, float]], gain: float
+    ) -> None:
+        self.model, self.gain = model, gain
+        pairs: dict[tuple[int, int], tuple[float, float]] = {}
+        for geoms_a, geoms_b, dmin, ddet in group_pairs:
+            for a, b in itertools.product(set(geoms_a), set(geoms_b)):
+                if (
+                    a != b
+                    and not _is_welded_together(model, a, b)
+                    and not _are_geom_bodies_parent_child(model, a, b)
+                    and _is_pass_contype_conaffinity_check(model, a, b)
+                ):
+                    key = (min(a, b), max(a, b))
+                    old = pairs.get(key, (0.0, 0.0))
+                    pairs[key] = (max(old[0], dmin), max(old[1], ddet))
+        keys = sorted(pairs)
+        self.geom1 = np.array([k[0] for k in keys], dtype=int)
+        self.geom2 = np.array([k[1] for k in keys], dtype=int)
+        self.min_distance = np.array([pairs[k][0] for k in keys])
+        self.detection_distance = np.array([pairs[k][1] for k in keys])
+        rbound = model.geom_rbound
+        # A plane has rbound 0 (unbounded): never filter it out.
+        unbounded = (rbound[self.geom1] == 0) | (rbound[self.geom2] == 0)
+        self._reach = np.where(unbounded, np.inf, rbound[self.geom1] + rbound[self.geom2] + self.detection_distance)
+        self._fromto, self._normal = np.empty(6), np.empty(3)
+        self._jac1, self._jac2 = np.empty((3, model.nv)), np.empty((3, model.nv))
+        self.active: list[tuple[int, float]] = []
+        """(pair index, distance [m]) of the pairs active at the last call."""
+
+    @property
+    def num_pairs(self) -> int:
+        """Number of geom pairs watched."""
+        return len(self.geom1)
+
+    def candidates(self, data: mujoco.MjData) -> np.ndarray:
+        """Indices of the pairs whose bounding spheres are within detection distance (broadphase)."""
+        delta = data.geom_xpos[self.geom1] - data.geom_xpos[self.geom2]
+        centre_sq = np.einsum("ij,ij->i", delta, delta)
+        return np.flatnonzero(centre_sq < self._reach**2)
+
+    def distances(self, data: mujoco.MjData, indices: Sequence[int] | np.ndarray) -> np.ndarray:
+        """Signed distances [m] of the given pairs, capped at their detection distance."""
+        out = np.empty(len(indices))
+        for k, idx in enumerate(indices):
+            dmax = float(self.detection_distance[idx])
+            out[k] = mujoco.mj_geomDistance(self.model, data, int(self.geom1[idx]), int(self.geom2[idx]), dmax, None)
+        return out
+
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
+        """Rows of the active pairs only; an inactive constraint when no pair is within detection distance."""
+        del dt  # The bound is per step, as in mink.
+        model, data, fromto = self.model, configuration.data, self._fromto
+        rows: list[np.ndarray] = []
+        bounds: list[float] = []
+        self.active = []
+        for idx in self.candidates(data):
+            g1, g2 = int(self.geom1[idx]), int(self.geom2[idx])
+            dmax = float(self.detection_distance[idx])
+            dist = mujoco.mj_geomDistance(model, data, g1, g2, dmax, fromto)
+            if dist >= dmax - 1e-12:
+                continue
+            row = compute_contact_normal_jacobian(model, data, g1, g2, fromto, self._normal, self._jac1, self._jac2)
+            rows.append(-row if dist >= 0 else row)
+            bounds.append(self.gain * max(dist - float(self.min_distance[idx]), 0.0))
+            self.active.append((int(idx), dist))
+        if not rows:
+            return Constraint()
+        return Constraint(G=np.vstack(rows), h=np.array(bounds))
+
+    def pair_name(self, model: mujoco.MjModel, idx: int) -> str:
+        """Readable name of a pair: geom (or body) names of both sides."""
+
+        def name(g: int) -> str:
+            return model.geom(g).name or f"{model.body(int(model.geom_bodyid[g])).name}/geom{g}"
+
+        return f"{name(int(self.geom1[idx]))}<->{name(int(self.geom2[idx]))}"

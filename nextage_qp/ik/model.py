@@ -1,0 +1,84 @@
+"""The IK's kinematic model: the scene with its free objects turned into mocap bodies.
+
+Objects of a task scene (cube, dumbbell) have free joints, which must not be IK variables. The kinematic
+model is compiled from the same MJCF with every free joint removed and its body made a mocap body, so
+``nq == nv == 15`` (the robot joints, in :data:`~nextage_qp.robot.JOINT_NAMES` order) and objects are
+placed through ``data.mocap_pos`` / ``data.mocap_quat``. Geom and body ids equal those of the full model.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+
+from nextage_qp.errors import ConfigError, UnknownNameError
+from nextage_qp.robot import JOINT_NAMES, Robot, scene_path
+
+ObjectPoses = Mapping[str, tuple[np.ndarray, np.ndarray]]
+"""Object name -> (position [m], unit quaternion w, x, y, z) in the world."""
+
+
+def kinematic_model(robot: Robot) -> mujoco.MjModel:
+    """Compile the robot's scene without free joints (objects become mocap bodies).
+
+    Raises:
+        ConfigError: The scene cannot be recompiled, or the result is not exactly the 15 robot joints.
+    """
+    free = robot.model.jnt_type == mujoco.mjtJoint.mjJNT_FREE
+    if not free.any():
+        model = robot.model
+    else:
+        spec = mujoco.MjSpec.from_file(str(scene_path(robot.scene)))
+        for joint in list(spec.joints):
+            if joint.type == mujoco.mjtJoint.mjJNT_FREE:
+                body = joint.parent
+                spec.delete(joint)
+                body.mocap = True
+        model = spec.compile()
+        if model.ngeom != robot.model.ngeom or model.nbody != robot.model.nbody:
+            raise ConfigError(f"{robot.scene}: kinematic model does not match the robot's model")
+    names = tuple(model.joint(i).name for i in range(model.njnt))
+    if names != JOINT_NAMES or model.nv != len(JOINT_NAMES):
+        raise ConfigError(f"{robot.scene}: IK model must have exactly the joints {JOINT_NAMES}, got {names}")
+    return model
+
+
+class Frame(NamedTuple):
+    """A resolved frame: ``kind`` is ``"site"`` or ``"body"``, ``id`` its id in the model."""
+
+    name: str
+    kind: str
+    id: int
+
+    def pose(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+        """World position [m] and rotation matrix of the frame in ``data`` (after kinematics)."""
+        if self.kind == "site":
+            return data.site_xpos[self.id], data.site_xmat[self.id].reshape(3, 3)
+        return data.xpos[self.id], data.xmat[self.id].reshape(3, 3)
+
+
+def resolve_frame(robot: Robot, name: str) -> Frame:
+    """Resolve a body or site name (sites win); raises UnknownFrameError listing the valid names."""
+    kind, fid = robot.frame(name)
+    return Frame(name, kind, fid)
+
+
+def set_object_poses(model: mujoco.MjModel, data: mujoco.MjData, poses: ObjectPoses) -> None:
+    """Place mocap objects (by body name) in ``data``; kinematics must be run afterwards.
+
+    Raises:
+        UnknownNameError: A name is not a mocap object of the model; the message lists those that are.
+        ConfigError: A position or quaternion has the wrong shape.
+    """
+    mocap = {model.body(b).name: int(model.body_mocapid[b]) for b in range(model.nbody) if model.body_mocapid[b] >= 0}
+    for name, (pos, quat) in poses.items():
+        if name not in mocap:
+            raise UnknownNameError("object", name, mocap)
+        p, qt = np.asarray(pos, dtype=float), np.asarray(quat, dtype=float)
+        if p.shape != (3,) or qt.shape != (4,) or not np.linalg.norm(qt) > 0:
+            raise ConfigError(f"object {name!r}: pose must be pos (3,) and non-zero quat wxyz (4,)")
+        data.mocap_pos[mocap[name]] = p
+        data.mocap_quat[mocap[name]] = qt / np.linalg.norm(qt)

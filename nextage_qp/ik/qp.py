@@ -1,0 +1,253 @@
+"""Differential IK of both wrists and the shared chest as one QP, built on mink.
+
+Each step assembles mink's objective (frame, axis-align, posture and extra tasks via :func:`mink.build_ik`)
+and adds what mink lacks: the joint limits as a solver box (``lb``/``ub``) and collision rows only for
+active pairs (:mod:`nextage_qp.ik.limits`). :meth:`QPIK.solve` integrates the steps to a tolerance with a
+backtracking guard that never accepts a q closing a collision pair below its minimum distance.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+
+import mink
+import numpy as np
+import qpsolvers
+
+from nextage_qp.errors import UnknownNameError
+from nextage_qp.ik.config import IKConfig
+from nextage_qp.ik.limits import ActiveCollisionLimit, JointBoxLimit
+from nextage_qp.ik.model import Frame, ObjectPoses, kinematic_model, resolve_frame, set_object_poses
+from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, worst_errors
+from nextage_qp.robot import JOINT_NAMES, Robot
+
+
+class QPIK:
+    """QP differential IK over the 15 robot joints (mink tasks, box limits, active collision rows).
+
+    Args:
+        robot: The robot and its scene (objects become mocap bodies of the IK model).
+        config: Costs, limits and solver.
+
+    Raises:
+        UnknownNameError: A geom group, joint or keyframe named in the config is not in the robot.
+    """
+
+    def __init__(self, robot: Robot, config: IKConfig) -> None:
+        self.robot, self.config = robot, config
+        self.model = kinematic_model(robot)
+        self.configuration = mink.Configuration(self.model, robot.keyframe_q("home"))
+        if isinstance(config.posture_target, str):
+            q_posture = robot.keyframe_q(config.posture_target)
+        else:
+            q_posture = robot.q_from_names(config.posture_target, base=robot.keyframe_q("home"))
+        self.posture = mink.PostureTask(self.model, cost=config.posture_cost)
+        self.posture.set_target(q_posture)
+        vmax = np.full(robot.nq, float(config.velocity_limit) if not isinstance(config.velocity_limit, dict) else np.inf)
+        if isinstance(config.velocity_limit, dict):
+            for name, value in config.velocity_limit.items():
+                vmax[robot.joint_index(name)] = value
+        self.box = JointBoxLimit(np.array(robot.lower), np.array(robot.upper), vmax, config.limit_gain)
+        groups = robot.collision_geoms()
+        pairs = []
+        for i, pair in enumerate(config.collision_pairs):
+            for name in (pair.a, pair.b):
+                if name not in groups:
+                    raise UnknownNameError(f"geom group (collision_pairs[{i}])", name, groups)
+            pairs.append((groups[pair.a], groups[pair.b], pair.min_distance, pair.detection_distance))
+        self.collision = ActiveCollisionLimit(self.model, pairs, config.collision_gain) if pairs else None
+        self._frames: dict[str, Frame] = {}
+        self._frame_tasks: dict[str, mink.FrameTask] = {}
+        self._axis_tasks: dict[str, mink.AxisAlignTask] = {}
+
+    def set_object_poses(self, poses: ObjectPoses) -> None:
+        """Place objects (cube, dumbbell, ...) for collision avoidance: name -> (pos [m], quat wxyz)."""
+        set_object_poses(self.model, self.configuration.data, poses)
+        self.configuration.update()
+
+    def frame(self, name: str) -> Frame:
+        """Resolve (and cache) a body or site name; raises UnknownFrameError listing valid names."""
+        if name not in self._frames:
+            self._frames[name] = resolve_frame(self.robot, name)
+        return self._frames[name]
+
+    def _tasks(self, targets: Sequence[FrameTarget]) -> list[mink.Task]:
+        """mink tasks for the targets, reusing one FrameTask / AxisAlignTask per frame across ticks."""
+        cfg, tasks = self.config, []
+        for target in targets:
+            frame = self.frame(target.frame)
+            task = self._frame_tasks.get(frame.name)
+            if task is None:
+                task = mink.FrameTask(frame.name, frame.kind, 1.0, 1.0, lm_damping=cfg.lm_damping)
+                self._frame_tasks[frame.name] = task
+            pos, rot = frame.pose(self.configuration.data)
+            pcost = cfg.position_cost if target.position_cost is None else target.position_cost
+            ocost = cfg.orientation_cost if target.orientation_cost is None else target.orientation_cost
+            task.set_position_cost(pcost if target.pos is not None else 0.0)
+            task.set_orientation_cost(ocost if target.rot is not None else 0.0)
+            # Without a rotation target, aim at the current rotation so the error twist is a pure translation.
+            goal_rot = target.rot if target.rot is not None else rot
+            goal_pos = target.pos if target.pos is not None else pos
+            task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(goal_rot), goal_pos))
+            tasks.append(task)
+            if target.axis is not None:
+                axis_task = self._axis_tasks.get(frame.name)
+                if axis_task is None:
+                    axis_task = mink.AxisAlignTask(frame.name, frame.kind, lm_damping=cfg.lm_damping)
+                    self._axis_tasks[frame.name] = axis_task
+                axis_task.set_axis(target.axis)
+                axis_task.set_cost(ocost)
+                axis_task.set_target(target.direction)
+                tasks.append(axis_task)
+        return tasks
+
+    def step(
+        self,
+        q: np.ndarray,
+        targets: Sequence[FrameTarget],
+        dt: float,
+        *,
+        extra_tasks: Sequence[mink.Task] = (),
+        object_poses: ObjectPoses | None = None,
+    ) -> np.ndarray:
+        """One IK step: the joint velocity v [rad/s] (15,) minimising the task costs for a step of ``dt`` [s].
+
+        Raises:
+            IKInfeasibleError: The QP has no solution; the message names the active limits.
+        """
+        if object_poses:
+            set_object_poses(self.model, self.configuration.data, object_poses)
+        self.configuration.update(np.asarray(q, dtype=float))
+        return self._step(targets, dt, extra_tasks)
+
+    def _step(self, targets: Sequence[FrameTarget], dt: float, extra_tasks: Sequence[mink.Task]) -> np.ndarray:
+        """:meth:`step` at the configuration already loaded in :attr:`configuration`."""
+        tasks = [*self._tasks(targets), self.posture, *extra_tasks]
+        limits = [self.collision] if self.collision is not None else []
+        problem = mink.build_ik(self.configuration, tasks, dt, damping=self.config.damping, limits=limits)
+        q = self.configuration.data.qpos
+        problem.lb, problem.ub = self.box.bounds(q, dt)
+        if np.any(problem.lb > problem.ub + 1e-12):
+            raise IKInfeasibleError(self._explain(q, problem.lb, problem.ub))
+        result = qpsolvers.solve_problem(problem, solver=self.config.solver)
+        if not result.found or result.x is None:
+            raise IKInfeasibleError(self._explain(q, problem.lb, problem.ub))
+        return np.asarray(result.x) / dt
+
+    def _explain(self, q: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> str:
+        """Describe the limits active at an infeasible step."""
+        parts = []
+        for i in np.flatnonzero((lb > 0) | (ub < 0) | (lb > ub)):
+            parts.append(
+                f"joint {JOINT_NAMES[i]} at {q[i]:.4f} rad outside [{self.box.lower[i]:.4f}, {self.box.upper[i]:.4f}]"
+                f" with step bound {self.box.vmax[i]:.3g} rad/s"
+            )
+        if self.collision is not None:
+            for idx, dist in self.collision.active:
+                if dist <= self.collision.min_distance[idx]:
+                    parts.append(f"collision pair {self.collision.pair_name(self.model, idx)} at {dist * 1000:.1f} mm")
+        what = "; ".join(parts) or "no single limit violated (conflicting limits or extra tasks)"
+        return f"IK QP infeasible ({self.config.solver}): active limits: {what}"
+
+    def solve(
+        self,
+        targets: Sequence[FrameTarget],
+        q0: np.ndarray,
+        *,
+        max_iters: int | None = None,
+        extra_tasks: Sequence[mink.Task] = (),
+        object_poses: ObjectPoses | None = None,
+    ) -> IKResult:
+        """Iterate IK steps of ``config.dt`` from ``q0`` until every target is within tolerance.
+
+        A descent that stalls in a local minimum (or hits the iteration cap) is restarted up to
+        ``config.restarts`` times from random in-limit configurations (seeded, so deterministic). An
+        unreachable target ends with ``converged=False`` (status ``max_iters`` or ``stalled``) and the best q
+        found; no exception. A step that would bring a watched collision pair below its minimum distance is
+        halved until it does not.
+
+        Args:
+            targets: Frame targets, solved together in one QP per step.
+            q0: Start configuration [rad] (15,).
+            max_iters: Iteration cap per descent (default ``config.max_iters``).
+            extra_tasks: Further mink tasks added to every step.
+            object_poses: Object name -> (pos, quat wxyz) for collision avoidance.
+
+        Raises:
+            IKInfeasibleError: A step's QP is infeasible (e.g. ``q0`` far outside the joint limits).
+        """
+        start = time.perf_counter()
+        cfg = self.config
+        if object_poses:
+            set_object_poses(self.model, self.configuration.data, object_poses)
+        frames = [self.frame(t.frame) for t in targets]
+        rng = np.random.default_rng(cfg.seed)
+        q, total, best = np.array(q0, dtype=float), 0, None
+        for attempt in range(cfg.restarts + 1):
+            if attempt:
+                q = rng.uniform(self.box.lower, self.box.upper)
+            score, q_best, pos_err, rot_err, iters, status = self._descend(
+                targets, frames, q, max_iters or cfg.max_iters, extra_tasks
+            )
+            total += iters
+            if best is None or score < best[0]:
+                best = (score, q_best, pos_err, rot_err, status)
+            if status == "converged":
+                break
+        assert best is not None  # noqa: S101 - the loop runs at least once
+        _, q_best, pos_err, rot_err, status = best
+        self.configuration.update(q_best)
+        return IKResult(q_best, status == "converged", pos_err, rot_err, total, status, time.perf_counter() - start)
+
+    def _descend(
+        self,
+        targets: Sequence[FrameTarget],
+        frames: Sequence[Frame],
+        q0: np.ndarray,
+        cap: int,
+        extra_tasks: Sequence[mink.Task],
+    ) -> tuple[float, np.ndarray, float, float, int, str]:
+        """One descent from ``q0``: (score, best q, position error, orientation error, iterations, status)."""
+        cfg, q = self.config, q0.copy()
+        self.configuration.update(q)
+        best = (np.inf, q.copy(), np.inf, np.inf)
+        since_best, iters = 0, 0
+        while True:
+            pos_err, rot_err = worst_errors(targets, [f.pose(self.configuration.data) for f in frames])
+            score = pos_err / cfg.pos_tol + rot_err / cfg.rot_tol
+            if score < best[0]:
+                since_best = 0 if score < 0.99 * best[0] else since_best
+                best = (score, q.copy(), pos_err, rot_err)
+            if pos_err <= cfg.pos_tol and rot_err <= cfg.rot_tol:
+                return (*best, iters, "converged")
+            if iters >= cap:
+                return (*best, iters, "max_iters")
+            if since_best >= cfg.stall_iters:
+                return (*best, iters, "stalled")
+            dq = self._step(targets, cfg.dt, extra_tasks) * cfg.dt
+            q = self._advance(q, dq)
+            iters, since_best = iters + 1, since_best + 1
+
+    def _advance(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """q + dq inside the joint limits, halving dq while a collision pair would drop below its minimum.
+
+        A pair already below its minimum distance may not get closer; every other pair must stay at or above it.
+        """
+        watch, data = self.collision, self.configuration.data
+        floor: dict[int, float] = {}
+        if watch is not None:
+            idx = watch.candidates(data)
+            floor = dict(zip(idx.tolist(), np.minimum(watch.distances(data, idx), watch.min_distance[idx]).tolist()))
+        for _ in range(8):
+            q_new = np.clip(q + dq, self.box.lower, self.box.upper)
+            self.configuration.update(q_new)
+            if watch is None:
+                return q_new
+            idx = watch.candidates(data)
+            need = np.array([floor.get(i, watch.min_distance[i]) for i in idx.tolist()])
+            if np.all(watch.distances(data, idx) >= need - 1e-6):
+                return q_new
+            dq = dq * 0.5
+        self.configuration.update(q)
+        return q
