@@ -115,7 +115,11 @@ def load_gains(path: str | Path) -> Gains:
     comp = doc.get("gravity_compensation", True)
     if not isinstance(comp, bool):
         raise ConfigError(f"{file}: gravity_compensation: expected true or false, got {comp!r}")
-    return Gains(kp, kd, gravity_compensation=comp, source=str(file))
+    try:
+        shown = str(file.resolve().relative_to(package_root()))
+    except ValueError:
+        shown = str(file)
+    return Gains(kp, kd, gravity_compensation=comp, source=shown)
 
 
 class PDController:

@@ -80,6 +80,12 @@ class Recorder:
         ts.append(t)
         values.append(np.asarray(value, dtype=float))
 
+    def recent(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The last ``n`` steps' time [s], q [rad] and qd [rad/s] (views, no copy)."""
+        lo = max(0, self._n - n)
+        b = self._buf
+        return b["t"][lo : self._n, 0], b["q"][lo : self._n], b["qd"][lo : self._n]
+
     def arrays(self) -> dict[str, np.ndarray]:
         """Everything recorded so far, as arrays (``t`` is 1-D)."""
         out = {k: b[: self._n].copy() for k, b in self._buf.items()}
@@ -267,7 +273,14 @@ class Simulation:
         fast = np.abs(np.nan_to_num(qd, nan=np.inf)) > self.max_speed
         if not (bad_warn or not finite.all() or fast.any() or not np.all(np.isfinite(d.qpos))):
             return
+        t = self.time
         if not finite.all():
+            # NaN spreads to every joint within a step: name the first joint that went bad in this tick.
+            ts, qs, qds = self.recorder.recent(self.n_substeps)
+            bad_rows = np.flatnonzero(~(np.isfinite(qs) & np.isfinite(qds)).all(axis=1))
+            if bad_rows.size:
+                t, q, qd = float(ts[bad_rows[0]]), qs[bad_rows[0]], qds[bad_rows[0]]
+                finite = np.isfinite(q) & np.isfinite(qd)
             j = int(np.flatnonzero(~finite)[0])
             what = f"joint {JOINT_NAMES[j]} state is not finite (q={q[j]}, qd={qd[j]})"
         elif fast.any():
@@ -275,6 +288,6 @@ class Simulation:
             what = f"joint {JOINT_NAMES[j]} velocity {qd[j]:.3g} rad/s exceeds {self.max_speed:g} rad/s"
         else:
             what = "MuJoCo reported a bad position, velocity or acceleration (an object's state is not finite)"
-        msg = f"t={self.time:.3f} s: {what}; the simulation diverged (gains too stiff for sim_dt={self.sim_dt} s?)"
+        msg = f"t={t:.3f} s: {what}; the simulation diverged (gains too stiff for sim_dt={self.sim_dt} s?)"
         self.recorder.meta["error"] = msg
         raise SimulationError(msg)

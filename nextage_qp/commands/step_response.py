@@ -1,0 +1,138 @@
+"""``nextage-qp step-response``: one joint steps to an absolute target, every other joint holds home."""
+
+from __future__ import annotations
+
+import argparse
+from typing import NamedTuple
+
+import numpy as np
+
+from nextage_qp.commands.common import add_scene_arg, print_json
+from nextage_qp.control import Gains, load_gains
+from nextage_qp.errors import ConfigError
+from nextage_qp.robot import Robot
+from nextage_qp.sim import Simulation
+
+
+class StepMetrics(NamedTuple):
+    """Classic step-response figures of one joint.
+
+    Attributes:
+        final_error_rad: |target − q(T)| at the end of the run [rad].
+        overshoot_pct: Largest excursion beyond the target, in % of the step.
+        rise_time_s: Time from 10 % to 90 % of the step [s] (None if 90 % is never reached).
+        settling_time_s: Time after which |target − q| stays within 2 % of the step [s] (None if never).
+        max_abs_torque_nm: Peak |torque| of the stepping joint [N·m].
+        saturated_steps: Physics steps on which that joint's torque was clamped to the actuator range.
+    """
+
+    final_error_rad: float
+    overshoot_pct: float
+    rise_time_s: float | None
+    settling_time_s: float | None
+    max_abs_torque_nm: float
+    saturated_steps: int
+
+
+def step_metrics(
+    t: np.ndarray, q: np.ndarray, tau: np.ndarray, q0: float, target: float, tau_max: float
+) -> StepMetrics:
+    """Figures of a step from ``q0`` to ``target`` [rad] given the joint's time series ``t``, ``q``, ``tau``."""
+    step = target - q0
+    progress = (q - q0) / step  # 0 at the start, 1 at the target
+    err = np.abs(target - q)
+    r10, r90 = np.flatnonzero(progress >= 0.1), np.flatnonzero(progress >= 0.9)
+    rise = float(t[r90[0]] - t[r10[0]]) if r90.size else None
+    outside = np.flatnonzero(err > 0.02 * abs(step))
+    if not outside.size:
+        settle: float | None = 0.0
+    elif outside[-1] == len(t) - 1:
+        settle = None
+    else:
+        settle = float(t[outside[-1] + 1] - t[0])
+    return StepMetrics(
+        final_error_rad=float(err[-1]),
+        overshoot_pct=float(max(0.0, (progress.max() - 1.0) * 100.0)),
+        rise_time_s=rise,
+        settling_time_s=settle,
+        max_abs_torque_nm=float(np.abs(tau).max()),
+        saturated_steps=int(np.sum(np.abs(tau) >= tau_max - 1e-9)),
+    )
+
+
+def run_step(
+    robot: Robot, joint: str, target: float, gains: Gains, *, duration: float = 3.0, shaped: bool = False
+) -> tuple[StepMetrics, Simulation]:
+    """Simulate a step of ``joint`` from the home pose to ``target`` [rad]; returns the figures and the run.
+
+    With ``shaped=False`` (the report's test) the reference jumps at t = 0; with ``shaped=True`` it
+    follows a jerk-limited Ruckig trajectory.
+
+    Raises:
+        UnknownJointError: ``joint`` is not a robot joint.
+        ConfigError: The target is outside the joint's range or equals the home position.
+    """
+    j = robot.joint_index(joint)
+    q0 = robot.keyframe_q("home")
+    lo, hi = float(robot.lower[j]), float(robot.upper[j])
+    if not lo <= target <= hi:
+        raise ConfigError(
+            f"--target-deg {np.rad2deg(target):.2f}: outside {joint}'s range "
+            f"[{np.rad2deg(lo):.2f}, {np.rad2deg(hi):.2f}] deg"
+        )
+    if abs(target - q0[j]) < 1e-6:
+        raise ConfigError(f"--target-deg {np.rad2deg(target):.2f}: equals {joint}'s home position; nothing to step")
+    if not duration > 0:
+        raise ConfigError(f"--duration must be > 0 s, got {duration}")
+    sim = Simulation(robot, gains, frames=())
+    sim.reset(q0)
+    q_des = q0.copy()
+    q_des[j] = target
+    sim.set_target(q_des, shaped=shaped)
+    sim.run(duration)
+    a = sim.recorder.arrays()
+    metrics = step_metrics(a["t"], a["q"][:, j], a["tau"][:, j], float(q0[j]), target, float(robot.torque_limit[j]))
+    return metrics, sim
+
+
+def _run(args: argparse.Namespace) -> int:
+    robot = Robot.from_scene(args.scene)
+    gains = load_gains(args.gains)
+    target = float(np.deg2rad(args.target_deg))
+    metrics, sim = run_step(robot, args.joint, target, gains, duration=args.duration, shaped=args.shaped)
+    if args.log:
+        sim.recorder.meta |= {"joint": args.joint, "target_rad": target, "gains": gains.source, **metrics._asdict()}
+        sim.recorder.save(args.log)
+    if args.plot:
+        from nextage_qp.plots import plot_step_response
+
+        j = robot.joint_index(args.joint)
+        mode = "Ruckig-shaped" if args.shaped else "raw step"
+        title = f"{args.joint}: {mode} to {args.target_deg:g}° ({gains.source})"
+        plot_step_response(sim.recorder.arrays(), j, args.joint, target, args.plot, title=title)
+    out = {"joint": args.joint, "target_rad": target, "gains": gains.source, "shaped": args.shaped, **metrics._asdict()}
+    if args.json:
+        print_json(out)
+    else:
+        for key, value in out.items():
+            print(f"{key:18s} {value:.6g}" if isinstance(value, float) else f"{key:18s} {value}")
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``step-response`` subcommand."""
+    p = subparsers.add_parser(
+        "step-response",
+        help="step one joint from home to an absolute target under PD control",
+        description=__doc__.splitlines()[0] if __doc__ else None,
+    )
+    p.add_argument("--joint", required=True, help="joint name, e.g. LARM_JOINT2")
+    p.add_argument("--target-deg", type=float, required=True, help="absolute target angle [deg]")
+    p.add_argument("--gains", default="default", help="gains YAML path or bundled name: default, report")
+    p.add_argument("--duration", type=float, default=3.0, help="simulated time [s] (default 3)")
+    p.add_argument("--shaped", action="store_true", help="follow a Ruckig trajectory instead of a raw step")
+    p.add_argument("--plot", metavar="PNG", help="write position/velocity/torque plot")
+    p.add_argument("--log", metavar="NPZ", help="write the recorded run (.npz + .json summary)")
+    p.add_argument("--json", action="store_true", help="print the figures as JSON")
+    add_scene_arg(p)
+    p.set_defaults(func=_run)

@@ -1,0 +1,101 @@
+import json
+
+import numpy as np
+import pytest
+
+from nextage_qp.control import Gains, load_gains
+from nextage_qp.errors import SimulationError
+from nextage_qp.robot import JOINT_NAMES, Robot
+from nextage_qp.sim import Simulation
+from nextage_qp.trajectory import TrajectoryLimits
+
+N = len(JOINT_NAMES)
+
+
+@pytest.fixture(scope="module")
+def gains():
+    return load_gains("default")
+
+
+def test_holds_home_and_records_every_physics_step(push_robot, gains):
+    sim = Simulation(push_robot, gains, frames=("left_wrist", "right_tool"))
+    home = push_robot.keyframe_q()
+    sim.reset(home)
+    sim.set_target(home)
+    sim.run(0.5)
+    assert sim.time == pytest.approx(0.5)
+    a = sim.recorder.arrays()
+    assert len(a["t"]) == 500 and np.allclose(np.diff(a["t"]), 0.001)
+    assert a["q"].shape == a["tau"].shape == (500, N)
+    assert np.max(np.abs(a["q"] - home)) < 1e-3
+    assert a["frame_left_wrist"].shape == (500, 7) and a["object_cube"].shape == (500, 7)
+    np.testing.assert_allclose(a["object_cube"][0, :3], [0.33, 0.0, 0.91], atol=1e-3)
+
+
+def test_shaped_target_tracked_within_limits(robot, gains):
+    limits = TrajectoryLimits(max_velocity=0.8, max_acceleration=3.0, max_jerk=30.0)
+    sim = Simulation(robot, gains, limits, frames=())
+    home = robot.keyframe_q()
+    target = robot.q_from_names({"LARM_JOINT0": 0.4, "LARM_JOINT1": -0.9, "RARM_JOINT2": -0.5}, base=home)
+    sim.reset(home)
+    sim.set_target(target)
+    sim.run(2.0)
+    assert sim.traj.done
+    a = sim.recorder.arrays()
+    v, _, _ = limits.arrays()
+    assert np.all(np.abs(a["qd_ref"]) <= v + 1e-9)
+    assert np.max(np.abs(sim.q - target)) < 1e-3
+    assert np.all(np.abs(a["tau"]) <= robot.torque_limit + 1e-9)
+
+
+def test_hooks_run_every_tick_and_extra_signals_saved(robot, gains, tmp_path):
+    sim = Simulation(robot, gains, frames=("left_wrist",))
+    sim.reset(robot.keyframe_q())
+    sim.hooks.append(lambda s: s.recorder.add("wrist_z", s.time, s.data.site_xpos[0][2:3]))
+    sim.run(0.1)
+    sim.recorder.meta["note"] = "hook test"
+    js = sim.recorder.save(tmp_path / "run.npz")
+    with np.load(tmp_path / "run.npz") as z:
+        assert z["extra_wrist_z"].shape == (25, 1) and z["extra_wrist_z_t"][-1] == pytest.approx(0.1)
+    summary = json.loads(js.read_text())
+    assert summary["samples"] == 100 and summary["note"] == "hook test"
+
+
+def test_divergence_is_caught_and_partial_log_written(robot, tmp_path):
+    kd = np.full(N, 1.0)
+    kd[JOINT_NAMES.index("LARM_JOINT5")] = 200.0  # kd * sim_dt / inertia >> 2: explicit PD is unstable
+    gains = Gains(np.full(N, 10.0), kd, gravity_compensation=True)
+    sim = Simulation(robot, gains, frames=("left_wrist",), max_speed=5.0)
+    home = robot.keyframe_q()
+    sim.reset(home)
+    target = home.copy()
+    target[JOINT_NAMES.index("LARM_JOINT5")] = 0.1
+    sim.set_target(target, shaped=False)
+    with pytest.raises(SimulationError, match=r"t=\d+\.\d{3} s: joint LARM_JOINT5") as exc:
+        sim.run(2.0)
+    sim.recorder.save(tmp_path / "diverged.npz")
+    summary = json.loads((tmp_path / "diverged.json").read_text())
+    assert summary["error"] == str(exc.value)
+    with np.load(tmp_path / "diverged.npz") as z:
+        assert 0 < len(z["t"]) < 2000 and np.all(np.isfinite(z["q"][:4]))
+
+
+def test_nan_state_is_caught_with_time_and_joint(robot, gains, tmp_path):
+    sim = Simulation(robot, gains, frames=())
+    sim.reset(robot.keyframe_q())
+    dof = robot.dof_idx[JOINT_NAMES.index("RARM_JOINT2")]
+
+    def corrupt(s):
+        if s.time >= 0.1:
+            s.data.qvel[dof] = np.nan
+
+    sim.hooks.append(corrupt)
+    with pytest.raises(SimulationError, match=r"t=0\.100 s: joint RARM_JOINT2 state is not finite"):
+        sim.run(1.0)
+    sim.recorder.save(tmp_path / "nan.npz")
+    assert json.loads((tmp_path / "nan.json").read_text())["samples"] == 104
+
+
+def test_ctrl_dt_must_be_multiple_of_sim_dt(gains):
+    with pytest.raises(SimulationError, match="integer multiple"):
+        Simulation(Robot.from_scene("nextage"), gains, ctrl_dt=0.0025)
