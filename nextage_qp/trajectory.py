@@ -177,7 +177,17 @@ class JointTrajectory:
         try:
             result = self._otg.update(self._inp, self._out)
         except ruckig.RuckigError as exc:
-            raise _joint_error(exc, "reference update", self.names) from None
+            # Time synchronisation of all joints can fail numerically for some states ("t sync"); each joint's
+            # own time-optimal profile still honours every limit, so retry unsynchronised before giving up.
+            if self._inp.synchronization == ruckig.Synchronization.No:
+                raise _joint_error(exc, "reference update", self.names) from None
+            self._inp.synchronization = ruckig.Synchronization.No
+            try:
+                result = self._otg.update(self._inp, self._out)
+            except ruckig.RuckigError as exc2:
+                raise _joint_error(exc2, "reference update", self.names) from None
+            finally:
+                self._inp.synchronization = ruckig.Synchronization.Time
         _check(result, "reference update")
         self._result = result
         self._t0 = self._out.time - self.dt
