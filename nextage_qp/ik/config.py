@@ -38,26 +38,26 @@ class CollisionPairConfig(BaseModel):
 
 
 class IKConfig(BaseModel):
-    """Differential IK as a QP: task costs, regularisation, limits and solver.
+    r"""Differential IK as a QP: task costs, regularisation, limits and solver.
 
-    The QP solved each step (mink's formulation, :math:`\\Delta q = v\\,dt`) is
+    The QP solved each step (mink's formulation, :math:`\Delta q = v\,dt`) is
 
     .. math::
 
-        \\min_{\\Delta q}\\ \\sum_i \\|W_i (J_i \\Delta q + e_i)\\|^2
-            + w_p^2 \\|\\Delta q + q - q_p\\|^2 + (\\lambda + \\mu \\|W e\\|^2) \\|\\Delta q\\|^2
-        \\quad \\text{s.t.}\\quad \\text{joint box},\\ \\text{collision rows}
+        \min_{\Delta q}\ \sum_i \|W_i (J_i \Delta q + e_i)\|^2
+            + w_p^2 \|\Delta q + q - q_p\|^2 + (\lambda + \mu \|W e\|^2) \|\Delta q\|^2
+        \quad \text{s.t.}\quad \text{joint box},\ \text{collision rows}
 
     with frame errors :math:`e_i` (position [m], rotation [rad]), weights :math:`W_i` from the position and
-    orientation costs, posture weight :math:`w_p`, constant damping :math:`\\lambda` and
-    Levenberg–Marquardt damping :math:`\\mu`.
+    orientation costs, posture weight :math:`w_p`, constant damping :math:`\lambda` and
+    Levenberg–Marquardt damping :math:`\mu`.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     position_cost: float = Field(default=1.0, ge=0.0, description="Weight of frame position errors [1/m].")
     orientation_cost: float = Field(default=1.0, ge=0.0, description="Weight of frame orientation errors [1/rad].")
-    posture_cost: float = Field(default=1e-3, ge=0.0, description="Weight of the posture task [1/rad].")
+    posture_cost: float = Field(default=1e-4, ge=0.0, description="Weight of the posture task [1/rad].")
     posture_target: Literal["home", "zero"] | dict[str, float] = Field(
         default="home", description="Posture the redundancy is pulled towards: a keyframe or joint -> [rad]."
     )
@@ -77,7 +77,7 @@ class IKConfig(BaseModel):
         default=0.95, gt=0.0, le=1.0, description="Fraction of the distance to a joint limit allowed per step."
     )
     restarts: int = Field(
-        default=10, ge=0, description="solve(): random in-limit restarts after a descent stalls (local minimum)."
+        default=20, ge=0, description="solve(): random in-limit restarts after a descent stalls (local minimum)."
     )
     seed: int = Field(default=0, description="Seed of the restart configurations (solve() is deterministic).")
     collision_pairs: tuple[CollisionPairConfig, ...] = Field(
@@ -87,7 +87,7 @@ class IKConfig(BaseModel):
         default=0.85, gt=0.0, le=1.0, description="Fraction of the gap to min_distance a pair may close per step."
     )
     stall_iters: int = Field(
-        default=30, ge=1, description="solve() stops as 'stalled' after this many iterations without 1 % progress."
+        default=15, ge=1, description="solve() stops as 'stalled' after this many iterations without 1 % progress."
     )
 
     @field_validator("solver")

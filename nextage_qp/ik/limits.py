@@ -27,11 +27,11 @@ from mink.limits.limit import Constraint
 
 
 class JointBoxLimit(mink.Limit):
-    """Joint position and velocity limits as one box on the step :math:`\\Delta q` [rad].
+    r"""Joint position and velocity limits as one box on the step :math:`\Delta q` [rad].
 
     .. math::
 
-        \\max(-g (q - q_{min}), -v_{max} dt) \\le \\Delta q \\le \\min(g (q_{max} - q), v_{max} dt)
+        \max(-g (q - q_{min}), -v_{max} dt) \le \Delta q \le \min(g (q_{max} - q), v_{max} dt)
 
     with limit gain :math:`g` and speed limit :math:`v_{max}` [rad/s] (``inf`` where unlimited).
     """
@@ -42,7 +42,7 @@ class JointBoxLimit(mink.Limit):
         self._G = np.vstack([np.eye(n), -np.eye(n)])
 
     def bounds(self, q: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """``(lb, ub)`` of :math:`\\Delta q` at configuration ``q`` for a step of ``dt`` [s]."""
+        r"""``(lb, ub)`` of :math:`\Delta q` at configuration ``q`` for a step of ``dt`` [s]."""
         step = self.vmax * dt
         lb = np.maximum(-self.gain * (q - self.lower), -step)
         ub = np.minimum(self.gain * (self.upper - q), step)
@@ -55,14 +55,14 @@ class JointBoxLimit(mink.Limit):
 
 
 class ActiveCollisionLimit(mink.Limit):
-    """Keep geom pairs apart, emitting one QP row per pair closer than its detection distance.
+    r"""Keep geom pairs apart, emitting one QP row per pair closer than its detection distance.
 
     For an active pair at distance :math:`d` [m] with contact normal :math:`n` and witness-point Jacobians
     :math:`J_1, J_2`, the row is (mink's formulation)
 
     .. math::
 
-        -n^T (J_2 - J_1) \\Delta q \\le g\\,\\max(d - d_{min}, 0)
+        -n^T (J_2 - J_1) \Delta q \le g\,\max(d - d_{min}, 0)
 
     with collision gain :math:`g`, so the gap closes by at most a fraction ``g`` of its excess per step.
 
@@ -73,7 +73,10 @@ class ActiveCollisionLimit(mink.Limit):
     """
 
     def __init__(
-        self, model: mujoco.MjModel, group_pairs: Sequence[tuple[Sequence[int], Sequence[int], float, float]], gain: float
+        self,
+        model: mujoco.MjModel,
+        group_pairs: Sequence[tuple[Sequence[int], Sequence[int], float, float]],
+        gain: float,
     ) -> None:
         self.model, self.gain = model, gain
         pairs: dict[tuple[int, int], tuple[float, float]] = {}
@@ -97,6 +100,16 @@ class ActiveCollisionLimit(mink.Limit):
         # A plane has rbound 0 (unbounded): never filter it out.
         unbounded = (rbound[self.geom1] == 0) | (rbound[self.geom2] == 0)
         self._reach = np.where(unbounded, np.inf, rbound[self.geom1] + rbound[self.geom2] + self.detection_distance)
+        # Distance cache reused between ticks: pairs are queried up to detection + margin; a pair whose cached
+        # distance minus how far either geom can have moved since (centre shift + rbound * rotation chord)
+        # still exceeds its detection distance needs no narrow-phase query.
+        self.margin = 0.05
+        n = len(keys)
+        self._rb1, self._rb2 = rbound[self.geom1], rbound[self.geom2]
+        self._cached = np.full(n, -np.inf)
+        self._bounded = ~unbounded
+        self._ref_p1, self._ref_p2 = np.zeros((n, 3)), np.zeros((n, 3))
+        self._ref_r1, self._ref_r2 = np.zeros((n, 9)), np.zeros((n, 9))
         self._fromto, self._normal = np.empty(6), np.empty(3)
         self._jac1, self._jac2 = np.empty((3, model.nv)), np.empty((3, model.nv))
         self.active: list[tuple[int, float]] = []
@@ -113,6 +126,20 @@ class ActiveCollisionLimit(mink.Limit):
         centre_sq = np.einsum("ij,ij->i", delta, delta)
         return np.flatnonzero(centre_sq < self._reach**2)
 
+    def _stale(self, data: mujoco.MjData, idx: np.ndarray) -> np.ndarray:
+        """Candidates whose cached distance no longer proves them beyond detection distance."""
+        if idx.size == 0:
+            return idx
+        g1, g2 = self.geom1[idx], self.geom2[idx]
+        move = (
+            np.linalg.norm(data.geom_xpos[g1] - self._ref_p1[idx], axis=1)
+            + np.linalg.norm(data.geom_xpos[g2] - self._ref_p2[idx], axis=1)
+            + self._rb1[idx] * np.linalg.norm(data.geom_xmat[g1] - self._ref_r1[idx], axis=1) / np.sqrt(2.0)
+            + self._rb2[idx] * np.linalg.norm(data.geom_xmat[g2] - self._ref_r2[idx], axis=1) / np.sqrt(2.0)
+        )
+        proven_far = self._bounded[idx] & (self._cached[idx] - move >= self.detection_distance[idx])
+        return idx[~proven_far]
+
     def distances(self, data: mujoco.MjData, indices: Sequence[int] | np.ndarray) -> np.ndarray:
         """Signed distances [m] of the given pairs, capped at their detection distance."""
         out = np.empty(len(indices))
@@ -128,16 +155,20 @@ class ActiveCollisionLimit(mink.Limit):
         rows: list[np.ndarray] = []
         bounds: list[float] = []
         self.active = []
-        for idx in self.candidates(data):
+        need = self._stale(data, self.candidates(data))
+        for idx in need:
             g1, g2 = int(self.geom1[idx]), int(self.geom2[idx])
             dmax = float(self.detection_distance[idx])
-            dist = mujoco.mj_geomDistance(model, data, g1, g2, dmax, fromto)
-            if dist >= dmax - 1e-12:
+            dist = mujoco.mj_geomDistance(model, data, g1, g2, dmax + self.margin, fromto)
+            self._cached[idx] = dist
+            if dist >= dmax:
                 continue
             row = compute_contact_normal_jacobian(model, data, g1, g2, fromto, self._normal, self._jac1, self._jac2)
             rows.append(-row if dist >= 0 else row)
             bounds.append(self.gain * max(dist - float(self.min_distance[idx]), 0.0))
             self.active.append((int(idx), dist))
+        self._ref_p1[need], self._ref_p2[need] = data.geom_xpos[self.geom1[need]], data.geom_xpos[self.geom2[need]]
+        self._ref_r1[need], self._ref_r2[need] = data.geom_xmat[self.geom1[need]], data.geom_xmat[self.geom2[need]]
         if not rows:
             return Constraint()
         return Constraint(G=np.vstack(rows), h=np.array(bounds))

@@ -9,11 +9,17 @@ backtracking guard that never accepts a q closing a collision pair below its min
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 import mink
+import mujoco
 import numpy as np
 import qpsolvers
+
+try:
+    import daqp
+except ImportError:  # pragma: no cover - daqp is a dependency, other backends still work
+    daqp = None
 
 from nextage_qp.errors import UnknownNameError
 from nextage_qp.ik.config import IKConfig
@@ -44,7 +50,9 @@ class QPIK:
             q_posture = robot.q_from_names(config.posture_target, base=robot.keyframe_q("home"))
         self.posture = mink.PostureTask(self.model, cost=config.posture_cost)
         self.posture.set_target(q_posture)
-        vmax = np.full(robot.nq, float(config.velocity_limit) if not isinstance(config.velocity_limit, dict) else np.inf)
+        vmax = np.full(
+            robot.nq, float(config.velocity_limit) if not isinstance(config.velocity_limit, dict) else np.inf
+        )
         if isinstance(config.velocity_limit, dict):
             for name, value in config.velocity_limit.items():
                 vmax[robot.joint_index(name)] = value
@@ -73,7 +81,7 @@ class QPIK:
         return self._frames[name]
 
     def _tasks(self, targets: Sequence[FrameTarget]) -> list[mink.Task]:
-        """mink tasks for the targets, reusing one FrameTask / AxisAlignTask per frame across ticks."""
+        """Mink tasks for the targets, reusing one FrameTask / AxisAlignTask per frame across ticks."""
         cfg, tasks = self.config, []
         for target in targets:
             frame = self.frame(target.frame)
@@ -84,12 +92,13 @@ class QPIK:
             pos, rot = frame.pose(self.configuration.data)
             pcost = cfg.position_cost if target.position_cost is None else target.position_cost
             ocost = cfg.orientation_cost if target.orientation_cost is None else target.orientation_cost
-            task.set_position_cost(pcost if target.pos is not None else 0.0)
-            task.set_orientation_cost(ocost if target.rot is not None else 0.0)
+            task.cost[:3] = pcost if target.pos is not None else 0.0
+            task.cost[3:] = ocost if target.rot is not None else 0.0
             # Without a rotation target, aim at the current rotation so the error twist is a pure translation.
-            goal_rot = target.rot if target.rot is not None else rot
-            goal_pos = target.pos if target.pos is not None else pos
-            task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(goal_rot), goal_pos))
+            wxyz_xyz = np.empty(7)
+            mujoco.mju_mat2Quat(wxyz_xyz[:4], (target.rot if target.rot is not None else rot).reshape(-1))
+            wxyz_xyz[4:] = target.pos if target.pos is not None else pos
+            task.transform_target_to_world = mink.SE3(wxyz_xyz=wxyz_xyz)
             tasks.append(task)
             if target.axis is not None:
                 axis_task = self._axis_tasks.get(frame.name)
@@ -130,10 +139,26 @@ class QPIK:
         problem.lb, problem.ub = self.box.bounds(q, dt)
         if np.any(problem.lb > problem.ub + 1e-12):
             raise IKInfeasibleError(self._explain(q, problem.lb, problem.ub))
-        result = qpsolvers.solve_problem(problem, solver=self.config.solver)
-        if not result.found or result.x is None:
+        if self.config.solver == "daqp" and daqp is not None:
+            x = self._solve_daqp(problem)
+        else:
+            result = qpsolvers.solve_problem(problem, solver=self.config.solver)
+            x = result.x if result.found else None
+        if x is None:
             raise IKInfeasibleError(self._explain(q, problem.lb, problem.ub))
-        return np.asarray(result.x) / dt
+        return np.asarray(x) / dt
+
+    @staticmethod
+    def _solve_daqp(problem: qpsolvers.Problem) -> np.ndarray | None:
+        """DAQP called directly: the joint box as its native simple bounds, collision rows as inequalities."""
+        n = len(problem.q)
+        rows = 0 if problem.G is None else len(problem.G)
+        a_mat = np.zeros((0, n)) if problem.G is None else np.ascontiguousarray(problem.G)
+        upper = np.concatenate([problem.ub, problem.h]) if problem.h is not None else np.asarray(problem.ub)
+        lower = np.concatenate([problem.lb, np.full(rows, -1e30)])
+        sense = np.zeros(n + rows, dtype=np.int32)
+        x, _, exitflag, _ = daqp.solve(problem.P, problem.q, a_mat, upper, lower, sense)
+        return x if exitflag > 0 else None
 
     def _explain(self, q: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> str:
         """Describe the limits active at an infeasible step."""
@@ -195,7 +220,7 @@ class QPIK:
                 best = (score, q_best, pos_err, rot_err, status)
             if status == "converged":
                 break
-        assert best is not None  # noqa: S101 - the loop runs at least once
+        assert best is not None
         _, q_best, pos_err, rot_err, status = best
         self.configuration.update(q_best)
         return IKResult(q_best, status == "converged", pos_err, rot_err, total, status, time.perf_counter() - start)
@@ -230,7 +255,7 @@ class QPIK:
             iters, since_best = iters + 1, since_best + 1
 
     def _advance(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """q + dq inside the joint limits, halving dq while a collision pair would drop below its minimum.
+        """Q + dq inside the joint limits, halving dq while a collision pair would drop below its minimum.
 
         A pair already below its minimum distance may not get closer; every other pair must stay at or above it.
         """
@@ -238,7 +263,7 @@ class QPIK:
         floor: dict[int, float] = {}
         if watch is not None:
             idx = watch.candidates(data)
-            floor = dict(zip(idx.tolist(), np.minimum(watch.distances(data, idx), watch.min_distance[idx]).tolist()))
+            floor = dict(zip(idx.tolist(), np.minimum(watch.distances(data, idx), watch.min_distance[idx]).tolist(), strict=True))
         for _ in range(8):
             q_new = np.clip(q + dq, self.box.lower, self.box.upper)
             self.configuration.update(q_new)

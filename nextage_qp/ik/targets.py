@@ -104,10 +104,10 @@ class IKResult(NamedTuple):
 
 
 def target_errors(target: FrameTarget, pos: np.ndarray, rot: np.ndarray) -> tuple[float, float]:
-    """Position error [m] and orientation error [rad] of a frame at pose (pos, rot) against a target.
+    r"""Position error [m] and orientation error [rad] of a frame at pose (pos, rot) against a target.
 
     The orientation error is the angle of :math:`R_t^T R` for a full rotation target, and the angle
-    :math:`\\arccos(\\hat d \\cdot R a)` between the tool axis and the direction for an axis target.
+    :math:`\arccos(\hat d \cdot R a)` between the tool axis and the direction for an axis target.
     """
     pos_err = 0.0 if target.pos is None else float(np.linalg.norm(pos - target.pos))
     if target.rot is not None:
