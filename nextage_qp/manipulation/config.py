@@ -138,6 +138,7 @@ class Waypoint(_Strict):
     offset: Vec3 = (0.0, 0.0, 0.0)
     axes: Literal["world", "yaw"] = "world"
     yaw: float | None = Field(default=None, description="Object yaw relative to the reference yaw [rad].")
+    correct: bool = Field(default=False, description="Here, shift the rest of the path by the live planar error.")
 
 
 class CarryPhase(_Phase):
@@ -146,7 +147,8 @@ class CarryPhase(_Phase):
     kind: Literal["carry"]
     object: str
     waypoints: list[Waypoint] = Field(min_length=1)
-    tolerance: float = Field(default=0.005, gt=0, description="Object setpoint tracking tolerance at the end [m].")
+    tolerance: float = Field(default=0.003, gt=0, description="Planar object error accepted at a correcting waypoint [m].")
+    corrections: int = Field(default=3, ge=0, description="Closed-loop shifts allowed per correcting waypoint.")
     speed: float = Field(default=0.1, gt=0, description="Cartesian speed of the object setpoint [m/s].")
     relative_cost: float = Field(default=10.0, ge=0, description="Weight of the pads' relative pose task.")
 

@@ -209,6 +209,7 @@ class Carry(PhaseRunner):
         self.sp, self.yaw0 = Setpoint(obj), yaw_of(rot)
         self.goals = [ctx.resolve_point(w) for w in c.waypoints]
         self.leg, self.leg_from, self.yaw = 0, (obj.copy(), self.yaw0), self.yaw0
+        self.corrections = 0
         frames = list(ctx.grasp_offsets)
         rel = mink.RelativeFrameTask(frames[0], "site", frames[1], "site", position_cost=c.relative_cost,
                                      orientation_cost=c.relative_cost)
@@ -225,7 +226,7 @@ class Carry(PhaseRunner):
         if self.leg < len(self.goals):
             goal, goal_yaw = self.goals[self.leg]
             start, start_yaw = self.leg_from
-            if self.sp.advance(goal, c.speed, ctx.dt):
+            if self.sp.advance(goal, c.speed, ctx.dt) and self._leg_finished(ctx):
                 self.leg += 1
                 self.leg_from = (goal.copy(), goal_yaw)
             span = float(np.linalg.norm(goal - start))
@@ -234,11 +235,25 @@ class Carry(PhaseRunner):
         rz = rot_z(self.yaw)
         targets = [FrameTarget(f, pos=self.sp.pos + rz @ off, rot=rz @ ctx.grasp_rot[f])
                    for f, off in ctx.grasp_offsets.items()]
-        done = self.leg == len(self.goals) and settled(ctx)
-        if done:
-            obj, _ = ctx.body_pose(c.object)
-            self.info["object_setpoint_error_m"] = float(np.linalg.norm(obj - self.sp.pos))
-        return targets, done
+        return targets, self.leg == len(self.goals) and settled(ctx)
+
+    def _leg_finished(self, ctx: RunContext) -> bool:
+        """At a waypoint marked ``correct``: once settled, shift it and the rest by the object's planar error."""
+        c = self.cfg
+        if not c.waypoints[min(self.leg, len(c.waypoints) - 1)].correct or self.leg >= len(c.waypoints):
+            return True
+        if not settled(ctx):
+            return False
+        obj, _ = ctx.body_pose(c.object)
+        goal = self.goals[self.leg][0]
+        err = np.array([*(goal - obj)[:2], 0.0])
+        self.info["object_error_xy_m"] = float(np.linalg.norm(err))
+        if np.linalg.norm(err) <= c.tolerance or self.corrections >= c.corrections:
+            return True
+        self.corrections += 1
+        self.info["corrections"] = self.corrections
+        self.goals = self.goals[: self.leg] + [(g + err, y) for g, y in self.goals[self.leg :]]
+        return False
 
 
 class Release(PhaseRunner):

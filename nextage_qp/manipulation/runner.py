@@ -209,9 +209,13 @@ def _brief(info: dict[str, Any]) -> str:
 
 
 class OutcomeMonitor:
-    """Per-tick safety metrics: obstacle clearance and contacts, and whether a held object was dropped."""
+    """Per-tick safety metrics: obstacle clearance and contacts, and whether a held object was dropped.
 
-    def __init__(self, robot: Robot, obj: str, drop_distance: float = 0.06) -> None:
+    A held object counts as dropped when the midpoint of the clamp pads is more than ``drop_distance`` [m]
+    from where the grasp put it in the object's frame.
+    """
+
+    def __init__(self, robot: Robot, obj: str, drop_distance: float = 0.03) -> None:
         m = robot.model
         self.model, self.obj, self.drop_distance = m, obj, drop_distance
         groups = robot.collision_geoms()
@@ -248,6 +252,7 @@ class OutcomeMonitor:
         if len(pads) < 2:
             return
         mid = 0.5 * (ctx.frame_pose(pads[0])[0] + ctx.frame_pose(pads[1])[0])
-        obj, _ = ctx.body_pose(ctx.holding or self.obj)
-        if np.linalg.norm(obj - mid) > self.drop_distance:
+        obj, rot = ctx.body_pose(ctx.holding or self.obj)
+        expected = obj + rot @ np.mean([ctx.grasp_offsets[p] for p in pads], axis=0)
+        if np.linalg.norm(mid - expected) > self.drop_distance:
             self.dropped = True
