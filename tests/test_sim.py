@@ -80,7 +80,8 @@ def test_divergence_is_caught_and_partial_log_written(robot, tmp_path):
         assert 0 < len(z["t"]) < 2000 and np.all(np.isfinite(z["q"][:4]))
 
 
-def test_nan_state_is_caught_with_time_and_joint(robot, gains, tmp_path):
+def test_nan_state_is_caught_with_time_and_joint(robot, gains, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT in the working directory
     sim = Simulation(robot, gains, frames=())
     sim.reset(robot.keyframe_q())
     dof = robot.dof_idx[JOINT_NAMES.index("RARM_JOINT2")]
