@@ -263,7 +263,8 @@ class QPIK:
         floor: dict[int, float] = {}
         if watch is not None:
             idx = watch.candidates(data)
-            floor = dict(zip(idx.tolist(), np.minimum(watch.distances(data, idx), watch.min_distance[idx]).tolist(), strict=True))
+            dist = np.minimum(watch.distances(data, idx), watch.min_distance[idx])
+            floor = dict(zip(idx.tolist(), dist.tolist(), strict=True))
         for _ in range(8):
             q_new = np.clip(q + dq, self.box.lower, self.box.upper)
             self.configuration.update(q_new)

@@ -1,0 +1,110 @@
+"""``nextage-qp ik``: solve inverse kinematics for one or two frames and print q and the residuals."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from nextage_qp.commands.common import add_scene_arg, print_json
+from nextage_qp.errors import ConfigError
+from nextage_qp.ik import QPIK, FrameTarget, IKConfig, IKResult
+from nextage_qp.ik.baselines import dls_ik, lm_ik, pinv_ik
+from nextage_qp.robot import JOINT_NAMES, Robot
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``ik`` subcommand."""
+    p = subparsers.add_parser("ik", help="inverse kinematics of one or two frames (QP or a baseline)")
+    p.add_argument("--frame", required=True, help="body or site, e.g. left_wrist or LARM_JOINT5_Link")
+    p.add_argument("--pos", nargs=3, type=float, required=True, metavar=("X", "Y", "Z"), help="target position [m]")
+    p.add_argument("--axis", nargs=3, type=float, metavar=("AX", "AY", "AZ"), help="tool axis (frame coords) to aim")
+    p.add_argument("--dir", nargs=3, type=float, default=None, metavar=("DX", "DY", "DZ"),
+                   help="world direction for --axis (default 0 0 1)")  # fmt: skip
+    p.add_argument("--quat", nargs=4, type=float, metavar=("W", "X", "Y", "Z"), help="target orientation")
+    p.add_argument("--frame2", help="second frame, solved in the same QP")
+    p.add_argument("--pos2", nargs=3, type=float, metavar=("X", "Y", "Z"))
+    p.add_argument("--axis2", nargs=3, type=float, metavar=("AX", "AY", "AZ"))
+    p.add_argument("--dir2", nargs=3, type=float, default=None, metavar=("DX", "DY", "DZ"))
+    p.add_argument("--quat2", nargs=4, type=float, metavar=("W", "X", "Y", "Z"))
+    p.add_argument("--from", dest="start", default="home", help="start keyframe: home or zero (default home)")
+    p.add_argument("--method", choices=("qp", "pinv", "dls", "lm"), default="qp", help="IK method (default qp)")
+    p.add_argument("--solver", default="daqp", help="QP backend for --method qp (default daqp)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    add_scene_arg(p)
+    p.set_defaults(func=run)
+
+
+def _target(frame: str, pos: list[float], axis: list[float] | None, direction: list[float] | None,
+            quat: list[float] | None, flag: str) -> FrameTarget:  # fmt: skip
+    if axis is not None and quat is not None:
+        raise ConfigError(f"--axis{flag} and --quat{flag} exclude each other")
+    if direction is not None and axis is None:
+        raise ConfigError(f"--dir{flag} needs --axis{flag}")
+    rot = None
+    if quat is not None:
+        w, x, y, z = np.asarray(quat) / max(float(np.linalg.norm(quat)), 1e-12)
+        rot = np.array([
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ])  # fmt: skip
+    return FrameTarget(
+        frame, pos=np.asarray(pos), rot=rot,
+        axis=None if axis is None else np.asarray(axis),
+        direction=None if axis is None else np.asarray(direction if direction is not None else (0.0, 0.0, 1.0)),
+    )  # fmt: skip
+
+
+def run(args: argparse.Namespace) -> int:
+    """Solve and print; returns 0 when converged, 1 otherwise."""
+    robot = Robot.from_scene(args.scene)
+    targets = [_target(args.frame, args.pos, args.axis, args.dir, args.quat, "")]
+    if args.frame2 is not None:
+        if args.pos2 is None:
+            raise ConfigError("--frame2 needs --pos2 X Y Z")
+        targets.append(_target(args.frame2, args.pos2, args.axis2, args.dir2, args.quat2, "2"))
+    elif args.pos2 is not None:
+        raise ConfigError("--pos2 needs --frame2 FRAME")
+    if args.start not in ("home", "zero"):
+        raise ConfigError(f"--from {args.start!r}: expected home or zero")
+    q0 = robot.keyframe_q(args.start)
+    result: IKResult
+    if args.method == "qp":
+        result = QPIK(robot, _config(args.solver)).solve(targets, q0)
+    else:
+        for t in targets:
+            robot.frame(t.frame)
+        result = {"pinv": pinv_ik, "dls": dls_ik, "lm": lm_ik}[args.method](robot, targets, q0)
+    if args.json:
+        print_json({
+            "q": robot.q_to_names(result.q), "converged": result.converged, "pos_err_m": result.pos_err_m,
+            "rot_err_rad": result.rot_err_rad, "iters": result.iters, "status": result.status,
+            "time_s": result.time_s, "method": args.method,
+        })  # fmt: skip
+    else:
+        _print_table(result, args.method)
+    return 0 if result.converged else 1
+
+
+def _config(solver: str) -> IKConfig:
+    try:
+        return IKConfig(solver=solver)
+    except ValueError as exc:  # pydantic's ValidationError
+        raise ConfigError(f"--solver: {exc.errors()[0]['msg'] if hasattr(exc, 'errors') else exc}") from None
+
+
+def _print_table(result: IKResult, method: str) -> None:
+    table = Table(title=f"IK ({method}): {result.status}")
+    table.add_column("joint")
+    table.add_column("q [rad]", justify="right")
+    table.add_column("q [deg]", justify="right")
+    for name, value in zip(JOINT_NAMES, result.q, strict=True):
+        table.add_row(name, f"{value:+.4f}", f"{np.degrees(value):+.1f}")
+    console = Console()
+    console.print(table)
+    console.print(f"position error {result.pos_err_m * 1e3:.3f} mm, orientation error "
+                  f"{np.degrees(result.rot_err_rad):.3f} deg, converged: {result.converged}, "
+                  f"{result.iters} iterations, {result.time_s * 1e3:.1f} ms")  # fmt: skip

@@ -1,0 +1,188 @@
+import mujoco
+import numpy as np
+import pytest
+
+from nextage_qp.errors import ConfigError, UnknownFrameError, UnknownNameError
+from nextage_qp.ik import QPIK, CollisionPairConfig, FrameTarget, IKConfig, IKInfeasibleError, kinematic_model
+from nextage_qp.ik.targets import worst_errors
+from nextage_qp.kinematics import Kinematics
+from nextage_qp.robot import JOINT_NAMES, Robot
+
+
+@pytest.fixture(scope="module")
+def robot() -> Robot:
+    return Robot.from_scene("dock_dumbbell")
+
+
+@pytest.fixture(scope="module")
+def kin(robot: Robot) -> Kinematics:
+    return Kinematics(robot)
+
+
+def test_kinematic_model_has_only_robot_joints(robot: Robot) -> None:
+    model = kinematic_model(robot)
+    assert model.nq == model.nv == 15
+    assert model.nmocap == 1
+    assert [model.joint(i).name for i in range(model.njnt)] == list(JOINT_NAMES)
+
+
+def test_error_strictly_decreasing_on_easy_target(robot: Robot, kin: Kinematics) -> None:
+    ik = QPIK(robot, IKConfig())
+    home = robot.keyframe_q("home")
+    pose = kin.fk("left_wrist", home)
+    target = [FrameTarget("left_wrist", pos=pose.pos + np.array([0.05, -0.05, 0.04]), rot=pose.rot)]
+    q, errors = home.copy(), []
+    for _ in range(8):
+        p = kin.fk("left_wrist", q)
+        errors.append(np.linalg.norm(p.pos - target[0].pos))
+        q = q + ik.step(q, target, 0.1) * 0.1
+    assert all(b < a for a, b in zip(errors, errors[1:], strict=False))
+    res = ik.solve(target, home)
+    assert res.converged and res.status == "converged" and res.pos_err_m <= 1e-4 and res.rot_err_rad <= 1e-3
+
+
+def test_axis_target_points_tool_axis(robot: Robot, kin: Kinematics) -> None:
+    ik = QPIK(robot, IKConfig())
+    t = FrameTarget(
+        "left_wrist", pos=np.array([0.45, 0.2, 1.0]), axis=np.array([0, 0, 1.0]), direction=np.array([0, 0, 1.0])
+    )
+    res = ik.solve([t], robot.keyframe_q("home"))
+    assert res.converged
+    rot = kin.fk("left_wrist", res.q).rot
+    assert rot[:, 2] @ np.array([0, 0, 1.0]) > np.cos(1e-3)
+
+
+def test_limits_never_violated_over_random_solves(robot: Robot, kin: Kinematics) -> None:
+    ik = QPIK(robot, IKConfig(max_iters=40, restarts=1))
+    rng = np.random.default_rng(3)
+    for _ in range(25):
+        goal = rng.uniform(robot.lower - 0.5, robot.upper + 0.5)  # some targets out of reach
+        pose = kin.fk("right_wrist", np.clip(goal, robot.lower, robot.upper))
+        res = ik.solve([FrameTarget("right_wrist", pos=pose.pos + rng.normal(0, 0.2, 3))], robot.keyframe_q("home"))
+        assert robot.within_limits(res.q, tol=0.0)
+
+
+def test_unreachable_target_returns_best_q(robot: Robot) -> None:
+    ik = QPIK(robot, IKConfig(restarts=1))
+    res = ik.solve([FrameTarget("left_wrist", pos=np.array([2.0, 0.5, 1.0]))], robot.keyframe_q("home"))
+    assert not res.converged and res.status in ("stalled", "max_iters")
+    assert 1.0 < res.pos_err_m < 1.5  # arm stretched towards the target
+    assert robot.within_limits(res.q)
+
+
+def test_infeasible_start_raises_with_active_limits(robot: Robot) -> None:
+    ik = QPIK(robot, IKConfig())
+    q0 = robot.keyframe_q("home")
+    q0[robot.joint_index("LARM_JOINT1")] = -3.5  # 1.06 rad below its limit, more than one step of 0.3 rad
+    with pytest.raises(IKInfeasibleError, match="LARM_JOINT1"):
+        ik.solve([FrameTarget("left_wrist", pos=np.array([0.4, 0.2, 1.0]))], q0)
+
+
+def test_mirrored_targets_give_mirrored_joints(robot: Robot, kin: Kinematics) -> None:
+    ik = QPIK(robot, IKConfig())
+    m = np.diag([1.0, -1.0, 1.0])
+    left = kin.fk("left_wrist", robot.q_from_names({"LARM_JOINT1": -0.8, "LARM_JOINT4": -0.6, "CHEST_JOINT0": 0.2}))
+    right_pos = np.array([0.4, -0.3, 1.0])
+    targets = [FrameTarget("left_wrist", pos=left.pos, rot=left.rot), FrameTarget("right_wrist", pos=right_pos)]
+    mirrored = [
+        FrameTarget("right_wrist", pos=m @ left.pos, rot=m @ left.rot @ m),
+        FrameTarget("left_wrist", pos=m @ right_pos),
+    ]
+    home = robot.keyframe_q("home")
+    a, b = ik.solve(targets, home), ik.solve(mirrored, home)
+    assert a.converged and b.converged
+    qa, qb = robot.q_to_names(a.q), robot.q_to_names(b.q)
+    flip = ("JOINT0", "JOINT3", "JOINT5")
+    for name, value in qa.items():
+        other = name.replace("LARM", "X").replace("RARM", "LARM").replace("X", "RARM")
+        sign = -1.0 if name.endswith(flip) and name != "HEAD_JOINT1" else 1.0
+        assert qb[other] == pytest.approx(sign * value, abs=2e-3), name
+
+
+def test_wrist_goes_over_table_edge_without_penetration(robot: Robot, kin: Kinematics) -> None:
+    """Start with the hand in front of the table below its top; the target is above the table beyond the edge."""
+    pair = CollisionPairConfig(a="left_hand", b="table", min_distance=0.01, detection_distance=0.05)
+    ik = QPIK(robot, IKConfig(collision_pairs=(pair,), dt=0.05, max_iters=400))
+    free = QPIK(robot, IKConfig())
+    start = free.solve([FrameTarget("left_wrist", pos=np.array([0.02, 0.42, 0.80]), axis=np.array([0, 0, 1.0]),
+                                    direction=np.array([0, 0, 1.0]))], robot.keyframe_q("home"))  # fmt: skip
+    assert start.pos_err_m < 0.01
+    target = [FrameTarget("left_wrist", pos=np.array([0.30, 0.35, 0.97]))]
+    data, model = ik.configuration.data, ik.model
+    table = robot.collision_geoms()["table"][0]
+    hand = robot.collision_geoms()["left_hand"]
+
+    def clearance(q: np.ndarray) -> float:
+        ik.configuration.update(q)
+        return min(mujoco.mj_geomDistance(model, data, g, table, 1.0, None) for g in hand)
+
+    assert clearance(start.q) > 0.01
+    # The straight path of the wrist crosses the table top: below it at the edge x = 0.10.
+    p0 = kin.fk("left_wrist", start.q).pos
+    s = (0.10 - p0[0]) / (target[0].pos[0] - p0[0])
+    assert p0[2] + s * (target[0].pos[2] - p0[2]) < 0.875 + 0.055
+    q, dists = start.q.copy(), []
+    for _ in range(300):
+        ik.configuration.update(q)
+        q = ik._advance(q, ik._step(target, 0.05, ()) * 0.05)
+        dists.append(clearance(q))
+    assert min(dists) >= 0.01 - 1e-4
+    assert np.linalg.norm(kin.fk("left_wrist", q).pos - target[0].pos) < 2e-3
+    res = ik.solve(target, start.q)
+    assert res.pos_err_m < 2e-3 and clearance(res.q) >= 0.01 - 1e-4
+
+
+def test_object_poses_move_collision_geometry(robot: Robot) -> None:
+    pair = CollisionPairConfig(a="left_arm", b="dumbbell")
+    ik = QPIK(robot, IKConfig(collision_pairs=(pair,)))
+    ik.set_object_poses({"dumbbell": (np.array([0.9, 0.0, 1.2]), np.array([1.0, 0, 0, 0]))})
+    body = ik.model.body("dumbbell").id
+    assert ik.configuration.data.xpos[body] == pytest.approx([0.9, 0.0, 1.2])
+    with pytest.raises(UnknownNameError, match="dumbbell"):
+        ik.set_object_poses({"cube": (np.zeros(3), np.array([1.0, 0, 0, 0]))})
+
+
+def test_unknown_names_raise(robot: Robot) -> None:
+    with pytest.raises(UnknownNameError, match="left_arm"):
+        QPIK(robot, IKConfig(collision_pairs=(CollisionPairConfig(a="left_armm", b="table"),)))
+    with pytest.raises(UnknownNameError, match="LARM_JOINT0"):
+        QPIK(robot, IKConfig(velocity_limit={"LARM_JOINTX": 1.0}))
+    with pytest.raises(UnknownNameError):
+        QPIK(robot, IKConfig(posture_target={"NOPE": 0.0}))
+    ik = QPIK(robot, IKConfig())
+    with pytest.raises(UnknownFrameError, match="left_wrist"):
+        ik.solve([FrameTarget("left_hnd", pos=np.zeros(3))], robot.keyframe_q("home"))
+
+
+@pytest.mark.parametrize("solver", ["osqp", "proxqp"])
+def test_other_solvers_agree(robot: Robot, solver: str) -> None:
+    t = [FrameTarget("right_wrist", pos=np.array([0.45, -0.25, 1.0]))]
+    res = QPIK(robot, IKConfig(solver=solver)).solve(t, robot.keyframe_q("home"))
+    assert res.converged
+    assert worst_errors(t, [(Kinematics(robot).fk("right_wrist", res.q).pos, np.eye(3))])[0] <= 1e-4
+
+
+def test_both_wrists_one_qp_use_chest(robot: Robot, kin: Kinematics) -> None:
+    q_goal = robot.q_from_names({"CHEST_JOINT0": 0.6, "LARM_JOINT1": -0.7, "RARM_JOINT1": -0.5})
+    targets = [
+        FrameTarget(f, pos=kin.fk(f, q_goal).pos, rot=kin.fk(f, q_goal).rot) for f in ("left_wrist", "right_wrist")
+    ]
+    res = QPIK(robot, IKConfig()).solve(targets, robot.keyframe_q("home"))
+    assert res.converged and res.q[0] > 0.2  # the shared chest turns to serve both wrists
+
+
+def test_frame_target_validation() -> None:
+    with pytest.raises(ConfigError, match="pos"):
+        FrameTarget("left_wrist", pos=np.array([1.0, 2.0]))
+    with pytest.raises(ConfigError, match="rotation"):
+        FrameTarget("left_wrist", rot=np.ones((3, 3)))
+    with pytest.raises(ConfigError, match="together"):
+        FrameTarget("left_wrist", axis=np.array([0, 0, 1.0]))
+    with pytest.raises(ConfigError, match="not both"):
+        FrameTarget("left_wrist", rot=np.eye(3), axis=np.array([0, 0, 1.0]), direction=np.array([0, 0, 1.0]))
+    with pytest.raises(ConfigError, match="non-zero"):
+        FrameTarget("left_wrist", axis=np.zeros(3), direction=np.array([0, 0, 1.0]))
+    with pytest.raises(ConfigError, match="needs"):
+        FrameTarget("left_wrist")
+    with pytest.raises(ConfigError, match="position_cost"):
+        FrameTarget("left_wrist", pos=np.zeros(3), position_cost=-1.0)
