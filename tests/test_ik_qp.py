@@ -1,3 +1,5 @@
+import itertools
+
 import mujoco
 import numpy as np
 import pytest
@@ -36,7 +38,7 @@ def test_error_strictly_decreasing_on_easy_target(robot: Robot, kin: Kinematics)
         p = kin.fk("left_wrist", q)
         errors.append(np.linalg.norm(p.pos - target[0].pos))
         q = q + ik.step(q, target, 0.1) * 0.1
-    assert all(b < a for a, b in zip(errors, errors[1:], strict=False))
+    assert all(b < a for a, b in itertools.pairwise(errors))
     res = ik.solve(target, home)
     assert res.converged and res.status == "converged" and res.pos_err_m <= 1e-4 and res.rot_err_rad <= 1e-3
 

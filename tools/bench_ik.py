@@ -161,9 +161,9 @@ def main() -> None:
                   f"{r['ms_median']:8.2f} {r['ms_p99']:8.2f}")  # fmt: skip
     print(f"IK step (two wrist poses + posture + limits, dt 4 ms), {args.steps} states, daqp:")
     for case, r in step.items():
-        print(f"  {case:26} pairs {r['geom_pairs']:4.0f} (active {r['active_rows_mean']:.1f})  ours median "
+        print(f"  {case:26} pairs {r['geom_pairs']:4.0f} (active {r['active_rows_mean']:.1f}) ours "
               f"{r['ours_us_median']:.0f} us p99 {r['ours_us_p99']:.0f} us | mink.solve_ik median "
-              f"{r['mink_us_median']:.0f} us p99 {r['mink_us_p99']:.0f} us | ratio {r['ratio_median']:.2f}")  # fmt: skip
+              f"{r['mink_us_median']:.0f} us p99 {r['mink_us_p99']:.0f} us | ratio {r['ratio_median']:.2f}")
     print(f"wall time {report['wall_s']:.0f} s")
     if args.json:
         with open(args.json, "w") as fh:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 
 import numpy as np
 from rich.console import Console
@@ -77,7 +78,10 @@ def run(args: argparse.Namespace) -> int:
     else:
         for t in targets:
             robot.frame(t.frame)
-        result = {"pinv": pinv_ik, "dls": dls_ik, "lm": lm_ik}[args.method](robot, targets, q0)
+        baselines: dict[str, Callable[[Robot, list[FrameTarget], np.ndarray], IKResult]] = {
+            "pinv": pinv_ik, "dls": dls_ik, "lm": lm_ik,
+        }  # fmt: skip
+        result = baselines[args.method](robot, targets, q0)
     if args.json:
         print_json({
             "q": robot.q_to_names(result.q), "converged": result.converged, "pos_err_m": result.pos_err_m,

@@ -82,7 +82,8 @@ class QPIK:
 
     def _tasks(self, targets: Sequence[FrameTarget]) -> list[mink.Task]:
         """Mink tasks for the targets, reusing one FrameTask / AxisAlignTask per frame across ticks."""
-        cfg, tasks = self.config, []
+        cfg = self.config
+        tasks: list[mink.Task] = []
         for target in targets:
             frame = self.frame(target.frame)
             task = self._frame_tasks.get(frame.name)
@@ -107,7 +108,7 @@ class QPIK:
                     self._axis_tasks[frame.name] = axis_task
                 axis_task.set_axis(target.axis)
                 axis_task.set_cost(ocost)
-                axis_task.set_target(target.direction)
+                axis_task.set_target(np.asarray(target.direction))
                 tasks.append(axis_task)
         return tasks
 
