@@ -103,8 +103,8 @@ def _config(solver: str) -> IKConfig:
 def _print_table(result: IKResult, method: str) -> None:
     table = Table(title=f"IK ({method}): {result.status}")
     table.add_column("joint")
-    table.add_column("q [rad]", justify="right")
-    table.add_column("q [deg]", justify="right")
+    table.add_column("rad", justify="right")
+    table.add_column("deg", justify="right")
     for name, value in zip(JOINT_NAMES, result.q, strict=True):
         table.add_row(name, f"{value:+.4f}", f"{np.degrees(value):+.1f}")
     console = Console()

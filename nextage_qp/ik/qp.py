@@ -210,9 +210,17 @@ class QPIK:
         frames = [self.frame(t.frame) for t in targets]
         rng = np.random.default_rng(cfg.seed)
         q, total, best = np.array(q0, dtype=float), 0, None
+        # Restarts re-draw only the joints that move a target frame; the others keep their q0 values.
+        moving = np.zeros(self.model.nv, dtype=bool)
+        for frame in frames:
+            body = frame.id if frame.kind == "body" else int(self.model.site_bodyid[frame.id])
+            while body > 0:
+                adr, num = int(self.model.body_dofadr[body]), int(self.model.body_dofnum[body])
+                moving[adr : adr + num] = True
+                body = int(self.model.body_parentid[body])
         for attempt in range(cfg.restarts + 1):
             if attempt:
-                q = rng.uniform(self.box.lower, self.box.upper)
+                q = np.where(moving, rng.uniform(self.box.lower, self.box.upper), np.asarray(q0, dtype=float))
             score, q_best, pos_err, rot_err, iters, status = self._descend(
                 targets, frames, q, max_iters or cfg.max_iters, extra_tasks
             )
