@@ -1,0 +1,146 @@
+"""Pictures of a manipulation run: debug markers, headless video, the live viewer and a summary plot.
+
+Markers (as the report's coloured spheres): green = object target, blue = the IK's commanded tool
+frames, red = the measured tool frames, yellow = where each tool started.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import mujoco
+import numpy as np
+
+from nextage_qp.errors import ConfigError
+
+if TYPE_CHECKING:
+    from nextage_qp.manipulation.runner import Runner
+
+GREEN, BLUE, RED, YELLOW = (0.1, 0.9, 0.2, 0.8), (0.2, 0.4, 1.0, 0.8), (1.0, 0.2, 0.1, 0.8), (1.0, 0.9, 0.1, 0.8)
+
+
+def _tool_frames(runner: Runner) -> list[str]:
+    return [f for f in ("left_tool", "right_tool", "left_pad", "right_pad") if f in runner.robot.site_names]
+
+
+def add_markers(scene: mujoco.MjvScene, runner: Runner, starts: dict[str, np.ndarray]) -> None:
+    """Append marker spheres for the target, commanded, measured and start tool positions to ``scene``."""
+    ctx = runner.ctx
+    points = [(ctx.body_pose(runner.cfg.target)[0], GREEN, 0.015)]
+    for frame in _tool_frames(runner):
+        points += [(ctx.commanded_pose(frame)[0], BLUE, 0.008), (ctx.frame_pose(frame)[0], RED, 0.006),
+                   (starts[frame], YELLOW, 0.006)]
+    for pos, rgba, size in points:
+        if scene.ngeom >= scene.maxgeom:
+            return
+        mujoco.mjv_initGeom(scene.geoms[scene.ngeom], mujoco.mjtGeom.mjGEOM_SPHERE, np.array([size, 0, 0]),
+                            np.asarray(pos, dtype=float), np.eye(3).reshape(-1), np.asarray(rgba, dtype=np.float32))
+        scene.ngeom += 1
+
+
+class VideoRecorder:
+    """Renders the run headless at ``fps`` into an MP4 (set ``MUJOCO_GL=egl`` on a machine without display)."""
+
+    def __init__(self, runner: Runner, path: Path, *, fps: int = 30, size: tuple[int, int] = (480, 640),
+                 camera: str = "workspace") -> None:
+        import imageio.v2 as imageio
+
+        try:
+            self.renderer = mujoco.Renderer(runner.robot.model, *size)
+        except Exception as exc:  # no GL context: name the fix
+            raise ConfigError(f"--video: cannot open an offscreen GL context ({exc}); set MUJOCO_GL=egl") from None
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.writer = imageio.get_writer(str(path), fps=fps, macro_block_size=1)
+        self.period, self.next_t, self.camera = 1.0 / fps, 0.0, camera
+        self.starts = {f: runner.ctx.frame_pose(f)[0] for f in _tool_frames(runner)}
+
+    def on_tick(self, runner: Runner, phase: Any) -> None:
+        """Tick callback: render a frame when one is due."""
+        if runner.sim.time + 1e-9 < self.next_t:
+            return
+        self.next_t += self.period
+        self.renderer.update_scene(runner.sim.data, camera=self.camera)
+        add_markers(self.renderer.scene, runner, self.starts)
+        self.writer.append_data(self.renderer.render())
+
+    def close(self) -> None:
+        """Finish the file."""
+        self.writer.close()
+        self.renderer.close()
+
+
+class LiveViewer:
+    """The passive MuJoCo viewer, synced every ~1/60 s of simulated time, with the debug markers."""
+
+    def __init__(self, runner: Runner) -> None:
+        import mujoco.viewer
+
+        try:
+            self.handle = mujoco.viewer.launch_passive(runner.robot.model, runner.sim.data)
+        except Exception as exc:
+            raise ConfigError(f"--viewer: cannot open a window ({exc}); use --video on a headless machine") from None
+        self.starts = {f: runner.ctx.frame_pose(f)[0] for f in _tool_frames(runner)}
+        self.next_t = 0.0
+
+    def on_tick(self, runner: Runner, phase: Any) -> None:
+        """Tick callback: sync the window and redraw the markers."""
+        if runner.sim.time < self.next_t or not self.handle.is_running():
+            return
+        self.next_t = runner.sim.time + 1.0 / 60.0
+        with self.handle.lock():
+            self.handle.user_scn.ngeom = 0
+            add_markers(self.handle.user_scn, runner, self.starts)
+        self.handle.sync()
+
+    def close(self) -> None:
+        """Close the window."""
+        self.handle.close()
+
+
+def plot_run(runner: Runner, path: Path) -> None:
+    """PNG with the object's distance to its target over time (phases shaded) and a top view of the paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rec = runner.sim.recorder.arrays()
+    t = rec["t"]
+    obj = rec[f"object_{runner.cfg.object}"][:, :3]
+    tgt = runner.ctx.body_pose(runner.cfg.target)[0]
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
+    ax1.semilogy(t, np.maximum(np.linalg.norm(obj - tgt, axis=1), 1e-5), label="3-D")
+    ax1.semilogy(t, np.maximum(np.linalg.norm((obj - tgt)[:, :2], axis=1), 1e-5), label="x-y")
+    ax1.axhline(runner.cfg.success_threshold, color="k", ls="--", lw=0.8, label="success threshold")
+    for i, ph in enumerate(runner.records):
+        if ph.status != "skipped":
+            ax1.axvspan(ph.start_s, ph.start_s + ph.duration_s, color=f"C{i % 8}", alpha=0.08)
+            ax1.text(ph.start_s, ax1.get_ylim()[1] if i else 0.5, ph.name, fontsize=7, rotation=90, va="top")
+    ax1.set(xlabel="time [s]", ylabel="object distance to target [m]", title=f"{runner.cfg.task}")
+    ax1.legend(fontsize=8, loc="lower left")
+    ax1.grid(alpha=0.3, which="both")
+    ax2.plot(obj[:, 0], obj[:, 1], color="k", lw=2, label=runner.cfg.object)
+    for frame in _tool_frames(runner):
+        key = f"frame_{frame}"
+        if key in rec:
+            ax2.plot(rec[key][:, 0], rec[key][:, 1], lw=1, label=frame)
+    ax2.plot(*tgt[:2], "g*", ms=14, label="target")
+    groups = runner.robot.collision_geoms()
+    for g in groups.get("obstacle", ()):
+        corners = _box_footprint(runner, g)
+        ax2.fill(corners[:, 0], corners[:, 1], color="r", alpha=0.5, label="obstacle")
+    ax2.set(xlabel="x [m]", ylabel="y [m]", title="top view", aspect="equal")
+    ax2.legend(fontsize=7)
+    ax2.grid(alpha=0.3)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _box_footprint(runner: Runner, geom: int) -> np.ndarray:
+    d, m = runner.sim.data, runner.robot.model
+    rot, c, s = d.geom_xmat[geom].reshape(3, 3), m.geom_size[geom][0], m.geom_size[geom][1]
+    local = np.array([[c, s, 0], [-c, s, 0], [-c, -s, 0], [c, -s, 0], [c, s, 0]])
+    return d.geom_xpos[geom] + local @ rot.T
