@@ -138,6 +138,10 @@ class Waypoint(_Strict):
     offset: Vec3 = (0.0, 0.0, 0.0)
     axes: Literal["world", "yaw"] = "world"
     yaw: float | None = Field(default=None, description="Object yaw relative to the reference yaw [rad].")
+    heading: Literal["reference", "radial"] = Field(
+        default="reference",
+        description="Yaw base: the reference body's yaw, or radial (facing away from the robot's chest axis).",
+    )
     correct: bool = Field(default=False, description="Here, shift the rest of the path by the live planar error.")
 
 

@@ -101,8 +101,9 @@ class RunContext:
         """World position [m] and yaw [rad] of a body-relative point spec, from the live reference pose."""
         ref_pos, ref_yaw = self.reference(spec.relative_to)
         rot = rot_z(ref_yaw) if spec.axes == "yaw" else np.eye(3)
-        yaw = ref_yaw + (spec.yaw if spec.yaw is not None else 0.0)
-        return ref_pos + rot @ np.asarray(spec.offset), yaw
+        pos = ref_pos + rot @ np.asarray(spec.offset)
+        base = float(np.arctan2(pos[1], pos[0])) if getattr(spec, "heading", "reference") == "radial" else ref_yaw
+        return pos, base + (spec.yaw if spec.yaw is not None else 0.0)
 
     def frame_target(self, spec: TargetSpec, pos: np.ndarray) -> FrameTarget:
         """An IK target at ``pos`` with the orientation the spec asks for."""

@@ -208,6 +208,7 @@ class Carry(PhaseRunner):
         obj, rot = ctx.body_pose(c.object)
         self.sp, self.yaw0 = Setpoint(obj), yaw_of(rot)
         self.goals = [ctx.resolve_point(w) for w in c.waypoints]
+        self.nominal = list(self.goals)
         self.leg, self.leg_from, self.yaw = 0, (obj.copy(), self.yaw0), self.yaw0
         self.corrections = 0
         frames = list(ctx.grasp_offsets)
@@ -245,7 +246,7 @@ class Carry(PhaseRunner):
         if not settled(ctx):
             return False
         obj, _ = ctx.body_pose(c.object)
-        goal = self.goals[self.leg][0]
+        goal = self.nominal[self.leg][0]  # the waypoint itself, not the already shifted setpoint goal
         err = np.array([*(goal - obj)[:2], 0.0])
         self.info["object_error_xy_m"] = float(np.linalg.norm(err))
         if np.linalg.norm(err) <= c.tolerance or self.corrections >= c.corrections:
