@@ -151,7 +151,7 @@ class CarryPhase(_Phase):
     kind: Literal["carry"]
     object: str
     waypoints: list[Waypoint] = Field(min_length=1)
-    tolerance: float = Field(default=0.003, gt=0, description="Planar object error accepted at a correcting waypoint [m].")
+    tolerance: float = Field(default=0.003, gt=0, description="Planar object error accepted when correcting [m].")
     corrections: int = Field(default=3, ge=0, description="Closed-loop shifts allowed per correcting waypoint.")
     speed: float = Field(default=0.1, gt=0, description="Cartesian speed of the object setpoint [m/s].")
     relative_cost: float = Field(default=10.0, ge=0, description="Weight of the pads' relative pose task.")
@@ -217,7 +217,8 @@ def apply_override(doc: dict[str, Any], assignment: str, source: str = "--set") 
     """
     key, sep, raw = assignment.partition("=")
     if not sep or not key:
-        raise ConfigError(f"{source} {assignment!r}: expected dotted.key=value, e.g. scene.poses.cube.pos=[0.35,0,0.91]")
+        example = "scene.poses.cube.pos=[0.35,0,0.91]"
+        raise ConfigError(f"{source} {assignment!r}: expected dotted.key=value, e.g. {example}")
     value = yaml.safe_load(raw)
     parts = key.split(".")
     node: Any = doc

@@ -14,6 +14,7 @@ import mink
 import mujoco
 import numpy as np
 
+from nextage_qp.errors import PhaseError
 from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.config import (
     CarryPhase,
@@ -88,12 +89,12 @@ def support_extent(ctx: RunContext, obj: str, direction: np.ndarray) -> float:
 
 
 class Push(PhaseRunner):
-    """Closed-loop pushing (``push``): approach behind the object on its line to the target, push, re-check.
+    r"""Closed-loop pushing (``push``): approach behind the object on its line to the target, push, re-check.
 
-    Each attempt re-plans from the live poses: direction :math:`\\hat d = (p_t - p_o)_{xy} / \\|\\cdot\\|`,
-    approach point :math:`p_o - \\hat d (h + a)`, and the push ends where the tool face puts the object's
-    centre on the target, :math:`p_t - \\hat d h` (:math:`h` = the object's half-extent along
-    :math:`\\hat d`, :math:`a` = approach gap [m]).
+    Each attempt re-plans from the live poses: direction :math:`\hat d = (p_t - p_o)_{xy} / \|\cdot\|`,
+    approach point :math:`p_o - \hat d (h + a)`, and the push ends where the tool face puts the object's
+    centre on the target, :math:`p_t - \hat d h` (:math:`h` = the object's half-extent along
+    :math:`\hat d`, :math:`a` = approach gap [m]).
     """
 
     cfg: PushPhase
@@ -125,7 +126,8 @@ class Push(PhaseRunner):
             (behind, c.speed),
             (finish, c.push_speed),
         ]
-        self.leg, self.wait_from = 0, None
+        self.leg = 0
+        self.wait_from: float | None = None
         self.attempt += 1
         self.info.update(attempts=self.attempt, direction=d[:2].round(4).tolist())
 
@@ -142,8 +144,11 @@ class Push(PhaseRunner):
             tgt, _ = ctx.body_pose(c.target)
             err = float(np.linalg.norm((obj - tgt)[:2]))
             self.info["object_error_xy_m"] = err
-            if err <= c.tolerance or self.attempt >= c.attempts:
+            if err <= c.tolerance:
                 return [FrameTarget(c.frame, pos=self.sp.pos, rot=self.rot)], True
+            if self.attempt >= c.attempts:
+                raise PhaseError(f"phase {self.name!r} (push): {c.object} is still {err * 1e3:.1f} mm from "
+                                 f"{c.target} after {c.attempts} attempts (tolerance {c.tolerance * 1e3:g} mm)")
             back = self.sp.pos - np.array([*self.info["direction"], 0.0]) * c.approach
             self.sp.advance(back, 1.0, 1.0)  # retreat along the line before the next attempt
             self._plan(ctx)
@@ -166,7 +171,8 @@ class Grasp(PhaseRunner):
             return [obj + self.rz @ np.array([0.0, s * dy, c.height]) for s in (1.0, -1.0)]
 
         self.stages = [(at(c.half_width + c.gap), c.speed), (at(c.half_width - c.squeeze), c.speed / 2)]
-        self.stage, self.hold_from = 0, None
+        self.stage = 0
+        self.hold_from: float | None = None
         self.points = [Setpoint(ctx.commanded_pose(f)[0]) for f in c.frames]
 
     def update(self, ctx: RunContext) -> tuple[Targets, bool]:  # noqa: D102
@@ -189,10 +195,10 @@ class Grasp(PhaseRunner):
 
 
 class Carry(PhaseRunner):
-    """Carry a clamped object through waypoints (``carry``); the pads keep their relative pose.
+    r"""Carry a clamped object through waypoints (``carry``); the pads keep their relative pose.
 
-    The object setpoint :math:`(p, \\psi)` walks the waypoints at ``speed``; each pad's target is
-    :math:`p + R_z(\\psi)\\,o_i` with its grasp offset :math:`o_i`, and a mink ``RelativeFrameTask`` holds
+    The object setpoint :math:`(p, \psi)` walks the waypoints at ``speed``; each pad's target is
+    :math:`p + R_z(\psi)\,o_i` with its grasp offset :math:`o_i`, and a mink ``RelativeFrameTask`` holds
     the first pad's pose in the second pad's frame.
     """
 
@@ -202,8 +208,6 @@ class Carry(PhaseRunner):
         super().start(ctx)
         c = self.cfg
         if ctx.holding != c.object:
-            from nextage_qp.errors import PhaseError
-
             raise PhaseError(f"phase {self.name!r}: carry needs {c.object!r} clamped by a grasp phase first")
         obj, rot = ctx.body_pose(c.object)
         self.sp, self.yaw0 = Setpoint(obj), yaw_of(rot)
@@ -270,7 +274,8 @@ class Release(PhaseRunner):
         self.frames = list(ctx.grasp_offsets) or ["left_pad", "right_pad"]
         self.points = [Setpoint(ctx.commanded_pose(f)[0]) for f in self.frames]
         self.rots = [ctx.commanded_pose(f)[1] for f in self.frames]
-        opened = [sp.pos + rot @ np.array([0.0, s * c.gap, 0.0]) for sp, s in zip(self.points, (1.0, -1.0), strict=False)]
+        sides = (1.0, -1.0)
+        opened = [sp.pos + rot @ np.array([0.0, s * c.gap, 0.0]) for sp, s in zip(self.points, sides, strict=False)]
         self.stages = [opened, [p + np.array([0.0, 0.0, c.lift]) for p in opened]]
         self.stage = 0
         ctx.holding = None

@@ -1,7 +1,7 @@
-"""Execute a manipulation config: phases -> QP IK -> Ruckig -> PD -> MuJoCo, with outcome metrics.
+r"""Execute a manipulation config: phases -> QP IK -> Ruckig -> PD -> MuJoCo, with outcome metrics.
 
 Each control tick the current phase turns live poses into frame targets, one QP IK step integrates the
-commanded joints :math:`q_{cmd} \\leftarrow q_{cmd} + v\\,\\Delta t_{ctrl}`, Ruckig re-targets to
+commanded joints :math:`q_{cmd} \leftarrow q_{cmd} + v\,\Delta t_{ctrl}`, Ruckig re-targets to
 :math:`q_{cmd}` and the PD loop tracks the reference at every physics step.
 """
 
@@ -52,7 +52,8 @@ def _check_names(cfg: ManipulationConfig, robot: Robot, source: str) -> None:
 
     need(cfg.object in objects, "object", cfg.object, objects)
     need(cfg.target in bodies, "target", cfg.target, sorted(bodies))
-    for i, ph in enumerate(cfg.phases):
+    for i, phase in enumerate(cfg.phases):
+        ph: Any = phase
         key = f"phases[{i}]"
         if isinstance(getattr(ph, "frame", None), str):
             need(ph.frame in frames, f"{key}.frame", ph.frame, robot.site_names)
