@@ -105,8 +105,7 @@ def test_wrist_goes_over_table_edge_without_penetration(robot: Robot, kin: Kinem
     """Start with the hand in front of the table below its top; the target is above the table beyond the edge."""
     pair = CollisionPairConfig(a="left_hand", b="table", min_distance=0.01, detection_distance=0.05)
     ik = QPIK(robot, IKConfig(collision_pairs=(pair,), dt=0.05, max_iters=400))
-    free = QPIK(robot, IKConfig())
-    start = free.solve([FrameTarget("left_wrist", pos=np.array([0.02, 0.42, 0.80]), axis=np.array([0, 0, 1.0]),
+    start = ik.solve([FrameTarget("left_wrist", pos=np.array([0.02, 0.42, 0.80]), axis=np.array([0, 0, 1.0]),
                                     direction=np.array([0, 0, 1.0]))], robot.keyframe_q("home"))  # fmt: skip
     assert start.pos_err_m < 0.01
     target = [FrameTarget("left_wrist", pos=np.array([0.30, 0.35, 0.97]))]

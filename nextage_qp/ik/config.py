@@ -63,10 +63,10 @@ class IKConfig(BaseModel):
     )
     damping: float = Field(default=1e-6, ge=0.0, description="Constant Tikhonov damping on dq [unitless].")
     lm_damping: float = Field(
-        default=1.0, ge=0.0, description="Levenberg–Marquardt damping, scaled by the squared task error [unitless]."
+        default=0.01, ge=0.0, description="Levenberg–Marquardt damping, scaled by the squared task error [unitless]."
     )
     solver: str = Field(default="daqp", description="qpsolvers backend (daqp, osqp, proxqp, ...).")
-    dt: float = Field(default=0.1, gt=0.0, description="Integration step of solve() [s].")
+    dt: float = Field(default=0.2, gt=0.0, description="Integration step of solve() [s].")
     max_iters: int = Field(default=200, ge=1, description="Iteration cap of solve().")
     pos_tol: float = Field(default=1e-4, gt=0.0, description="Position tolerance of solve() [m].")
     rot_tol: float = Field(default=1e-3, gt=0.0, description="Orientation tolerance of solve() [rad].")
@@ -77,7 +77,7 @@ class IKConfig(BaseModel):
         default=0.95, gt=0.0, le=1.0, description="Fraction of the distance to a joint limit allowed per step."
     )
     restarts: int = Field(
-        default=20, ge=0, description="solve(): random in-limit restarts after a descent stalls (local minimum)."
+        default=100, ge=0, description="solve(): random in-limit restarts after a descent stalls (local minimum)."
     )
     seed: int = Field(default=0, description="Seed of the restart configurations (solve() is deterministic).")
     collision_pairs: tuple[CollisionPairConfig, ...] = Field(
@@ -87,7 +87,7 @@ class IKConfig(BaseModel):
         default=0.85, gt=0.0, le=1.0, description="Fraction of the gap to min_distance a pair may close per step."
     )
     stall_iters: int = Field(
-        default=15, ge=1, description="solve() stops as 'stalled' after this many iterations without 1 % progress."
+        default=8, ge=1, description="solve() descent stops as 'stalled' after this many iterations without 1 % progress."
     )
 
     @field_validator("solver")
