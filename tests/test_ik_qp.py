@@ -133,6 +133,28 @@ def test_wrist_goes_over_table_edge_without_penetration(robot: Robot, kin: Kinem
     assert res.pos_err_m < 2e-3 and clearance(res.q) >= 0.01 - 1e-4
 
 
+def test_rows_that_cannot_bind_are_dropped_without_changing_the_step(robot: Robot, kin: Kinematics) -> None:
+    """The joint-box reach bound only drops collision rows the QP could never make active: same velocity."""
+    pairs = tuple(
+        CollisionPairConfig(a=a, b=b, min_distance=0.005, detection_distance=0.08)
+        for a, b in (("left_arm", "table"), ("right_arm", "table"), ("left_arm", "right_arm"), ("left_arm", "torso"))
+    )
+    pruned = QPIK(robot, IKConfig(velocity_limit=1.0, collision_pairs=pairs))
+    full = QPIK(robot, IKConfig(velocity_limit=1.0, collision_pairs=pairs))
+    assert full.collision is not None and pruned.collision is not None
+    full.collision.box = None
+    rng, home = np.random.default_rng(3), robot.keyframe_q("home")
+    dropped = 0
+    for _ in range(60):
+        q = np.clip(home + rng.normal(0.0, 0.5, robot.nq), robot.lower, robot.upper)
+        target = [FrameTarget(f, pos=kin.fk(f, q).pos + rng.normal(0, 0.1, 3)) for f in ("left_wrist", "right_wrist")]
+        v_pruned, v_full = pruned.step(q, target, 0.004), full.step(q, target, 0.004)
+        assert v_pruned == pytest.approx(v_full, abs=1e-7)
+        assert len(pruned.collision.active) + pruned.collision.slack == len(full.collision.active)
+        dropped += pruned.collision.slack
+    assert dropped > 0
+
+
 def test_object_poses_move_collision_geometry(robot: Robot) -> None:
     pair = CollisionPairConfig(a="left_arm", b="dumbbell")
     ik = QPIK(robot, IKConfig(collision_pairs=(pair,)))

@@ -87,7 +87,7 @@ class IKConfig(BaseModel):
         default=0.85, gt=0.0, le=1.0, description="Fraction of the gap to min_distance a pair may close per step."
     )
     stall_iters: int = Field(
-        default=8, ge=1, description="solve() descent stops as 'stalled' after this many iterations without 1 % progress."
+        default=8, ge=1, description="solve(): a descent stalls after this many iterations without 1 % progress."
     )
 
     @field_validator("solver")

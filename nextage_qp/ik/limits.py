@@ -5,8 +5,9 @@ Both subclass :class:`mink.Limit`, so they also work with plain :func:`mink.solv
 * :class:`JointBoxLimit` merges mink's ``ConfigurationLimit`` and ``VelocityLimit`` into one box
   (15 bounds instead of 60 rows), which :class:`~nextage_qp.ik.qp.QPIK` passes as ``lb``/``ub``.
 * :class:`ActiveCollisionLimit` is mink's ``CollisionAvoidanceLimit`` with per-pair distances, a
-  vectorised bounding-sphere broadphase on every call, and one row per *active* pair only (mink emits
-  a row for every pair, inactive ones as ``0 . dq <= inf``).
+  vectorised bounding-sphere broadphase, a distance cache between ticks, and one row per pair that can
+  bind: closer than its detection distance *and* (given a joint box) able to close its gap within one
+  step of the box. A row that cannot bind does not change the QP's solution, so dropping it is exact.
 """
 
 from __future__ import annotations
@@ -70,6 +71,8 @@ class ActiveCollisionLimit(mink.Limit):
         model: Kinematic model.
         group_pairs: ``(geoms_a, geoms_b, min_distance [m], detection_distance [m])`` per group pair.
         gain: Collision gain in (0, 1].
+        box: The joint box of the same QP. With it, a pair whose gap bound exceeds how far its two geoms
+            can approach each other within one step of the box gets no row (it could never bind).
     """
 
     def __init__(
@@ -77,8 +80,9 @@ class ActiveCollisionLimit(mink.Limit):
         model: mujoco.MjModel,
         group_pairs: Sequence[tuple[Sequence[int], Sequence[int], float, float]],
         gain: float,
+        box: JointBoxLimit | None = None,
     ) -> None:
-        self.model, self.gain = model, gain
+        self.model, self.gain, self.box = model, gain, box
         pairs: dict[tuple[int, int], tuple[float, float]] = {}
         for geoms_a, geoms_b, dmin, ddet in group_pairs:
             for a, b in itertools.product(set(geoms_a), set(geoms_b)):
@@ -113,7 +117,22 @@ class ActiveCollisionLimit(mink.Limit):
         self._fromto, self._normal = np.empty(6), np.empty(3)
         self._jac1, self._jac2 = np.empty((3, model.nv)), np.empty((3, model.nv))
         self.active: list[tuple[int, float]] = []
-        """(pair index, distance [m]) of the pairs active at the last call."""
+        """(pair index, distance [m]) of the pairs sent to the QP at the last call."""
+        self.slack = 0
+        """Pairs within detection distance at the last call that could not bind within the box (no row)."""
+        # Reach bound: a point of geom g moves at most sum_j |dq_j| (|x_g - anchor_j| + rbound_g) over the
+        # hinge dofs j of its chain (any other dof kind: unbounded, never pruned).
+        self._geoms = np.unique(np.concatenate([self.geom1, self.geom2]))
+        chain = np.zeros((len(self._geoms), model.nv))
+        for row, g in enumerate(self._geoms):
+            body = int(model.geom_bodyid[g])
+            while body > 0:
+                for dof in range(model.body_dofadr[body], model.body_dofadr[body] + model.body_dofnum[body]):
+                    hinge = model.jnt_type[model.dof_jntid[dof]] == mujoco.mjtJoint.mjJNT_HINGE
+                    chain[row, dof] = 1.0 if hinge else np.inf
+                body = int(model.body_parentid[body])
+        self._chain, self._dof_jnt = chain, model.dof_jntid.copy()
+        self._approach = np.zeros(model.ngeom)
 
     @property
     def num_pairs(self) -> int:
@@ -150,12 +169,12 @@ class ActiveCollisionLimit(mink.Limit):
 
     def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
         """Rows of the active pairs only; an inactive constraint when no pair is within detection distance."""
-        del dt  # The bound is per step, as in mink.
         model, data, fromto = self.model, configuration.data, self._fromto
         rows: list[np.ndarray] = []
         bounds: list[float] = []
-        self.active = []
+        self.active, self.slack = [], 0
         need = self._stale(data, self.candidates(data))
+        approach = self._max_approach(configuration, dt) if self.box is not None and need.size else None
         for idx in need:
             g1, g2 = int(self.geom1[idx]), int(self.geom2[idx])
             dmax = float(self.detection_distance[idx])
@@ -163,15 +182,32 @@ class ActiveCollisionLimit(mink.Limit):
             self._cached[idx] = dist
             if dist >= dmax:
                 continue
+            bound = self.gain * max(dist - float(self.min_distance[idx]), 0.0)
+            if approach is not None and bound > approach[g1] + approach[g2]:
+                self.slack += 1
+                continue
             row = compute_contact_normal_jacobian(model, data, g1, g2, fromto, self._normal, self._jac1, self._jac2)
             rows.append(-row if dist >= 0 else row)
-            bounds.append(self.gain * max(dist - float(self.min_distance[idx]), 0.0))
+            bounds.append(bound)
             self.active.append((int(idx), dist))
         self._ref_p1[need], self._ref_p2[need] = data.geom_xpos[self.geom1[need]], data.geom_xpos[self.geom2[need]]
         self._ref_r1[need], self._ref_r2[need] = data.geom_xmat[self.geom1[need]], data.geom_xmat[self.geom2[need]]
         if not rows:
             return Constraint()
         return Constraint(G=np.vstack(rows), h=np.array(bounds))
+
+    def _max_approach(self, configuration: mink.Configuration, dt: float) -> np.ndarray:
+        """Per geom id: how far [m] any point of the geom can move in one step inside the joint box."""
+        assert self.box is not None
+        lb, ub = self.box.bounds(configuration.q, dt)
+        step = np.maximum(np.abs(lb), np.abs(ub))
+        data = configuration.data
+        rel = data.geom_xpos[self._geoms][:, None, :] - data.xanchor[self._dof_jnt][None, :, :]
+        lever = np.linalg.norm(rel, axis=2) + self.model.geom_rbound[self._geoms][:, None]
+        with np.errstate(invalid="ignore"):
+            reach = np.where(self._chain > 0, self._chain * lever, 0.0)
+        self._approach[self._geoms] = reach @ step
+        return self._approach
 
     def pair_name(self, model: mujoco.MjModel, idx: int) -> str:
         """Readable name of a pair: geom (or body) names of both sides."""

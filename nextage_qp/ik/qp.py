@@ -64,7 +64,7 @@ class QPIK:
                 if name not in groups:
                     raise UnknownNameError(f"geom group (collision_pairs[{i}])", name, groups)
             pairs.append((groups[pair.a], groups[pair.b], pair.min_distance, pair.detection_distance))
-        self.collision = ActiveCollisionLimit(self.model, pairs, config.collision_gain) if pairs else None
+        self.collision = ActiveCollisionLimit(self.model, pairs, config.collision_gain, self.box) if pairs else None
         self._frames: dict[str, Frame] = {}
         self._frame_tasks: dict[str, mink.FrameTask] = {}
         self._axis_tasks: dict[str, mink.AxisAlignTask] = {}
