@@ -49,6 +49,14 @@ class JointBoxLimit(mink.Limit):
         ub = np.minimum(self.gain * (self.upper - q), step)
         return lb, ub
 
+    def violated(self, q: np.ndarray, lb: np.ndarray, ub: np.ndarray, names: Sequence[str]) -> list[str]:
+        """One line per joint whose step bounds ``(lb, ub)`` exclude zero or cross (named by ``names``)."""
+        return [
+            f"joint {names[int(i)]} at {q[i]:.4f} rad outside [{self.lower[i]:.4f}, {self.upper[i]:.4f}]"
+            f" with step bound {self.vmax[i]:.3g} rad/s"
+            for i in np.flatnonzero((lb > 0) | (ub < 0) | (lb > ub))
+        ]
+
     def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
         """The box as rows ``[I; -I] dq <= [ub; -lb]`` (for use with plain mink)."""
         lb, ub = self.bounds(configuration.q, dt)
@@ -208,6 +216,14 @@ class ActiveCollisionLimit(mink.Limit):
             reach = np.where(self._chain > 0, self._chain * lever, 0.0)
         self._approach[self._geoms] = reach @ step
         return self._approach
+
+    def violated(self, model: mujoco.MjModel) -> list[str]:
+        """One line per pair at or below its minimum distance at the last call."""
+        return [
+            f"collision pair {self.pair_name(model, idx)} at {dist * 1000:.1f} mm"
+            for idx, dist in self.active
+            if dist <= self.min_distance[idx]
+        ]
 
     def pair_name(self, model: mujoco.MjModel, idx: int) -> str:
         """Readable name of a pair: geom (or body) names of both sides."""

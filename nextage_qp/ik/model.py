@@ -66,6 +66,17 @@ def resolve_frame(robot: Robot, name: str) -> Frame:
     return Frame(name, kind, fid)
 
 
+def chain_dofs(model: mujoco.MjModel, frame: Frame) -> np.ndarray:
+    """Boolean mask (nv,) of the dofs that move ``frame``: those of its body and every ancestor."""
+    mask = np.zeros(model.nv, dtype=bool)
+    body = frame.id if frame.kind == "body" else int(model.site_bodyid[frame.id])
+    while body > 0:
+        adr, num = int(model.body_dofadr[body]), int(model.body_dofnum[body])
+        mask[adr : adr + num] = True
+        body = int(model.body_parentid[body])
+    return mask
+
+
 def set_object_poses(model: mujoco.MjModel, data: mujoco.MjData, poses: ObjectPoses) -> None:
     """Place mocap objects (by body name) in ``data``; kinematics must be run afterwards.
 

@@ -14,17 +14,12 @@ from collections.abc import Sequence
 import mink
 import mujoco
 import numpy as np
-import qpsolvers
-
-try:
-    import daqp
-except ImportError:  # pragma: no cover - daqp is a dependency, other backends still work
-    daqp = None
 
 from nextage_qp.errors import UnknownNameError
+from nextage_qp.ik.backend import solve_qp
 from nextage_qp.ik.config import IKConfig
 from nextage_qp.ik.limits import ActiveCollisionLimit, JointBoxLimit
-from nextage_qp.ik.model import Frame, ObjectPoses, kinematic_model, resolve_frame, set_object_poses
+from nextage_qp.ik.model import Frame, ObjectPoses, chain_dofs, kinematic_model, resolve_frame, set_object_poses
 from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, worst_errors
 from nextage_qp.robot import JOINT_NAMES, Robot
 
@@ -140,39 +135,15 @@ class QPIK:
         problem.lb, problem.ub = self.box.bounds(q, dt)
         if np.any(problem.lb > problem.ub + 1e-12):
             raise IKInfeasibleError(self._explain(q, problem.lb, problem.ub))
-        if self.config.solver == "daqp" and daqp is not None:
-            x = self._solve_daqp(problem)
-        else:
-            result = qpsolvers.solve_problem(problem, solver=self.config.solver)
-            x = result.x if result.found else None
+        x = solve_qp(problem, self.config.solver)
         if x is None:
             raise IKInfeasibleError(self._explain(q, problem.lb, problem.ub))
         return np.asarray(x) / dt
 
-    @staticmethod
-    def _solve_daqp(problem: qpsolvers.Problem) -> np.ndarray | None:
-        """DAQP called directly: the joint box as its native simple bounds, collision rows as inequalities."""
-        n = len(problem.q)
-        rows = 0 if problem.G is None else len(problem.G)
-        a_mat = np.zeros((0, n)) if problem.G is None else np.ascontiguousarray(problem.G)
-        upper = np.concatenate([problem.ub, problem.h]) if problem.h is not None else np.asarray(problem.ub)
-        lower = np.concatenate([problem.lb, np.full(rows, -1e30)])
-        sense = np.zeros(n + rows, dtype=np.int32)
-        x, _, exitflag, _ = daqp.solve(problem.P, problem.q, a_mat, upper, lower, sense)
-        return x if exitflag > 0 else None
-
     def _explain(self, q: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> str:
         """Describe the limits active at an infeasible step."""
-        parts = []
-        for i in np.flatnonzero((lb > 0) | (ub < 0) | (lb > ub)):
-            parts.append(
-                f"joint {JOINT_NAMES[i]} at {q[i]:.4f} rad outside [{self.box.lower[i]:.4f}, {self.box.upper[i]:.4f}]"
-                f" with step bound {self.box.vmax[i]:.3g} rad/s"
-            )
-        if self.collision is not None:
-            for idx, dist in self.collision.active:
-                if dist <= self.collision.min_distance[idx]:
-                    parts.append(f"collision pair {self.collision.pair_name(self.model, idx)} at {dist * 1000:.1f} mm")
+        parts = self.box.violated(q, lb, ub, JOINT_NAMES)
+        parts += self.collision.violated(self.model) if self.collision is not None else []
         what = "; ".join(parts) or "no single limit violated (conflicting limits or extra tasks)"
         return f"IK QP infeasible ({self.config.solver}): active limits: {what}"
 
@@ -211,13 +182,7 @@ class QPIK:
         rng = np.random.default_rng(cfg.seed)
         q, total, best = np.array(q0, dtype=float), 0, None
         # Restarts re-draw only the joints that move a target frame; the others keep their q0 values.
-        moving = np.zeros(self.model.nv, dtype=bool)
-        for frame in frames:
-            body = frame.id if frame.kind == "body" else int(self.model.site_bodyid[frame.id])
-            while body > 0:
-                adr, num = int(self.model.body_dofadr[body]), int(self.model.body_dofnum[body])
-                moving[adr : adr + num] = True
-                body = int(self.model.body_parentid[body])
+        moving = np.any([chain_dofs(self.model, frame) for frame in frames], axis=0)
         for attempt in range(cfg.restarts + 1):
             if attempt:
                 q = np.where(moving, rng.uniform(self.box.lower, self.box.upper), np.asarray(q0, dtype=float))
