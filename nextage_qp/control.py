@@ -25,10 +25,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.robot import JOINT_NAMES, package_root
+from nextage_qp.yaml_file import read_yaml_mapping
 
 
 @dataclass(frozen=True)
@@ -85,12 +85,7 @@ def load_gains(path: str | Path) -> Gains:
             or a gain is not a number >= 0. The message names the file, the key and the valid values.
     """
     file = gains_path(path)
-    try:
-        doc = yaml.safe_load(file.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{file}: not valid YAML: {' '.join(str(exc).split())}") from None
-    if not isinstance(doc, dict):
-        raise ConfigError(f"{file}: expected a mapping with keys 'joints' and 'gravity_compensation'")
+    doc = read_yaml_mapping(file, "a mapping with keys 'joints' and 'gravity_compensation'")
     if bad := sorted(set(doc) - {"joints", "gravity_compensation"}):
         raise ConfigError(f"{file}: unknown key {bad[0]!r}; valid: gravity_compensation, joints")
     joints = doc.get("joints")

@@ -18,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from nextage_qp.errors import ConfigError
 from nextage_qp.ik import IKConfig
 from nextage_qp.trajectory import TrajectoryLimits
+from nextage_qp.yaml_file import read_yaml_mapping
 
 Vec3 = tuple[float, float, float]
 
@@ -318,12 +319,7 @@ def load_config(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -
         bundled = sorted(p.name for p in (Path("configs")).glob("*.yaml")) if Path("configs").is_dir() else []
         hint = f"; configs here: {', '.join(bundled)}" if bundled else ""
         raise ConfigError(f"{file}: no such config file{hint}")
-    try:
-        doc = yaml.safe_load(file.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{file}: not valid YAML: {' '.join(str(exc).split())}") from None
-    if not isinstance(doc, dict):
-        raise ConfigError(f"{file}: expected a mapping at the top level")
+    doc = read_yaml_mapping(file, "a mapping at the top level")
     for assignment in overrides:
         apply_override(doc, assignment)
     try:
