@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import functools
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import mujoco
 import numpy as np
@@ -162,6 +162,26 @@ def _done(p: _Problem, pos_tol: float, rot_tol: float) -> bool:
     return pos_err <= pos_tol and rot_err <= rot_tol
 
 
+def _iterate(
+    robot: Robot,
+    targets: Sequence[FrameTarget],
+    q0: np.ndarray,
+    step: Callable[[_Problem, np.ndarray], np.ndarray],
+    max_iters: int,
+    pos_tol: float,
+    rot_tol: float,
+) -> IKResult:
+    """Apply ``step(problem, q) -> q`` (which leaves the problem updated at the q it returns) until done."""
+    start = time.perf_counter()
+    p, q = _Problem(robot, targets), np.array(q0, dtype=float)
+    p.update(q)
+    iters = 0
+    while iters < max_iters and not _done(p, pos_tol, rot_tol):
+        q = step(p, q)
+        iters += 1
+    return _result(p, q, iters, pos_tol, rot_tol, start)
+
+
 def dls_ik(
     robot: Robot,
     targets: Sequence[FrameTarget],
@@ -173,16 +193,14 @@ def dls_ik(
     rot_tol: float = 1e-3,
 ) -> IKResult:
     r"""Damped least squares over all 15 joints with damping :math:`\lambda` [m or rad]."""
-    start = time.perf_counter()
-    p, q = _Problem(robot, targets), np.array(q0, dtype=float)
-    p.update(q)
-    iters = 0
-    while iters < max_iters and not _done(p, pos_tol, rot_tol):
+
+    def step(p: _Problem, q: np.ndarray) -> np.ndarray:
         jac, err = p.jacobian(), p.error()
         q = p.clip(q + jac.T @ np.linalg.solve(jac @ jac.T + damping**2 * np.eye(len(err)), err))
         p.update(q)
-        iters += 1
-    return _result(p, q, iters, pos_tol, rot_tol, start)
+        return q
+
+    return _iterate(robot, targets, q0, step, max_iters, pos_tol, rot_tol)
 
 
 def lm_ik(
@@ -196,21 +214,19 @@ def lm_ik(
     rot_tol: float = 1e-3,
 ) -> IKResult:
     r"""Levenberg–Marquardt with adaptive :math:`\lambda` (lecture Algorithm 5)."""
-    start = time.perf_counter()
-    p, q = _Problem(robot, targets), np.array(q0, dtype=float)
-    p.update(q)
-    err = p.error()
-    iters = 0
-    while iters < max_iters and not _done(p, pos_tol, rot_tol):
-        jac = p.jacobian()
-        dq = np.linalg.solve(jac.T @ jac + lam * np.eye(len(q)), jac.T @ err)
+    state = {"lam": lam}
+
+    def step(p: _Problem, q: np.ndarray) -> np.ndarray:
+        jac, err = p.jacobian(), p.error()
+        dq = np.linalg.solve(jac.T @ jac + state["lam"] * np.eye(len(q)), jac.T @ err)
         q_new = p.clip(q + dq)
         p.update(q_new)
         err_new = p.error()
         if err_new @ err_new < err @ err:
-            q, err, lam = q_new, err_new, max(lam / 10.0, 1e-9)
-        else:
-            p.update(q)
-            lam = min(lam * 10.0, 1e6)
-        iters += 1
-    return _result(p, q, iters, pos_tol, rot_tol, start)
+            state["lam"] = max(state["lam"] / 10.0, 1e-9)
+            return q_new
+        p.update(q)
+        state["lam"] = min(state["lam"] * 10.0, 1e6)
+        return q
+
+    return _iterate(robot, targets, q0, step, max_iters, pos_tol, rot_tol)
