@@ -107,6 +107,15 @@ def compile_scene(scene: str | Path, overrides: SceneOverrides | None = None) ->
     Raises:
         ConfigError: The scene is missing or an override names a body that is not in it.
     """
+    return scene_spec(scene, overrides).compile()
+
+
+def scene_spec(scene: str | Path, overrides: SceneOverrides | None = None) -> mujoco.MjSpec:
+    """The scene's MjSpec with the pose and mass overrides applied (not compiled).
+
+    Raises:
+        ConfigError: The scene is missing or an override names a body that is not in it.
+    """
     path = scene_path(scene)
     spec = mujoco.MjSpec.from_file(str(path))
     overrides = overrides or SceneOverrides()
@@ -128,7 +137,7 @@ def compile_scene(scene: str | Path, overrides: SceneOverrides | None = None) ->
         scale = mass / float(np.atleast_1d(body.mass)[0])
         body.mass = mass
         body.inertia = np.asarray(body.inertia) * scale
-    return spec.compile()
+    return spec
 
 
 class Robot:
@@ -140,6 +149,7 @@ class Robot:
 
     Attributes:
         model: The MuJoCo model.
+        overrides: The scene overrides the model was compiled with (kinematic copies apply them too).
         joint_ids: Model joint id of each of :data:`JOINT_NAMES`.
         qpos_idx: Index into ``data.qpos`` of each robot joint (read-only).
         dof_idx: Index into ``data.qvel`` / ``qfrc_*`` of each robot joint (read-only).
@@ -148,9 +158,12 @@ class Robot:
         torque_limit: Actuator torque limit [N m] per joint (read-only).
     """
 
-    def __init__(self, model: mujoco.MjModel, scene: str = "<model>") -> None:
+    def __init__(
+        self, model: mujoco.MjModel, scene: str = "<model>", overrides: SceneOverrides | None = None
+    ) -> None:
         self.model = model
         self.scene = scene
+        self.overrides = overrides or SceneOverrides()
         model_joints = [model.joint(i).name for i in range(model.njnt)]
         missing = [j for j in JOINT_NAMES if j not in model_joints]
         if missing:
@@ -168,7 +181,7 @@ class Robot:
     @classmethod
     def from_scene(cls, scene: str | Path = "scene", overrides: SceneOverrides | None = None) -> Robot:
         """Load a bundled scene by name (``scene``, ``push_cube``, ``dock_dumbbell``, ``nextage``) or path."""
-        return cls(compile_scene(scene, overrides), scene=str(scene))
+        return cls(compile_scene(scene, overrides), scene=str(scene), overrides=overrides)
 
     # Names and indices.
 

@@ -8,7 +8,7 @@ from nextage_qp.errors import ConfigError, UnknownFrameError, UnknownNameError
 from nextage_qp.ik import QPIK, CollisionPairConfig, FrameTarget, IKConfig, IKInfeasibleError, kinematic_model
 from nextage_qp.ik.targets import worst_errors
 from nextage_qp.kinematics import Kinematics
-from nextage_qp.robot import JOINT_NAMES, Robot
+from nextage_qp.robot import JOINT_NAMES, BodyPose, Robot, SceneOverrides
 
 
 @pytest.fixture(scope="module")
@@ -153,6 +153,15 @@ def test_rows_that_cannot_bind_are_dropped_without_changing_the_step(robot: Robo
         assert len(pruned.collision.active) + pruned.collision.slack == len(full.collision.active)
         dropped += pruned.collision.slack
     assert dropped > 0
+
+
+def test_scene_overrides_reach_the_ik_collision_model() -> None:
+    """An obstacle moved by a scene override is where the IK's collision avoidance sees it."""
+    moved = Robot.from_scene("dock_dumbbell", SceneOverrides(poses={"obstacle": BodyPose(pos=(0.45, 0.1, 0.9))}))
+    ik = QPIK(moved, IKConfig(collision_pairs=(CollisionPairConfig(a="left_arm", b="obstacle"),)))
+    body = ik.model.body("obstacle").id
+    assert ik.configuration.data.xpos[body] == pytest.approx([0.45, 0.1, 0.9])
+    assert ik.model.body_pos[body] == pytest.approx(moved.model.body_pos[moved.model.body("obstacle").id])
 
 
 def test_object_poses_move_collision_geometry(robot: Robot) -> None:

@@ -15,14 +15,14 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError, UnknownNameError
-from nextage_qp.robot import JOINT_NAMES, Robot, scene_path
+from nextage_qp.robot import JOINT_NAMES, Robot, scene_spec
 
 ObjectPoses = Mapping[str, tuple[np.ndarray, np.ndarray]]
 """Object name -> (position [m], unit quaternion w, x, y, z) in the world."""
 
 
 def kinematic_model(robot: Robot) -> mujoco.MjModel:
-    """Compile the robot's scene without free joints (objects become mocap bodies).
+    """Compile the robot's scene, with its overrides, without free joints (objects become mocap bodies).
 
     Raises:
         ConfigError: The scene cannot be recompiled, or the result is not exactly the 15 robot joints.
@@ -31,7 +31,7 @@ def kinematic_model(robot: Robot) -> mujoco.MjModel:
     if not free.any():
         model = robot.model
     else:
-        spec = mujoco.MjSpec.from_file(str(scene_path(robot.scene)))
+        spec = scene_spec(robot.scene, robot.overrides)
         for joint in list(spec.joints):
             if joint.type == mujoco.mjtJoint.mjJNT_FREE:
                 body = joint.parent
