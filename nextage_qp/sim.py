@@ -138,7 +138,9 @@ class Simulation:
         traj: The online reference generator.
         pd: The PD torque law (holds the saturation counters).
         recorder: The log of the run.
-        hooks: Functions called as ``hook(sim)`` after every tick (e.g. to record object contacts).
+        hooks: Functions called as ``hook(sim)`` after every tick (e.g. to measure clearances).
+        substep_hooks: Functions called as ``hook(sim)`` at every physics step, once its contacts are
+            computed (e.g. to count steps with a contact).
         tau_ff: Optional feed-forward torque [N·m], added to every PD torque while set.
     """
 
@@ -170,6 +172,7 @@ class Simulation:
         self.objects = tuple((name, robot.object_qpos_slice(name)) for name in robot.object_names)
         self.recorder = Recorder(tuple(frames), tuple(n for n, _ in self.objects), sim_dt=sim_dt, ctrl_dt=ctrl_dt)
         self.hooks: list[Hook] = []
+        self.substep_hooks: list[Hook] = []
         self.tau_ff: np.ndarray | None = None
         self._raw: RefState | None = None
         self._step = 0
@@ -235,6 +238,8 @@ class Simulation:
         for k in range(self.n_substeps):
             ref = raw if raw is not None else self.traj.interpolate(k * self.sim_dt)
             mujoco.mj_step1(m, d)
+            for hook in self.substep_hooks:
+                hook(self)
             q, qd = d.qpos[qi], d.qvel[di]
             tau = self.pd.torque(q, qd, ref.q, ref.qd, d.qfrc_bias[di], self.tau_ff)
             d.ctrl[ai] = tau

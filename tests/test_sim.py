@@ -100,3 +100,29 @@ def test_nan_state_is_caught_with_time_and_joint(robot, gains, tmp_path, monkeyp
 def test_ctrl_dt_must_be_multiple_of_sim_dt(gains):
     with pytest.raises(SimulationError, match="integer multiple"):
         Simulation(Robot.from_scene("nextage"), gains, ctrl_dt=0.0025)
+
+
+def test_obstacle_contacts_are_counted_per_physics_step(gains):
+    """With the wall moved onto the left wrist, every physics step in contact counts once."""
+    from nextage_qp.manipulation.runner import OutcomeMonitor
+    from nextage_qp.robot import BodyPose, SceneOverrides
+
+    wall = SceneOverrides(poses={"obstacle": BodyPose(pos=(0.505, 0.23, 1.03), yaw=0.0)})
+    robot = Robot.from_scene("dock_dumbbell", wall)
+    sim = Simulation(robot, gains)
+    monitor = OutcomeMonitor(robot, "dumbbell")
+    sim.hooks.append(monitor.on_tick)
+    sim.substep_hooks.append(monitor.on_substep)
+    touching_steps = []
+
+    def count(s: Simulation) -> None:
+        obstacle = set(monitor.obstacle or ())
+        d = s.data
+        contacts = d.contact[: d.ncon]
+        touching_steps.append(any((c.geom1 in obstacle) != (c.geom2 in obstacle) and c.dist < 0 for c in contacts))
+
+    sim.substep_hooks.append(count)
+    sim.run(0.048)
+    assert len(touching_steps) == 48
+    assert monitor.obstacle_contacts == sum(touching_steps) > 0
+    assert monitor.min_clearance is not None and monitor.min_clearance < 0

@@ -112,6 +112,7 @@ class Runner:
         self.records = [PhaseRecord(cfg.phase_name(i), p.kind) for i, p in enumerate(cfg.phases)]
         self.metrics = OutcomeMonitor(self.robot, cfg.object)
         self.sim.hooks.append(self.metrics.on_tick)
+        self.sim.substep_hooks.append(self.metrics.on_substep)
         self.error: str | None = None
         self.wall_s = 0.0
         self.current: PhaseRunner | None = None
@@ -221,6 +222,7 @@ class OutcomeMonitor:
         self.model, self.obj, self.drop_distance = m, obj, drop_distance
         groups = robot.collision_geoms()
         self.obstacle = groups.get("obstacle")
+        self._obstacle_ids = np.array(self.obstacle if self.obstacle is not None else (), dtype=int)
         self.movers = tuple(g for k in ("left_arm", "right_arm", "torso", "head", obj) for g in groups.get(k, ()))
         self.min_clearance: float | None = None
         self.obstacle_contacts = 0
@@ -228,16 +230,21 @@ class OutcomeMonitor:
         self.holding: str | None = None
         self._fromto = np.zeros(6)
 
+    def on_substep(self, sim: Simulation) -> None:
+        """Hook run at every physics step: count the steps in which anything touches the obstacle."""
+        d = sim.data
+        if self.obstacle is None or d.ncon == 0:
+            return
+        geoms = d.contact.geom[: d.ncon]
+        touching = np.isin(geoms, self._obstacle_ids)
+        if np.any((touching[:, 0] != touching[:, 1]) & (d.contact.dist[: d.ncon] < 0)):
+            self.obstacle_contacts += 1
+
     def on_tick(self, sim: Simulation) -> None:
-        """Hook run by the simulation after every control tick."""
+        """Hook run by the simulation after every control tick: minimum clearance to the obstacle."""
         if self.obstacle is None:
             return
         d, m = sim.data, self.model
-        obstacle = set(self.obstacle)
-        touching = any(
-            (c.geom1 in obstacle) != (c.geom2 in obstacle) and c.dist < 0 for c in d.contact[: d.ncon]
-        )
-        self.obstacle_contacts += sim.n_substeps if touching else 0
         best = self.min_clearance if self.min_clearance is not None else 1.0
         for og in self.obstacle:
             for g in self.movers:
