@@ -36,6 +36,26 @@ def add_scene_arg(parser: argparse.ArgumentParser, default: str = "scene") -> No
     parser.add_argument("--scene", default=default, help=f"bundled scene name or MJCF path (default: {default})")
 
 
+def add_sim_args(parser: argparse.ArgumentParser, plot_help: str) -> None:
+    """Add the options shared by the simulated commands: gains, duration, plot, log, JSON and scene."""
+    parser.add_argument("--gains", default="default", help="gains YAML path or bundled name: default, report")
+    parser.add_argument("--duration", type=float, default=3.0, help="simulated time [s] (default 3)")
+    parser.add_argument("--plot", metavar="PNG", help=plot_help)
+    parser.add_argument("--log", metavar="NPZ", help="write the recorded run (.npz + .json summary)")
+    parser.add_argument("--json", action="store_true", help="print the outcome as JSON")
+    add_scene_arg(parser)
+
+
+def print_outcome(out: dict[str, Any], as_json: bool, keys: tuple[str, ...] | None = None) -> None:
+    """Print an outcome as one JSON object, or as aligned ``key value`` lines (only ``keys`` if given)."""
+    if as_json:
+        print_json(out)
+        return
+    for key in keys or tuple(out):
+        value = out[key]
+        print(f"{key:18s} {value:.6g}" if isinstance(value, float) else f"{key:18s} {value}")
+
+
 def print_json(obj: Any) -> None:
     """Print one JSON object, converting numpy values."""
     print(json.dumps(obj, indent=2, default=_to_builtin))

@@ -7,7 +7,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from nextage_qp.commands.common import add_scene_arg, print_json
+from nextage_qp.commands.common import add_sim_args, print_outcome
 from nextage_qp.control import Gains, load_gains
 from nextage_qp.errors import ConfigError
 from nextage_qp.ik import QPIK, FrameTarget, IKConfig
@@ -131,11 +131,7 @@ def _run(args: argparse.Namespace) -> int:
         "max_ref_velocity_ratio": float(np.max(np.abs(a["qd_ref"]) / v)),
         "final_q": robot.q_to_names(sim.q),
     }
-    if args.json:
-        print_json(out)
-    else:
-        for key in ("frame", "final_error_m", "time_to_1mm_s", "max_abs_torque_nm", "saturated_steps"):
-            print(f"{key:18s} {out[key]}")
+    print_outcome(out, args.json, ("frame", "final_error_m", "time_to_1mm_s", "max_abs_torque_nm", "saturated_steps"))
     return 0
 
 
@@ -150,13 +146,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--pos", type=float, nargs=3, required=True, metavar=("X", "Y", "Z"), help="target [m], world")
     p.add_argument("--axis", type=float, nargs=3, metavar=("AX", "AY", "AZ"), help="tool axis in the frame")
     p.add_argument("--direction", type=float, nargs=3, metavar=("DX", "DY", "DZ"), help="world direction for --axis")
-    p.add_argument("--gains", default="default", help="gains YAML path or bundled name: default, report")
-    p.add_argument("--duration", type=float, default=3.0, help="simulated time [s] (default 3)")
     p.add_argument("--max-velocity", type=float, default=1.0, help="reference velocity limit [rad/s]")
     p.add_argument("--max-acceleration", type=float, default=4.0, help="reference acceleration limit [rad/s^2]")
     p.add_argument("--max-jerk", type=float, default=40.0, help="reference jerk limit [rad/s^3]")
-    p.add_argument("--plot", metavar="PNG", help="write distance-to-target plot")
-    p.add_argument("--log", metavar="NPZ", help="write the recorded run (.npz + .json summary)")
-    p.add_argument("--json", action="store_true", help="print the outcome as JSON")
-    add_scene_arg(p)
+    add_sim_args(p, "write distance-to-target plot")
     p.set_defaults(func=_run)

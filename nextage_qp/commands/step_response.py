@@ -7,7 +7,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from nextage_qp.commands.common import add_scene_arg, print_json
+from nextage_qp.commands.common import add_sim_args, print_outcome
 from nextage_qp.control import Gains, load_gains
 from nextage_qp.errors import ConfigError
 from nextage_qp.robot import Robot
@@ -111,11 +111,7 @@ def _run(args: argparse.Namespace) -> int:
         title = f"{args.joint}: {mode} to {args.target_deg:g}° ({gains.source})"
         plot_step_response(sim.recorder.arrays(), j, args.joint, target, args.plot, title=title)
     out = {"joint": args.joint, "target_rad": target, "gains": gains.source, "shaped": args.shaped, **metrics._asdict()}
-    if args.json:
-        print_json(out)
-    else:
-        for key, value in out.items():
-            print(f"{key:18s} {value:.6g}" if isinstance(value, float) else f"{key:18s} {value}")
+    print_outcome(out, args.json)
     return 0
 
 
@@ -128,11 +124,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--joint", required=True, help="joint name, e.g. LARM_JOINT2")
     p.add_argument("--target-deg", type=float, required=True, help="absolute target angle [deg]")
-    p.add_argument("--gains", default="default", help="gains YAML path or bundled name: default, report")
-    p.add_argument("--duration", type=float, default=3.0, help="simulated time [s] (default 3)")
     p.add_argument("--shaped", action="store_true", help="follow a Ruckig trajectory instead of a raw step")
-    p.add_argument("--plot", metavar="PNG", help="write position/velocity/torque plot")
-    p.add_argument("--log", metavar="NPZ", help="write the recorded run (.npz + .json summary)")
-    p.add_argument("--json", action="store_true", help="print the figures as JSON")
-    add_scene_arg(p)
+    add_sim_args(p, "write position/velocity/torque plot")
     p.set_defaults(func=_run)
