@@ -150,9 +150,39 @@ def test_rows_that_cannot_bind_are_dropped_without_changing_the_step(robot: Robo
         target = [FrameTarget(f, pos=kin.fk(f, q).pos + rng.normal(0, 0.1, 3)) for f in ("left_wrist", "right_wrist")]
         v_pruned, v_full = pruned.step(q, target, 0.004), full.step(q, target, 0.004)
         assert v_pruned == pytest.approx(v_full, abs=1e-7)
-        assert len(pruned.collision.active) + pruned.collision.slack == len(full.collision.active)
-        dropped += pruned.collision.slack
+        assert {i for i, _ in pruned.collision.active} <= {i for i, _ in full.collision.active}
+        dropped += len(full.collision.active) - len(pruned.collision.active)
     assert dropped > 0
+
+
+def test_travel_and_sphere_filters_miss_no_pair_within_detection(robot: Robot) -> None:
+    """Over a random walk with small and large jumps, the rows are exactly the pairs a brute force finds."""
+    pairs = tuple(
+        CollisionPairConfig(a=a, b=b, min_distance=0.005, detection_distance=0.06)
+        for a, b in (("left_arm", "table"), ("right_arm", "torso"), ("left_arm", "right_arm"), ("head", "left_arm"))
+    )
+    ik = QPIK(robot, IKConfig(collision_pairs=pairs))
+    limit = ik.collision
+    assert limit is not None
+    limit.box = None  # rows for every pair within detection distance
+    rng, q = np.random.default_rng(5), robot.keyframe_q("home")
+    model, data = ik.model, ik.configuration.data
+    seen = 0
+    for k in range(300):
+        q = np.clip(q + rng.normal(0.0, 0.3 if k % 25 == 0 else 0.01, robot.nq), robot.lower, robot.upper)
+        ik.configuration.update(q)
+        limit.compute_qp_inequalities(ik.configuration, 0.004)
+        brute = {}
+        for i in range(limit.num_pairs):
+            det = limit.detection_distance[i]
+            d = mujoco.mj_geomDistance(model, data, int(limit.geom1[i]), int(limit.geom2[i]), det, None)
+            if d < det:
+                brute[i] = d
+        got = dict(limit.active)
+        assert got.keys() == brute.keys(), k
+        assert all(abs(got[i] - brute[i]) < 1e-9 for i in got)
+        seen += len(got)
+    assert seen > 300, seen  # pairs were within detection distance along the walk
 
 
 def test_scene_overrides_reach_the_ik_collision_model() -> None:

@@ -1,7 +1,8 @@
 """Inverse kinematics: QP differential IK on mink (:class:`QPIK`) and the baselines it is compared with."""
 
+from nextage_qp.ik.collision import ActiveCollisionLimit
 from nextage_qp.ik.config import CollisionPairConfig, IKConfig
-from nextage_qp.ik.limits import ActiveCollisionLimit, JointBoxLimit
+from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.ik.model import kinematic_model
 from nextage_qp.ik.qp import QPIK
 from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, target_errors

@@ -1,9 +1,9 @@
 """Differential IK of both wrists and the shared chest as one QP, built on mink.
 
 Each step assembles mink's objective (frame, axis-align, posture and extra tasks via :func:`mink.build_ik`)
-and adds what mink lacks: the joint limits as a solver box (``lb``/``ub``) and collision rows only for
-active pairs (:mod:`nextage_qp.ik.limits`). :meth:`QPIK.solve` integrates the steps to a tolerance with a
-backtracking guard that never accepts a q closing a collision pair below its minimum distance.
+and adds what mink lacks: the joint limits as a solver box (``lb``/``ub``, :mod:`nextage_qp.ik.limits`) and
+collision rows only for pairs that can bind (:mod:`nextage_qp.ik.collision`). :meth:`QPIK.solve` integrates the
+steps to a tolerance with a backtracking guard that never accepts a q closing a pair below its minimum distance.
 """
 
 from __future__ import annotations
@@ -17,8 +17,9 @@ import numpy as np
 
 from nextage_qp.errors import UnknownNameError
 from nextage_qp.ik.backend import solve_qp
+from nextage_qp.ik.collision import ActiveCollisionLimit
 from nextage_qp.ik.config import IKConfig
-from nextage_qp.ik.limits import ActiveCollisionLimit, JointBoxLimit
+from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.ik.model import Frame, ObjectPoses, chain_dofs, kinematic_model, resolve_frame, set_object_poses
 from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, worst_errors
 from nextage_qp.robot import JOINT_NAMES, Robot

@@ -1,0 +1,221 @@
+"""Collision avoidance rows for the IK QP, sending the solver only the pairs that can bind.
+
+:class:`ActiveCollisionLimit` is mink's ``CollisionAvoidanceLimit`` with per-pair distances and three filters
+in front of the narrow phase, each exact (a filtered pair could not have produced an active row):
+
+1. **Travel bound.** Every narrow-phase distance is kept as a lower bound; each geom's travel since then
+   (centre shift + bounding radius × rotation chord, summed over the configurations seen) is subtracted from
+   it. A pair whose bound still exceeds its detection distance is skipped without any per-pair work beyond
+   one vectorised subtraction.
+2. **Bounding spheres** for the rest, as in mink's broadphase.
+3. **Reach bound.** With the joint box of the same QP, a pair within detection distance whose gap bound
+   exceeds how far its two geoms can approach in one step of the box gets no row: it could never bind.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+
+import mink
+import mujoco
+import numpy as np
+from mink.limits.collision_avoidance_limit import (
+    _are_geom_bodies_parent_child,
+    _is_pass_contype_conaffinity_check,
+    _is_welded_together,
+    compute_contact_normal_jacobian,
+)
+from mink.limits.limit import Constraint
+
+from nextage_qp.ik.limits import JointBoxLimit
+
+
+class ActiveCollisionLimit(mink.Limit):
+    r"""Keep geom pairs apart, emitting one QP row per pair that is within detection distance and can bind.
+
+    For an active pair at distance :math:`d` [m] with contact normal :math:`n` and witness-point Jacobians
+    :math:`J_1, J_2`, the row is
+
+    .. math::
+
+        -n^T (J_2 - J_1) \Delta q \le g\,\max(d - d_{min}, 0)
+
+    with collision gain :math:`g`, so the gap closes by at most a fraction ``g`` of its excess per step.
+
+    Args:
+        model: Kinematic model.
+        group_pairs: ``(geoms_a, geoms_b, min_distance [m], detection_distance [m])`` per group pair.
+        gain: Collision gain in (0, 1].
+        box: The joint box of the same QP. With it, a pair whose gap bound exceeds how far its two geoms
+            can approach each other within one step of the box gets no row (it could never bind).
+    """
+
+    margin = 0.05
+    """Narrow-phase queries look this far [m] beyond the detection distance, so the bound lasts longer."""
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        group_pairs: Sequence[tuple[Sequence[int], Sequence[int], float, float]],
+        gain: float,
+        box: JointBoxLimit | None = None,
+    ) -> None:
+        self.model, self.gain, self.box = model, gain, box
+        pairs: dict[tuple[int, int], tuple[float, float]] = {}
+        for geoms_a, geoms_b, dmin, ddet in group_pairs:
+            for a, b in itertools.product(set(geoms_a), set(geoms_b)):
+                if (
+                    a != b
+                    and not _is_welded_together(model, a, b)
+                    and not _are_geom_bodies_parent_child(model, a, b)
+                    and _is_pass_contype_conaffinity_check(model, a, b)
+                ):
+                    key = (min(a, b), max(a, b))
+                    old = pairs.get(key, (0.0, 0.0))
+                    pairs[key] = (max(old[0], dmin), max(old[1], ddet))
+        keys = sorted(pairs)
+        self.geom1 = np.array([k[0] for k in keys], dtype=int)
+        self.geom2 = np.array([k[1] for k in keys], dtype=int)
+        self.min_distance = np.array([pairs[k][0] for k in keys])
+        self.detection_distance = np.array([pairs[k][1] for k in keys])
+        rbound = model.geom_rbound
+        # A plane has rbound 0 (unbounded): the sphere test never filters it.
+        self._rsum = np.where((rbound[self.geom1] == 0) | (rbound[self.geom2] == 0), np.inf,
+                              rbound[self.geom1] + rbound[self.geom2])  # fmt: skip
+        # Travel bookkeeping per geom: cumulative travel [m], and the pose it was last measured at.
+        self._travel = np.zeros(model.ngeom)
+        self._last_pos = np.full((model.ngeom, 3), np.nan)
+        self._last_mat = np.full((model.ngeom, 9), np.nan)
+        self._rbound_chord = rbound / np.sqrt(2.0)  # ||R1 - R2||_F / sqrt(2) bounds a unit vector's shift
+        # Per pair: the distance lower bound last stored plus both geoms' travel at that moment (-inf: none).
+        self._base = np.full(len(keys), -np.inf)
+        self._lever = self._lever_bounds(model)
+        self._lists = (self.geom1.tolist(), self.geom2.tolist(), self.detection_distance.tolist(),
+                       self.min_distance.tolist())  # fmt: skip
+        self._fromto, self._normal = np.empty(6), np.empty(3)
+        self._jac1, self._jac2 = np.empty((3, model.nv)), np.empty((3, model.nv))
+        self.active: list[tuple[int, float]] = []
+        """(pair index, distance [m]) of the pairs sent to the QP at the last call."""
+        self.slack = 0
+        """Pairs not ruled out by the travel and sphere bounds that could not bind within the box (no row)."""
+
+    @staticmethod
+    def _lever_bounds(model: mujoco.MjModel) -> np.ndarray:
+        """Lever arms (ngeom, nv) [m] that hold in every configuration.
+
+        Each entry bounds the distance from a hinge dof's anchor to any point of a geom it moves (the sum of
+        the offsets along the chain); 0 where the dof does not move the geom, inf for a non-hinge dof.
+        """
+        lever = np.zeros((model.ngeom, model.nv))
+        for g in range(model.ngeom):
+            length = float(np.linalg.norm(model.geom_pos[g]) + model.geom_rbound[g])
+            body = int(model.geom_bodyid[g])
+            while body > 0:
+                for dof in range(model.body_dofadr[body], model.body_dofadr[body] + model.body_dofnum[body]):
+                    jnt = model.dof_jntid[dof]
+                    hinge = model.jnt_type[jnt] == mujoco.mjtJoint.mjJNT_HINGE
+                    lever[g, dof] = length + float(np.linalg.norm(model.jnt_pos[jnt])) if hinge else np.inf
+                length += float(np.linalg.norm(model.body_pos[body]))
+                body = int(model.body_parentid[body])
+        return lever
+
+    @property
+    def num_pairs(self) -> int:
+        """Number of geom pairs watched."""
+        return len(self.geom1)
+
+    def candidates(self, data: mujoco.MjData) -> np.ndarray:
+        """Indices of the pairs whose bounding spheres are within detection distance (broadphase only)."""
+        delta = data.geom_xpos[self.geom1] - data.geom_xpos[self.geom2]
+        reach = self._rsum + self.detection_distance
+        return np.flatnonzero(np.einsum("ij,ij->i", delta, delta) < reach**2)
+
+    def distances(self, data: mujoco.MjData, indices: Sequence[int] | np.ndarray) -> np.ndarray:
+        """Signed distances [m] of the given pairs, capped at their detection distance."""
+        out = np.empty(len(indices))
+        for k, idx in enumerate(indices):
+            dmax = float(self.detection_distance[idx])
+            out[k] = mujoco.mj_geomDistance(self.model, data, int(self.geom1[idx]), int(self.geom2[idx]), dmax, None)
+        return out
+
+    def _near(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+        """Pairs that may be within detection distance, with a lower bound [m] on their distance.
+
+        The travel bound goes first; the bounding spheres then check the pairs it cannot rule out.
+        """
+        pos, mat = data.geom_xpos, data.geom_xmat
+        dpos, dmat = pos - self._last_pos, mat - self._last_mat
+        moved = np.sqrt(np.einsum("ij,ij->i", dpos, dpos))
+        moved += self._rbound_chord * np.sqrt(np.einsum("ij,ij->i", dmat, dmat))
+        self._travel += np.nan_to_num(moved)  # first call: no bound is stored yet, nothing to void
+        self._last_pos[:], self._last_mat[:] = pos, mat
+        travel = self._travel
+        lower = self._base - travel[self.geom1] - travel[self.geom2]
+        idx = np.flatnonzero(lower < self.detection_distance)
+        if not idx.size:
+            return idx, lower[idx]
+        g1, g2 = self.geom1[idx], self.geom2[idx]
+        delta = pos[g1] - pos[g2]
+        sphere = np.sqrt(np.einsum("ij,ij->i", delta, delta)) - self._rsum[idx]
+        far = sphere >= self.detection_distance[idx]
+        self._remember(idx[far], sphere[far])
+        return idx[~far], np.maximum(lower[idx], sphere)[~far]
+
+    def _remember(self, idx: np.ndarray | int, lower: np.ndarray | float) -> None:
+        """Store a lower bound on the distance of pairs ``idx`` at the current geom travel."""
+        self._base[idx] = lower + self._travel[self.geom1[idx]] + self._travel[self.geom2[idx]]
+
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
+        """Rows of the pairs that can bind only; an inactive constraint when there are none."""
+        model, data, fromto = self.model, configuration.data, self._fromto
+        rows: list[np.ndarray] = []
+        bounds: list[float] = []
+        self.active, self.slack = [], 0
+        near, lower = self._near(data)
+        # Reach bound: how far the two geoms can approach in one step of the box; a pair whose gap bound
+        # exceeds it cannot bind. Checked on the distance's lower bound first (no narrow phase), then on it.
+        reach: list[float] | None = None
+        if self.box is not None and near.size:
+            lb, ub = self.box.bounds(configuration.q, dt)
+            with np.errstate(invalid="ignore"):  # inf lever x 0 step (non-hinge dof): NaN, never prunes
+                approach = self._lever @ np.maximum(np.abs(lb), np.abs(ub))
+            pair_reach = approach[self.geom1[near]] + approach[self.geom2[near]]
+            cannot = self.gain * (lower - self.min_distance[near]) > pair_reach
+            self.slack = int(np.count_nonzero(cannot))
+            near, reach = near[~cannot], pair_reach[~cannot].tolist()
+        geom1, geom2, detect, minimum = self._lists
+        travel, base, gain, margin = self._travel, self._base, self.gain, self.margin
+        for k, idx in enumerate(near.tolist()):
+            g1, g2, dmax = geom1[idx], geom2[idx], detect[idx]
+            dist = mujoco.mj_geomDistance(model, data, g1, g2, dmax + margin, fromto)
+            base[idx] = dist + travel[g1] + travel[g2]
+            if dist >= dmax:
+                continue
+            bound = gain * max(dist - minimum[idx], 0.0)
+            if reach is not None and bound > reach[k]:
+                self.slack += 1
+                continue
+            row = compute_contact_normal_jacobian(model, data, g1, g2, fromto, self._normal, self._jac1, self._jac2)
+            rows.append(-row if dist >= 0 else row)
+            bounds.append(bound)
+            self.active.append((idx, dist))
+        if not rows:
+            return Constraint()
+        return Constraint(G=np.vstack(rows), h=np.array(bounds))
+
+    def violated(self, model: mujoco.MjModel) -> list[str]:
+        """One line per pair at or below its minimum distance at the last call."""
+        return [
+            f"collision pair {self.pair_name(model, idx)} at {dist * 1000:.1f} mm"
+            for idx, dist in self.active
+            if dist <= self.min_distance[idx]
+        ]
+
+    def pair_name(self, model: mujoco.MjModel, idx: int) -> str:
+        """Readable name of a pair: geom (or body) names of both sides."""
+
+        def name(g: int) -> str:
+            return model.geom(g).name or f"{model.body(int(model.geom_bodyid[g])).name}/geom{g}"
+
+        return f"{name(int(self.geom1[idx]))}<->{name(int(self.geom2[idx]))}"
