@@ -96,7 +96,7 @@ def bench_step(robot: Robot, n: int, seed: int, collisions: bool) -> dict[str, f
         limits.append(mink.CollisionAvoidanceLimit(model, geom_pairs, 0.85, 0.005, 0.05))
     home = robot.keyframe_q("home")
     kin = Kinematics(robot)
-    ours_us, mink_us, active = [], [], []
+    ours_us, mink_us, active, queries = [], [], [], []
     # A control run: q moves at 1 rad/s (per joint, max) through random waypoints, one state per 4 ms tick;
     # the targets are the wrist poses at the next waypoint.
     q_prev = home
@@ -121,9 +121,11 @@ def bench_step(robot: Robot, n: int, seed: int, collisions: bool) -> dict[str, f
         ours_us.append((t1 - t0) * 1e6)
         mink_us.append((t2 - t1) * 1e6)
         active.append(len(ours.collision.active) if ours.collision else 0)
+        queries.append(ours.collision.queries if ours.collision else 0)
     return {
         "geom_pairs": float(ours.collision.num_pairs if ours.collision else 0),
         "active_rows_mean": float(np.mean(active)),
+        "narrow_phase_queries_mean": float(np.mean(queries)),
         "ours_us_median": pct(ours_us, 50), "ours_us_p99": pct(ours_us, 99),
         "mink_us_median": pct(mink_us, 50), "mink_us_p99": pct(mink_us, 99),
         "ratio_median": pct(ours_us, 50) / pct(mink_us, 50),
@@ -161,7 +163,8 @@ def main() -> None:
                   f"{r['ms_median']:8.2f} {r['ms_p99']:8.2f}")  # fmt: skip
     print(f"IK step (two wrist poses + posture + limits, dt 4 ms), {args.steps} states, daqp:")
     for case, r in step.items():
-        print(f"  {case:26} pairs {r['geom_pairs']:4.0f} (active {r['active_rows_mean']:.1f}) ours "
+        print(f"  {case:26} pairs {r['geom_pairs']:4.0f} (queries {r['narrow_phase_queries_mean']:.1f}, rows "
+              f"{r['active_rows_mean']:.1f}) ours "
               f"{r['ours_us_median']:.0f} us p99 {r['ours_us_p99']:.0f} us | mink.solve_ik median "
               f"{r['mink_us_median']:.0f} us p99 {r['mink_us_p99']:.0f} us | ratio {r['ratio_median']:.2f}")
     print(f"wall time {report['wall_s']:.0f} s")

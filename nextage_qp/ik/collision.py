@@ -97,6 +97,8 @@ class ActiveCollisionLimit(mink.Limit):
         self._jac1, self._jac2 = np.empty((3, model.nv)), np.empty((3, model.nv))
         self.active: list[tuple[int, float]] = []
         """(pair index, distance [m]) of the pairs sent to the QP at the last call."""
+        self.queries = 0
+        """Narrow-phase distance queries made at the last call."""
         self.slack = 0
         """Pairs not ruled out by the travel and sphere bounds that could not bind within the box (no row)."""
 
@@ -186,6 +188,7 @@ class ActiveCollisionLimit(mink.Limit):
             near, reach = near[~cannot], pair_reach[~cannot].tolist()
         geom1, geom2, detect, minimum = self._lists
         travel, base, gain, margin = self._travel, self._base, self.gain, self.margin
+        self.queries = len(near)
         for k, idx in enumerate(near.tolist()):
             g1, g2, dmax = geom1[idx], geom2[idx], detect[idx]
             dist = mujoco.mj_geomDistance(model, data, g1, g2, dmax + margin, fromto)
