@@ -112,7 +112,8 @@ class Runner:
         self.records = [PhaseRecord(cfg.phase_name(i), p.kind) for i, p in enumerate(cfg.phases)]
         self.metrics = OutcomeMonitor(self.robot, cfg.object)
         self.sim.hooks.append(self.metrics.on_tick)
-        self.sim.substep_hooks.append(self.metrics.on_substep)
+        if self.metrics.obstacle is not None:
+            self.sim.substep_hooks.append(self.metrics.on_substep)
         self.error: str | None = None
         self.wall_s = 0.0
         self.current: PhaseRunner | None = None
@@ -222,7 +223,8 @@ class OutcomeMonitor:
         self.model, self.obj, self.drop_distance = m, obj, drop_distance
         groups = robot.collision_geoms()
         self.obstacle = groups.get("obstacle")
-        self._obstacle_ids = np.array(self.obstacle if self.obstacle is not None else (), dtype=int)
+        self._is_obstacle = np.zeros(m.ngeom, dtype=bool)
+        self._is_obstacle[list(self.obstacle or ())] = True
         self.movers = tuple(g for k in ("left_arm", "right_arm", "torso", "head", obj) for g in groups.get(k, ()))
         self.min_clearance: float | None = None
         self.obstacle_contacts = 0
@@ -236,7 +238,7 @@ class OutcomeMonitor:
         if self.obstacle is None or d.ncon == 0:
             return
         geoms = d.contact.geom[: d.ncon]
-        touching = np.isin(geoms, self._obstacle_ids)
+        touching = self._is_obstacle[geoms]
         if np.any((touching[:, 0] != touching[:, 1]) & (d.contact.dist[: d.ncon] < 0)):
             self.obstacle_contacts += 1
 
