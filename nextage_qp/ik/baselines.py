@@ -214,19 +214,22 @@ def lm_ik(
     rot_tol: float = 1e-3,
 ) -> IKResult:
     r"""Levenberg–Marquardt with adaptive :math:`\lambda` (lecture Algorithm 5)."""
-    state = {"lam": lam}
+    err: np.ndarray | None = None  # error at the current q, carried between steps
 
     def step(p: _Problem, q: np.ndarray) -> np.ndarray:
-        jac, err = p.jacobian(), p.error()
-        dq = np.linalg.solve(jac.T @ jac + state["lam"] * np.eye(len(q)), jac.T @ err)
+        nonlocal lam, err
+        if err is None:
+            err = p.error()
+        jac = p.jacobian()
+        dq = np.linalg.solve(jac.T @ jac + lam * np.eye(len(q)), jac.T @ err)
         q_new = p.clip(q + dq)
         p.update(q_new)
         err_new = p.error()
         if err_new @ err_new < err @ err:
-            state["lam"] = max(state["lam"] / 10.0, 1e-9)
+            lam, err = max(lam / 10.0, 1e-9), err_new
             return q_new
         p.update(q)
-        state["lam"] = min(state["lam"] * 10.0, 1e6)
+        lam = min(lam * 10.0, 1e6)
         return q
 
     return _iterate(robot, targets, q0, step, max_iters, pos_tol, rot_tol)
