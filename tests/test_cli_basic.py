@@ -21,10 +21,12 @@ def test_info_lists_joints_sites_objects(capsys):
     assert info["collision_groups"]["obstacle"] == 1
 
 
-def test_info_table_output(capsys):
+def test_info_table_output(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")
     assert main(["info"]) == 0
     out = capsys.readouterr().out
     assert "LARM_JOINT3" in out and "sites:" in out
+    assert "lower [rad]" in out and "torque [N m]" in out  # unit brackets are not read as rich markup
 
 
 def test_fk_json_at_home(capsys):

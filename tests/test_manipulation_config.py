@@ -77,6 +77,18 @@ def test_unreachable_target_fails_the_phase_with_its_name(tmp_path, capsys):
     assert '"status": "failed"' in captured.out
 
 
+def test_text_summary_keeps_unit_brackets(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")
+
+    def edit(d):
+        d["phases"] = [{"kind": "move", "name": "reach far", "timeout": 0.2,
+                        "targets": [{"frame": "left_tool", "relative_to": "world", "offset": [1.5, 0.0, 1.0]}]}]
+    assert main(["run", str(write_variant(tmp_path, PUSH, edit))]) == 1
+    out = capsys.readouterr().out
+    for text in ("start [s]", "duration [s]", "final object position [m]", "obstacle contacts [steps]"):
+        assert text in out
+
+
 @pytest.mark.parametrize("assignment", ["noequals", "phases.9.speed=1", "task.sub=1"])
 def test_bad_set_overrides(assignment):
     with pytest.raises(ConfigError):

@@ -6,6 +6,7 @@ import argparse
 
 import numpy as np
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from nextage_qp.commands.common import print_json
@@ -63,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     console = Console()
     table = Table(title=f"{args.scene}: joints", title_justify="left")
     for col in ("joint", "lower [rad]", "upper [rad]", "axis", "damping", "torque [N m]"):
-        table.add_column(col, justify="left" if col in ("joint", "axis") else "right")
+        table.add_column(escape(col), justify="left" if col in ("joint", "axis") else "right")
     for j in info["joints"]:
         table.add_row(j["name"], f"{j['lower_rad']:.4f}", f"{j['upper_rad']:.4f}", str(j["axis"]),
                       f"{j['damping']:g}", f"{j['torque_limit_nm']:g}")

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
@@ -118,8 +119,8 @@ def _print_summary(result: dict[str, Any], console: Console) -> None:
     table.add_column("phase")
     table.add_column("kind")
     table.add_column("status")
-    table.add_column("start [s]", justify="right")
-    table.add_column("duration [s]", justify="right")
+    table.add_column(escape("start [s]"), justify="right")
+    table.add_column(escape("duration [s]"), justify="right")
     for ph in result["phases"]:
         table.add_row(ph["name"], ph["kind"], ph["status"], f"{ph['start_s']:.2f}", f"{ph['duration_s']:.2f}")
     console.print(table)
@@ -137,7 +138,6 @@ def _print_summary(result: dict[str, Any], console: Console) -> None:
         ("joint limit violations [steps]", str(result["joint_limit_violations"])),
         ("max |torque|", f"{result['max_abs_torque_nm']:.1f} N m ({result['torque_saturation_ticks']} saturated)"),
     ]
-    for key, value in rows:
-        console.print(f"  {key:<32} {value}")
-    for key, path in result.get("outputs", {}).items():
-        console.print(f"  {key:<32} {path}")
+    # markup=False: the unit brackets ("[m]", "[steps]") are text, not rich style tags.
+    for key, value in [*rows, *result.get("outputs", {}).items()]:
+        console.print(f"  {key:<32} {value}", markup=False)
