@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 from nextage_qp.errors import NextageQPError
 
-COMMANDS = ("info", "fk", "ik", "step_response", "reach", "run")
+COMMANDS = ("info", "fk", "ik", "step_response", "reach", "run", "sweep")
 """Modules of :mod:`nextage_qp.commands`, in the order ``--help`` lists them."""
 
 

@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.robot import JOINT_NAMES, package_root
+from nextage_qp.robot import JOINT_NAMES
+from nextage_qp.scene import package_root
 from nextage_qp.yaml_file import read_yaml_mapping
 
 

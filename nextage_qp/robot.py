@@ -8,7 +8,6 @@ joint, actuator and body carries the URDF name, so the report's tables map 1:1. 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 
@@ -16,6 +15,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError, UnknownFrameError, UnknownJointError, UnknownNameError
+from nextage_qp.scene import SceneOverrides, compile_scene
 
 SIDES = ("left", "right")
 """The two arms, in the order every per-arm loop uses."""
@@ -40,105 +40,6 @@ GROUP_JOINTS: Mapping[str, tuple[str, ...]] = MappingProxyType(
     }
 )
 """Joint groups: the chest, the head and each arm."""
-
-SCENE_DIR_NAMES = ("scenes",)
-
-
-def package_root() -> Path:
-    """Directory that holds ``scenes/`` and ``configs/`` (the checkout, or the installed package)."""
-    here = Path(__file__).resolve().parent
-    for candidate in (here, here.parent):
-        if (candidate / "scenes" / "nextage.xml").is_file():
-            return candidate
-    raise ConfigError(f"cannot find the scenes/ directory next to {here} or {here.parent}")
-
-
-def scene_path(scene: str | Path) -> Path:
-    """Resolve a scene given as a path or as a short name (``push_cube`` -> ``scenes/push_cube.xml``).
-
-    Raises:
-        ConfigError: The scene does not exist; the message lists the bundled scenes.
-    """
-    path = Path(scene)
-    if path.is_file():
-        return path
-    bundled = package_root() / "scenes"
-    for cand in (bundled / path, bundled / f"{path}.xml"):
-        if cand.is_file():
-            return cand
-    names = sorted(p.stem for p in bundled.glob("*.xml") if p.stem != "table")
-    raise ConfigError(f"scene {str(scene)!r} not found; bundled scenes: {', '.join(names)} (or a path to an MJCF file)")
-
-
-@dataclass(frozen=True)
-class BodyPose:
-    """Override of a body's pose in a scene (objects, targets, obstacle).
-
-    Attributes:
-        pos: Position [m] in the world frame, or None to keep the XML value.
-        yaw: Rotation about the world z axis [rad], or None to keep the XML orientation.
-    """
-
-    pos: tuple[float, float, float] | None = None
-    yaw: float | None = None
-
-
-@dataclass(frozen=True)
-class SceneOverrides:
-    """Changes applied to a scene before it is compiled, so no XML needs editing.
-
-    Attributes:
-        poses: Body name -> new pose (e.g. ``{"cube": BodyPose(pos=(0.35, 0.02, 0.91))}``). For a free
-            body this is its start pose; for a static or visual body (target, obstacle) its fixed pose.
-        masses: Body name -> new mass [kg]; the inertia is scaled by the same factor.
-    """
-
-    poses: Mapping[str, BodyPose] = field(default_factory=dict)
-    masses: Mapping[str, float] = field(default_factory=dict)
-
-
-def _yaw_quat(yaw: float) -> np.ndarray:
-    return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
-
-
-def compile_scene(scene: str | Path, overrides: SceneOverrides | None = None) -> mujoco.MjModel:
-    """Compile a scene MJCF with optional pose and mass overrides.
-
-    Raises:
-        ConfigError: The scene is missing or an override names a body that is not in it.
-    """
-    return scene_spec(scene, overrides).compile()
-
-
-def scene_spec(scene: str | Path, overrides: SceneOverrides | None = None) -> mujoco.MjSpec:
-    """The scene's MjSpec with the pose and mass overrides applied (not compiled).
-
-    Raises:
-        ConfigError: The scene is missing or an override names a body that is not in it.
-    """
-    path = scene_path(scene)
-    spec = mujoco.MjSpec.from_file(str(path))
-    overrides = overrides or SceneOverrides()
-    names = [b.name for b in spec.bodies if b.name]
-    for name, pose in overrides.poses.items():
-        body = spec.body(name)
-        if body is None:
-            raise UnknownNameError("body", name, names)
-        if pose.pos is not None:
-            body.pos = np.asarray(pose.pos, dtype=float)
-        if pose.yaw is not None:
-            body.quat = _yaw_quat(pose.yaw)
-    for name, mass in overrides.masses.items():
-        body = spec.body(name)
-        if body is None:
-            raise UnknownNameError("body", name, names)
-        if not mass > 0:
-            raise ConfigError(f"mass of {name!r} must be > 0 kg, got {mass}")
-        scale = mass / float(np.atleast_1d(body.mass)[0])
-        body.mass = mass
-        body.inertia = np.asarray(body.inertia) * scale
-    return spec
-
 
 class Robot:
     """Names and indices of the Nextage in one compiled scene.

@@ -105,7 +105,7 @@ def test_ctrl_dt_must_be_multiple_of_sim_dt(gains):
 def test_obstacle_contacts_are_counted_per_physics_step(gains):
     """With the wall moved onto the left wrist, every physics step in contact counts once."""
     from nextage_qp.manipulation.runner import OutcomeMonitor
-    from nextage_qp.robot import BodyPose, SceneOverrides
+    from nextage_qp.scene import BodyPose, SceneOverrides
 
     wall = SceneOverrides(poses={"obstacle": BodyPose(pos=(0.505, 0.23, 1.03), yaw=0.0)})
     robot = Robot.from_scene("dock_dumbbell", wall)

@@ -15,7 +15,8 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError, UnknownNameError
-from nextage_qp.robot import JOINT_NAMES, Robot, scene_spec
+from nextage_qp.robot import JOINT_NAMES, Robot
+from nextage_qp.scene import scene_spec
 
 ObjectPoses = Mapping[str, tuple[np.ndarray, np.ndarray]]
 """Object name -> (position [m], unit quaternion w, x, y, z) in the world."""

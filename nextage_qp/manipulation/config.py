@@ -40,6 +40,9 @@ class SceneConfig(_Strict):
     file: str = Field(description="Bundled scene name (push_cube, dock_dumbbell) or MJCF path.")
     poses: dict[str, PoseOverride] = Field(default_factory=dict, description="Body -> start/fixed pose.")
     masses: dict[str, Annotated[float, Field(gt=0)]] = Field(default_factory=dict, description="Body -> mass [kg].")
+    friction_scale: dict[str, Annotated[float, Field(gt=0, allow_inf_nan=False)]] = Field(
+        default_factory=dict, description="Body -> factor on the sliding friction of all its contacts (default 1)."
+    )
 
 
 class TimingConfig(_Strict):
@@ -202,6 +205,7 @@ class ManipulationConfig(_Strict):
     ik: IKConfig = Field(default_factory=IKConfig)
     trajectory: TrajectoryLimits = Field(default_factory=TrajectoryLimits)
     timing: TimingConfig = Field(default_factory=TimingConfig)
+    seed: int = Field(default=0, ge=0, description="Seed of the run's own random draws (a sweep sets one per episode).")
     phases: list[Phase] = Field(min_length=1)
 
     def phase_name(self, index: int) -> str:

@@ -21,7 +21,8 @@ from nextage_qp.ik import QPIK
 from nextage_qp.manipulation.config import ManipulationConfig
 from nextage_qp.manipulation.context import RunContext
 from nextage_qp.manipulation.phases import RUNNERS, PhaseRunner
-from nextage_qp.robot import JOINT_NAMES, BodyPose, Robot, SceneOverrides
+from nextage_qp.robot import JOINT_NAMES, Robot
+from nextage_qp.scene import BodyPose, SceneOverrides
 from nextage_qp.sim import Simulation
 
 TickCallback = Callable[["Runner", PhaseRunner | None], None]
@@ -36,7 +37,9 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
     """
     poses = {name: BodyPose(pos=p.pos, yaw=p.yaw) for name, p in cfg.scene.poses.items()}
     try:
-        robot = Robot.from_scene(cfg.scene.file, SceneOverrides(poses=poses, masses=dict(cfg.scene.masses)))
+        overrides = SceneOverrides(poses=poses, masses=dict(cfg.scene.masses),
+                                   friction_scale=dict(cfg.scene.friction_scale))
+        robot = Robot.from_scene(cfg.scene.file, overrides)
     except UnknownNameError as exc:
         raise ConfigError(f"{source}: scene: {exc}") from None
     _check_names(cfg, robot, source)
@@ -185,9 +188,16 @@ class Runner:
         tau = np.abs(rec["tau"]).max() if len(q) else 0.0
         m = self.metrics
         sim_t = self.sim.time
+        criteria: dict[str, dict[str, Any]] = {
+            "completed": {"ok": self.error is None},
+            "object_error": {"value": err, "limit": self.cfg.success_threshold,
+                             "ok": err <= self.cfg.success_threshold},
+            "not_dropped": {"ok": not m.dropped},
+        }
         return {
             "task": self.cfg.task,
-            "success": self.error is None and err <= self.cfg.success_threshold and not m.dropped,
+            "success": all(c["ok"] for c in criteria.values()),
+            "failed_criteria": [name for name, c in criteria.items() if not c["ok"]],
             "object_error_m": err,
             "object_error_xy_m": float(np.linalg.norm((obj - tgt)[:2])),
             "final_object_position": obj.tolist(),
@@ -203,6 +213,7 @@ class Runner:
             "torque_saturation_ticks": int(self.sim.pd.any_saturated_ticks),
             "phases": [{"name": r.name, "kind": r.kind, "status": r.status, "start_s": round(r.start_s, 3),
                         "duration_s": round(r.duration_s, 3), **r.info} for r in self.records],
+            "criteria": criteria,
             "error": self.error,
         }
 

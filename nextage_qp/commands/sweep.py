@@ -1,0 +1,228 @@
+"""``nextage-qp sweep SWEEP.yaml``: run a task over randomised scenes and report how often it succeeds."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.markup import escape
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.table import Table
+
+from nextage_qp.errors import ConfigError
+from nextage_qp.sweep.episode import Episode
+from nextage_qp.sweep.run import BACKENDS, plan, run_sweep
+from nextage_qp.sweep.spec import SweepSpec
+from nextage_qp.sweep.store import SweepStore
+from nextage_qp.sweep.summary import BINS, plot_sweep, summarize
+
+PLAIN_PROGRESS_S = 10.0
+"""Seconds between progress lines when stderr is not a terminal."""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``sweep`` subcommand."""
+    p = sub.add_parser("sweep", help="run a task over randomised scenes (success rate with its 95 %% interval)")
+    p.add_argument("sweep", help="sweep YAML, e.g. configs/sweeps/push_cube.yaml")
+    p.add_argument("--n", type=int, help="episodes 0..N-1 (required unless --only)")
+    p.add_argument("--seed", type=int, default=0, help="sweep seed: episode i depends on (seed, i) only (default 0)")
+    p.add_argument("--workers", type=int, help="parallel episodes (default: the CPU count, or the Ray cluster's)")
+    p.add_argument("--backend", choices=BACKENDS, default="local", help="local process pool (default) or ray")
+    p.add_argument("--ray-address", help="Ray cluster to join (default: $RAY_ADDRESS, else a local instance)")
+    p.add_argument("--out", type=Path, help="directory of the episode records (default runs/sweeps/NAME-seedS)")
+    p.add_argument("--json", type=Path, metavar="PATH", help="write the summary as JSON")
+    p.add_argument("--plot", type=Path, metavar="PNG", help="write the error CDF and error against each parameter")
+    p.add_argument("--resume", action="store_true", help="continue the sweep in --out, skipping finished episodes")
+    p.add_argument("--only", metavar="I,J,...", help="run only these episode indices (e.g. to replay a failure)")
+    p.set_defaults(func=run)
+
+
+def _indices(args: argparse.Namespace) -> list[int]:
+    if args.only is not None:
+        try:
+            only = [int(x) for x in args.only.split(",") if x.strip()]
+        except ValueError:
+            raise ConfigError(f"--only {args.only!r}: expected episode indices like 3,17,42") from None
+        if not only or min(only) < 0:
+            raise ConfigError(f"--only {args.only!r}: expected episode indices >= 0 like 3,17,42")
+        return sorted(set(only))
+    if args.n is None:
+        raise ConfigError("--n is required (the number of episodes), unless --only names episodes")
+    if not 1 <= args.n <= 1_000_000:
+        raise ConfigError(f"--n must be between 1 and 1000000, got {args.n}")
+    return list(range(args.n))
+
+
+def _check_args(args: argparse.Namespace) -> None:
+    if args.seed < 0:
+        raise ConfigError(f"--seed must be >= 0, got {args.seed}")
+    if args.workers is not None and not 1 <= args.workers <= 1024:
+        raise ConfigError(f"--workers must be between 1 and 1024, got {args.workers}")
+    if args.ray_address and args.backend != "ray":
+        raise ConfigError("--ray-address needs --backend ray")
+    for flag, path in (("--json", args.json), ("--plot", args.plot)):
+        if path is None:
+            continue
+        if path.is_dir():
+            raise ConfigError(f"{flag} {path}: is a directory; give a file path")
+        parent = path.parent if str(path.parent) else Path(".")
+        if not parent.is_dir():
+            raise ConfigError(f"{flag} {path}: folder {parent} does not exist")
+        if not os.access(parent, os.W_OK):
+            raise ConfigError(f"{flag} {path}: folder {parent} is not writable")
+
+
+class _Progress:
+    """A bar with episodes done, running success rate and ETA; plain lines every few seconds off a terminal."""
+
+    def __init__(self, name: str, total: int, done: list[Episode]) -> None:
+        self.name, self.total = name, total
+        self.done = len(done)
+        self.success = sum(e.status == "success" for e in done)
+        self.ran = sum(e.status != "refused" for e in done)
+        self.console = Console(stderr=True)
+        self.bar: Progress | None = None
+        self.t0 = self.last = time.monotonic()
+        self.start_done = self.done
+        if self.console.is_terminal:
+            self.bar = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                                TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"),
+                                TimeRemainingColumn(), console=self.console, transient=True)
+            self.task = self.bar.add_task(name, total=total, completed=self.done, rate=self._rate())
+
+    def _rate(self) -> str:
+        return f"success {100 * self.success / self.ran:.1f} %" if self.ran else "success -"
+
+    def __enter__(self) -> _Progress:
+        if self.bar is not None:
+            self.bar.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.bar is not None:
+            self.bar.stop()
+
+    def update(self, episode: Episode) -> None:
+        self.done += 1
+        self.success += episode.status == "success"
+        self.ran += episode.status != "refused"
+        if self.bar is not None:
+            self.bar.update(self.task, completed=self.done, rate=self._rate())
+            return
+        now = time.monotonic()
+        if now - self.last >= PLAIN_PROGRESS_S or self.done == self.total:
+            self.last = now
+            rate = (self.done - self.start_done) / max(now - self.t0, 1e-9)
+            eta = (self.total - self.done) / rate if rate > 0 else float("nan")
+            print(f"sweep {self.name}: {self.done}/{self.total} episodes, {self._rate()} ({self.success}/{self.ran}), "
+                  f"{60 * rate:.1f} episodes/min, ETA {eta / 60:.1f} min", file=sys.stderr, flush=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the sweep; exit 0 when every episode has a record (whatever its outcome), 130 when interrupted."""
+    _check_args(args)
+    indices = _indices(args)
+    spec = SweepSpec(args.sweep)
+    workers = args.workers or (None if args.backend == "ray" else os.cpu_count() or 1)
+    if args.out is not None:
+        out = args.out
+    elif args.only is not None:
+        out = Path(tempfile.mkdtemp(prefix=f"nextage-sweep-{spec.name}-"))
+    else:
+        out = Path("runs") / "sweeps" / f"{spec.name}-seed{args.seed}"
+    store = SweepStore(out, spec, args.seed, resume=args.resume)
+    tasks = plan(spec, args.seed, indices)
+    already = [store.done[t.index] for t in tasks if t.index in store.done]
+    t0 = time.monotonic()
+    try:
+        with _Progress(spec.name, len(tasks), already) as progress:
+            episodes = run_sweep(tasks, store=store, workers=min(workers or len(tasks), len(tasks)) or 1,
+                                 backend=args.backend, ray_address=args.ray_address, on_episode=progress.update)
+    except KeyboardInterrupt:
+        store.close()
+        kept = sum(t.index in store.done for t in tasks)
+        print(f"nextage-qp sweep: interrupted; {kept} of {len(tasks)} episodes are on disk in {out}; continue with "
+              f"the same command and --resume", file=sys.stderr)
+        return 130
+    store.close()
+    wall = time.monotonic() - t0
+    summary = summarize(spec, args.seed, episodes, session_episodes=len(episodes) - len(already), session_wall_s=wall)
+    summary["out"] = str(out)
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    if args.json:
+        args.json.write_text(json.dumps(summary, indent=2) + "\n")
+    if args.plot:
+        plot_sweep(spec, episodes, args.plot)
+    console = Console()
+    if not console.is_terminal:
+        console = Console(width=120)
+    _print_summary(summary, console, only=args.only is not None, episodes=episodes)
+    return 0
+
+
+def _mm(value: float | None) -> str:
+    return "-" if value is None else f"{value * 1e3:.2f}"
+
+
+def _print_summary(s: dict[str, Any], console: Console, *, only: bool, episodes: list[Episode]) -> None:
+    rate = s["success_rate"]
+    lo, hi = s["success_rate_ci95"]
+    head = (f"{s['sweep']} (seed {s['seed']}): {s['counts']['success']}/{s['ran']} succeed = "
+            + ("-" if rate is None else f"{100 * rate:.1f} %") + f" (95 % CI {100 * lo:.1f}-{100 * hi:.1f} %)")
+    console.print(head, markup=False)
+    counts = ", ".join(f"{k} {v}" for k, v in s["counts"].items())
+    epm = s["episodes_per_minute"] if s["session"]["episodes_run"] else None
+    console.print(f"episodes: {s['episodes']} ({counts}); {'-' if epm is None else f'{epm:.1f}'} episodes/min; "
+                  f"records in {s['out']}", markup=False)
+    table = Table(title="object error [mm]", title_justify="left")
+    for col in ("", "median", "p90", "p99", "max"):
+        table.add_column(col, justify="right")
+    for key, label in (("object_error_m", "as judged for success"), ("object_error_xy_m", "x-y")):
+        q = s[key]
+        table.add_row(label, _mm(q["median"]), _mm(q["p90"]), _mm(q["p99"]), _mm(q["max"]))
+    console.print(table)
+    if s["failures_by_phase"]:
+        console.print("failures by phase: " + ", ".join(f"{k}: {v}" for k, v in s["failures_by_phase"].items()),
+                      markup=False)
+        console.print("failures by criterion: " + ", ".join(f"{k}: {v}" for k, v in
+                                                            s["failures_by_criterion"].items()), markup=False)
+    if not only:
+        bins = Table(title=f"success rate by parameter ({BINS} equal bins of its range, low to high)",
+                     title_justify="left")
+        bins.add_column("parameter")
+        bins.add_column("range")
+        for b in range(BINS):
+            bins.add_column(f"bin {b + 1}", justify="right")
+        rows: dict[str, list[dict[str, Any]]] = {}
+        for row in s["by_parameter"]:
+            rows.setdefault(row["parameter"], []).append(row)
+        for name, cells in rows.items():
+            numeric = len(cells) == BINS and cells[0]["bin"].startswith("[")
+            span = (f"{cells[0]['bin'][1:].split(',')[0]} .. {cells[-1]['bin'].split(',')[1].strip()[:-1]}"
+                    if numeric else "choice")
+            shown = [f"{c['successes']}/{c['episodes']}" for c in cells]
+            if not numeric:
+                shown = [f"{c['bin']}: {x}" for c, x in zip(cells, shown, strict=True)]
+            bins.add_row(name.removeprefix("scene.").removeprefix("poses."), escape(span), *shown[:BINS])
+        console.print(bins)
+    if only:
+        for ep in episodes:
+            err = (ep.result or {}).get("object_error_m")
+            console.print(f"episode {ep.index}: {ep.status}; object error {_mm(err)} mm"
+                          + (f"; {ep.reason}" if ep.reason else ""), markup=False)
+    failed = s["failed"]
+    if failed:
+        console.print(f"{len(failed)} episode(s) not successful; replay one alone with (add --plot/--video/--viewer):",
+                      markup=False)
+        for f in failed[:10]:
+            console.print(f"  [{f['index']}] {f['status']}: {f['reason']}", markup=False, soft_wrap=True)
+            console.print(f"      {f['replay']['run']}", markup=False, soft_wrap=True)
+        if len(failed) > 10:
+            console.print(f"  ... {len(failed) - 10} more in the summary JSON ({s['out']}/summary.json)", markup=False)

@@ -1,0 +1,1 @@
+"""Robustness at scale: randomised episodes of a task on a local process pool or on Ray."""

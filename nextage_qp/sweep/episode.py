@@ -1,0 +1,149 @@
+"""One sweep episode: the base config with the episode's overrides, run exactly as ``nextage-qp run --set`` runs it.
+
+:func:`run_episode` never raises: whatever happens (a failed task, a refused scene, an exception, the wall-time
+limit) comes back as an :class:`Episode` record with a status and a reason, so a sweep drops nothing.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import time
+import traceback
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from nextage_qp.errors import ConfigError, NextageQPError
+
+STATUSES = ("success", "failed", "refused", "error")
+"""``success``/``failed``: the task ran and met / missed its criteria; ``refused``: the run rejected its scene
+before moving (exit 2); ``error``: an exception, a crash or the wall-time limit stopped the episode."""
+
+TIMING_KEYS = ("wall_time_s", "real_time_factor")
+"""Result fields that measure the machine, not the episode (left out when episodes are compared)."""
+
+
+@dataclass(frozen=True)
+class EpisodeTask:
+    """What a worker needs to run one episode (plain data, picklable).
+
+    Attributes:
+        index: Episode number in its sweep.
+        base: Path of the task config.
+        overrides: ``--set`` strings applied to it, the run seed among them.
+        params: The drawn parameters (key -> value), recorded with the result.
+        seed: The episode's run seed.
+        wall_limit: Wall time [s] after which the episode stops and fails.
+    """
+
+    index: int
+    base: str
+    overrides: tuple[str, ...]
+    params: dict[str, Any]
+    seed: int
+    wall_limit: float
+
+
+@dataclass
+class Episode:
+    """The record of one episode, one line of ``episodes.jsonl``.
+
+    Attributes:
+        index: Episode number.
+        seed: Run seed.
+        params: Drawn parameters.
+        overrides: The ``--set`` strings that reproduce it with ``nextage-qp run``.
+        status: One of :data:`STATUSES`.
+        reason: Why it is not a success (None for a success).
+        failed_phase: Name of the phase that failed, if one did.
+        failed_criteria: Success criteria that did not hold.
+        result: The full ``nextage-qp run --json`` result (None when the run never started).
+        wall_time_s: Wall time of the episode in its worker [s].
+        worker: ``host:pid`` that ran it.
+    """
+
+    index: int
+    seed: int
+    params: dict[str, Any]
+    overrides: list[str]
+    status: str
+    reason: str | None = None
+    failed_phase: str | None = None
+    failed_criteria: list[str] = field(default_factory=list)
+    result: dict[str, Any] | None = None
+    wall_time_s: float = 0.0
+    worker: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        """A plain dict for JSON."""
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, doc: dict[str, Any]) -> Episode:
+        """Inverse of :meth:`to_json`."""
+        return cls(**doc)
+
+    def comparable(self) -> dict[str, Any]:
+        """The record without machine-dependent fields (wall times, worker), for determinism checks."""
+        doc = self.to_json()
+        for key in ("wall_time_s", "worker"):
+            doc.pop(key)
+        if doc["result"] is not None:
+            doc["result"] = {k: v for k, v in doc["result"].items() if k not in TIMING_KEYS}
+        return doc
+
+
+class WallTimeExceeded(NextageQPError):
+    """An episode ran longer than its sweep's wall-time limit."""
+
+
+def run_episode(task: EpisodeTask) -> Episode:
+    """Run one episode in this process and return its record (never raises)."""
+    from nextage_qp.manipulation.config import load_config
+    from nextage_qp.manipulation.runner import Runner
+
+    start = time.perf_counter()
+    record = Episode(task.index, task.seed, dict(task.params), list(task.overrides), status="error",
+                     worker=f"{socket.gethostname()}:{os.getpid()}")
+    try:
+        cfg = load_config(task.base, list(task.overrides))
+        runner = Runner(cfg, task.base)
+        deadline = start + task.wall_limit
+        stopped = []
+
+        def guard(r: Any, phase: Any) -> None:
+            if time.perf_counter() > deadline:
+                stopped.append(True)
+                raise WallTimeExceeded(f"episode exceeded its wall-time limit of {task.wall_limit:g} s "
+                                       f"at t={r.sim.time:.2f} s of simulated time")
+
+        result = runner.run(guard)
+        record.result = result
+        record.failed_criteria = list(result.get("failed_criteria", []))
+        record.failed_phase = next((p["name"] for p in result["phases"] if p["status"] == "failed"), None)
+        if result["success"]:
+            record.status = "success"
+        else:
+            record.status = "error" if stopped else "failed"
+            record.reason = result["error"] or "criteria not met: " + ", ".join(
+                _criterion_text(result, name) for name in record.failed_criteria)
+    except ConfigError as exc:
+        record.status, record.reason = "refused", " ".join(str(exc).split())
+    except Exception as exc:
+        last = traceback.extract_tb(exc.__traceback__)[-1]
+        record.reason = f"{type(exc).__name__}: {exc} (at {os.path.basename(last.filename)}:{last.lineno})"
+    record.wall_time_s = time.perf_counter() - start
+    return record
+
+
+def _criterion_text(result: dict[str, Any], name: str) -> str:
+    crit = result.get("criteria", {}).get(name, {})
+    if "value" in crit and "limit" in crit:
+        return f"{name} {crit['value']:.4g} > {crit['limit']:.4g}"
+    return name
+
+
+def failed_episode(task: EpisodeTask, reason: str, wall_time_s: float, worker: str = "") -> Episode:
+    """The record of an episode that did not come back from its worker (killed, crashed, lost)."""
+    return Episode(task.index, task.seed, dict(task.params), list(task.overrides), status="error", reason=reason,
+                   wall_time_s=wall_time_s, worker=worker)

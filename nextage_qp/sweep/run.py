@@ -1,0 +1,74 @@
+"""Plan and run a sweep: episode tasks from (seed, index), a backend to run them, a store that keeps them."""
+
+from __future__ import annotations
+
+import shlex
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+
+from nextage_qp.sweep.backends import run_local, run_ray
+from nextage_qp.sweep.episode import Episode, EpisodeTask, run_episode
+from nextage_qp.sweep.spec import SweepSpec
+from nextage_qp.sweep.store import SweepStore
+
+BACKENDS = ("local", "ray")
+
+
+def plan(spec: SweepSpec, seed: int, indices: Iterable[int]) -> list[EpisodeTask]:
+    """One task per episode index; each task depends on (spec, seed, index) alone."""
+    tasks = []
+    for i in indices:
+        params, run_seed = spec.draw(seed, i)
+        tasks.append(EpisodeTask(i, str(spec.base_path), tuple(spec.overrides(params, run_seed)), params, run_seed,
+                                 spec.wall_limit))
+    return tasks
+
+
+def run_sweep(
+    tasks: Sequence[EpisodeTask],
+    *,
+    store: SweepStore | None,
+    workers: int,
+    backend: str = "local",
+    ray_address: str | None = None,
+    on_episode: Callable[[Episode], None] | None = None,
+    episode_fn: Callable[[EpisodeTask], Episode] = run_episode,
+) -> list[Episode]:
+    """Run every task not already in ``store``; each finished episode is stored before ``on_episode`` sees it.
+
+    Returns:
+        The episodes of ``tasks`` (resumed ones included), in index order.
+    """
+    done = dict(store.done) if store is not None else {}
+    todo = [t for t in tasks if t.index not in done]
+
+    def finished(episode: Episode) -> None:
+        done[episode.index] = episode
+        if store is not None:
+            store.add(episode)
+        if on_episode is not None:
+            on_episode(episode)
+
+    if todo:
+        if backend == "ray":
+            run_ray(todo, workers, finished, address=ray_address, episode_fn=episode_fn)
+        else:
+            run_local(todo, workers, finished, episode_fn=episode_fn)
+    return [done[t.index] for t in tasks if t.index in done]
+
+
+def replay_commands(spec: SweepSpec, seed: int, episode: Episode, cwd: Path | None = None) -> dict[str, str]:
+    """Two commands that re-run one episode alone: through the sweep, and as ``nextage-qp run --set ...``."""
+    sweep = _shown(spec.path, cwd)
+    base = _shown(spec.base_path, cwd)
+    sets = " ".join(f"--set {shlex.quote(o)}" for o in episode.overrides)
+    return {"sweep": f"nextage-qp sweep {shlex.quote(sweep)} --seed {seed} --only {episode.index}",
+            "run": f"nextage-qp run {shlex.quote(base)} {sets}"}
+
+
+def _shown(path: Path, cwd: Path | None) -> str:
+    here = (cwd or Path.cwd()).resolve()
+    try:
+        return str(path.resolve().relative_to(here))
+    except ValueError:
+        return str(path)

@@ -1,0 +1,294 @@
+"""Sweep files: a task config and the distributions its keys are drawn from, validated against that config.
+
+A sweep file names its task config (``base``, relative to the sweep file) and maps dotted keys, the same
+keys ``nextage-qp run --set`` accepts, to one distribution each::
+
+    base: ../push_cube.yaml
+    wall_limit: 300                                  # [s] per episode
+    randomize:
+      scene.poses.cube.pos: {offset: [[-0.05, -0.05, 0.0], [0.05, 0.05, 0.0]]}  # added, per component
+      scene.poses.cube.yaw: {offset: [-0.5236, 0.5236]}
+      scene.masses.cube: {uniform: [0.05, 0.30]}      # absolute value
+      scene.friction_scale.cube: {scale: [0.5, 2.0]}  # multiplies the base value
+      gains: {choice: [default, report]}
+
+Every problem (an unknown key, a key the base config does not have, ``lo > hi``, NaN or inf, a drawn value
+the config rejects) is a one-line :class:`~nextage_qp.errors.ConfigError` naming the file and the key.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import zlib
+from pathlib import Path
+from typing import Annotated, Any
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from nextage_qp.errors import ConfigError
+from nextage_qp.manipulation.config import load_config
+from nextage_qp.manipulation.runner import build_robot
+from nextage_qp.yaml_file import read_yaml_mapping
+
+Number = Annotated[float, Field(allow_inf_nan=False)]
+Bound = Number | list[Number]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Distribution(_Strict):
+    """One distribution of a randomised key.
+
+    Exactly one of: ``uniform: [lo, hi]`` (absolute), ``offset: [lo, hi]`` (added to the base value),
+    ``scale: [lo, hi]`` (multiplies the base value), ``choice: [a, b, ...]``. ``lo`` and ``hi`` are numbers,
+    or lists of numbers for a vector key (drawn per component).
+    """
+
+    uniform: tuple[Bound, Bound] | None = None
+    offset: tuple[Bound, Bound] | None = None
+    scale: tuple[Bound, Bound] | None = None
+    choice: list[Any] | None = Field(default=None, min_length=1)
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> Distribution:
+        given = [k for k in ("uniform", "offset", "scale", "choice") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError(f"give exactly one of uniform, offset, scale, choice; got {', '.join(given) or 'none'}")
+        if self.bounds is not None:
+            lo, hi = (np.atleast_1d(np.asarray(b, dtype=float)) for b in self.bounds)
+            if lo.shape != hi.shape:
+                raise ValueError(f"lo and hi must have the same length, got {list(lo)} and {list(hi)}")
+            if np.any(lo > hi):
+                raise ValueError(f"lo > hi in [{_show(self.bounds[0])}, {_show(self.bounds[1])}]")
+        for value in self.choice or ():
+            if isinstance(value, float) and not math.isfinite(value):
+                raise ValueError(f"choice values must be finite, got {value}")
+        return self
+
+    @property
+    def kind(self) -> str:
+        """``uniform``, ``offset``, ``scale`` or ``choice``."""
+        return next(k for k in ("uniform", "offset", "scale", "choice") if getattr(self, k) is not None)
+
+    @property
+    def bounds(self) -> tuple[Bound, Bound] | None:
+        """``(lo, hi)`` of a uniform, offset or scale distribution; None for a choice."""
+        return self.uniform or self.offset or self.scale
+
+    def draw(self, rng: np.random.Generator, base: Any) -> Any:
+        """One value: a float, a list of floats, or one of the choices."""
+        if self.choice is not None:
+            return self.choice[int(rng.integers(len(self.choice)))]
+        lo, hi = (np.asarray(b, dtype=float) for b in self.bounds or (0.0, 0.0))
+        u = lo + (hi - lo) * rng.random(lo.shape)
+        if self.offset is not None:
+            u = np.asarray(base, dtype=float) + u
+        elif self.scale is not None:
+            u = np.asarray(base, dtype=float) * u
+        return u.tolist() if u.ndim else float(u)
+
+
+class SweepFile(_Strict):
+    """The schema of a sweep file (see the module docstring)."""
+
+    base: str = Field(description="Task config, relative to the sweep file.")
+    description: str | None = None
+    wall_limit: float = Field(default=300.0, gt=0, le=86400, allow_inf_nan=False,
+                              description="Wall time after which an episode is stopped and failed [s].")
+    randomize: dict[str, Distribution] = Field(min_length=1)
+
+
+class SweepSpec:
+    """A validated sweep: the file, its base config, the distributions and the base value of every key.
+
+    Args:
+        path: The sweep YAML.
+
+    Raises:
+        ConfigError: Any problem with the file, its base config or a key (one line naming file and key).
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise ConfigError(f"{self.path}: no such sweep file")
+        doc = read_yaml_mapping(self.path, "a mapping with keys 'base' and 'randomize'")
+        try:
+            self.file = SweepFile.model_validate(doc)
+        except ValidationError as exc:
+            raise ConfigError(_sweep_error(str(self.path), exc)) from None
+        self.base_path = (self.path.parent / self.file.base).resolve()
+        if not self.base_path.is_file():
+            raise ConfigError(f"{self.path}: base: {self.file.base!r} is not a file (resolved to {self.base_path})")
+        self.base = load_config(self.base_path)
+        self.distributions = dict(self.file.randomize)
+        if "seed" in self.distributions:
+            raise self._fail("seed", "the sweep sets each episode's run seed itself; remove this key")
+        robot = build_robot(self.base, str(self.base_path))
+        self.base_values = {key: self._base_value(key, robot) for key in self.distributions}
+        self._check_draws()
+
+    @property
+    def name(self) -> str:
+        """The sweep file's stem (e.g. ``push_cube``)."""
+        return self.path.stem
+
+    @property
+    def wall_limit(self) -> float:
+        """Per-episode wall-time limit [s]."""
+        return self.file.wall_limit
+
+    def _fail(self, key: str, message: str) -> ConfigError:
+        return ConfigError(f"{self.path}: randomize.{key}: {message}")
+
+    def _base_value(self, key: str, robot: Any) -> Any:
+        """The key's value in the base config, or the scene's own value for a scene override left unset."""
+        value = _lookup(self.base, key.split("."), lambda msg: self._fail(key, msg))
+        if value is None:
+            value = _scene_default(robot, key)
+        dist = self.distributions[key]
+        if dist.kind in ("offset", "scale"):
+            if value is None:
+                raise self._fail(key, f"{dist.kind} needs a base value, and the base config sets none; use uniform")
+            base = np.atleast_1d(np.asarray(value, dtype=float))
+            lo = np.atleast_1d(np.asarray(dist.bounds[0] if dist.bounds else 0.0, dtype=float))
+            if base.shape != lo.shape:
+                raise self._fail(key, f"bounds have {lo.size} component(s) but the base value {value} has {base.size}")
+        return value
+
+    def _check_draws(self) -> None:
+        """Validate the config at every key's extremes (and every choice), then the scene names once."""
+        for key, dist in self.distributions.items():
+            values = dist.choice if dist.choice is not None else [self.value_at(key, b) for b in dist.bounds or ()]
+            for value in values:
+                try:
+                    load_config(self.base_path, [f"{key}={yaml_scalar(value)}"])
+                except ConfigError as exc:
+                    raise self._fail(key, f"value {yaml_scalar(value)}: {exc}") from None
+        params, run_seed = self.draw(0, 0)
+        try:
+            build_robot(load_config(self.base_path, self.overrides(params, run_seed)), str(self.base_path))
+        except ConfigError as exc:
+            raise ConfigError(f"{self.path}: randomize: {exc}") from None
+
+    def value_at(self, key: str, bound: Bound) -> Any:
+        """The value of ``key`` at one bound of its distribution (base value applied for offset and scale)."""
+        dist, base = self.distributions[key], self.base_values[key]
+        b = np.asarray(bound, dtype=float)
+        if dist.offset is not None:
+            b = np.asarray(base, dtype=float) + b
+        elif dist.scale is not None:
+            b = np.asarray(base, dtype=float) * b
+        return b.tolist() if b.ndim else float(b)
+
+    def draw(self, seed: int, index: int) -> tuple[dict[str, Any], int]:
+        """Episode ``index`` of the sweep seeded ``seed``: its parameters (key -> value) and its run seed.
+
+        Each key has its own stream, seeded by (seed, index, key), so episodes and keys are independent of the
+        order they are drawn in and of each other.
+        """
+        params = {}
+        for key, dist in self.distributions.items():
+            rng = np.random.default_rng([seed, index, _key_hash(key)])
+            params[key] = dist.draw(rng, self.base_values[key])
+        run_seed = int(np.random.SeedSequence([seed, index]).generate_state(1)[0] >> 1)
+        return params, run_seed
+
+    def overrides(self, params: dict[str, Any], run_seed: int) -> list[str]:
+        """``--set`` strings that turn the base config into the episode's config (exact round trip)."""
+        return [f"{key}={yaml_scalar(value)}" for key, value in params.items()] + [f"seed={run_seed}"]
+
+
+def yaml_scalar(value: Any) -> str:
+    """A YAML flow literal that reads back as exactly ``value`` (floats keep every bit)."""
+    if isinstance(value, bool) or value is None:
+        return {True: "true", False: "false", None: "null"}[value]
+    if isinstance(value, float):
+        text = repr(value)
+        mantissa, e, exponent = text.partition("e")
+        if e and "." not in mantissa:  # PyYAML reads 1e-05 as a string; 1.0e-05 as a float
+            text = f"{mantissa}.0e{exponent}"
+        return text
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ",".join(yaml_scalar(v) for v in value) + "]"
+    if isinstance(value, str):
+        try:
+            plain = yaml.safe_load(value) == value and "," not in value and "]" not in value
+        except yaml.YAMLError:
+            plain = False
+        return value if plain else json.dumps(value)  # a JSON string is a double-quoted YAML scalar
+    raise TypeError(f"cannot write {value!r} as a YAML scalar")
+
+
+def _key_hash(key: str) -> int:
+    return zlib.crc32(key.encode())
+
+
+def _show(bound: Bound) -> str:
+    return str(bound)
+
+
+def _lookup(node: Any, parts: list[str], fail: Any) -> Any:
+    """Walk a validated config along ``parts``; dict fields take any key (its value None when absent)."""
+    for i, part in enumerate(parts):
+        where = ".".join(parts[: i + 1])
+        if isinstance(node, BaseModel):
+            fields = type(node).model_fields
+            if part not in fields:
+                raise fail(f"{where!r} is not a key of the base config; valid here: {', '.join(sorted(fields))}")
+            node = getattr(node, part)
+        elif isinstance(node, (list, tuple)):
+            if not part.isdigit() or int(part) >= len(node):
+                raise fail(f"{where!r}: the base config's list has {len(node)} item(s); use an index below that")
+            node = node[int(part)]
+        elif isinstance(node, dict):
+            node = node.get(part)
+            if node is None:
+                return None  # e.g. scene.masses.cube when the base config sets no mass: a new dict key
+        elif node is None:
+            return None
+        else:
+            raise fail(f"{'.'.join(parts[:i])!r} is a value ({node!r}), not a mapping or list")
+    return node.model_dump() if isinstance(node, BaseModel) else node
+
+
+def _scene_default(robot: Any, key: str) -> Any:
+    """What the scene itself sets for a scene override key the config leaves unset (None if nothing)."""
+    parts = key.split(".")
+    if len(parts) < 3 or parts[0] != "scene":
+        return None
+    kind, body = parts[1], parts[2]
+    if body not in robot.body_names:
+        return None
+    model_body = robot.model.body(body)
+    if kind == "masses":
+        return float(model_body.mass[0])
+    if kind == "friction_scale":
+        return 1.0
+    if kind == "poses" and len(parts) == 4 and parts[3] == "pos":
+        return [float(v) for v in model_body.pos]
+    if kind == "poses" and len(parts) == 4 and parts[3] == "yaw":
+        w, _, _, z = model_body.quat
+        return float(2.0 * np.arctan2(z, w))
+    return None
+
+
+def _sweep_error(source: str, exc: ValidationError) -> str:
+    first = exc.errors()[0]
+    loc = ".".join(str(p) for p in first["loc"])
+    msg = first["msg"].removeprefix("Value error, ")
+    if first["type"] == "extra_forbidden":
+        parent = first["loc"][:-1]
+        valid = sorted(Distribution.model_fields) if len(parent) == 2 else sorted(SweepFile.model_fields)
+        msg = f"unknown key; valid: {', '.join(valid)}"
+    got = first.get("input")
+    shown = "" if first["type"] in ("missing", "extra_forbidden") or isinstance(got, dict) else f" (got {got!r})"
+    more = f" [+{len(exc.errors()) - 1} more]" if len(exc.errors()) > 1 else ""
+    return f"{source}: {loc}: {msg}{shown}{more}"

@@ -1,0 +1,102 @@
+"""A sweep's directory: ``sweep.json`` (what was run) and ``episodes.jsonl`` (one finished episode per line).
+
+Each episode is appended and flushed to disk the moment it finishes, so Ctrl-C, a dead worker or a killed
+machine loses only the episodes that were running; ``--resume`` reads the file back and runs the rest.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from nextage_qp.errors import ConfigError
+from nextage_qp.sweep.episode import Episode
+from nextage_qp.sweep.spec import SweepSpec
+
+
+def fingerprint(spec: SweepSpec) -> str:
+    """SHA-256 of the sweep file and its base config: a resumed sweep must run the same episodes."""
+    digest = hashlib.sha256()
+    for path in (spec.path, spec.base_path):
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+class SweepStore:
+    """The output directory of one sweep (file + seed).
+
+    Args:
+        out: Directory (created when missing).
+        spec: The sweep.
+        seed: The sweep seed.
+        resume: Continue the episodes already on disk; without it a directory that holds episodes is an error.
+
+    Raises:
+        ConfigError: The directory cannot be written, holds another sweep, or holds episodes without ``resume``.
+    """
+
+    def __init__(self, out: Path, spec: SweepSpec, seed: int, *, resume: bool) -> None:
+        self.out = out
+        self.header = {"sweep": str(spec.path), "base": str(spec.base_path), "seed": seed,
+                       "fingerprint": fingerprint(spec)}
+        self.episodes_path = out / "episodes.jsonl"
+        self.done: dict[int, Episode] = {}
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ConfigError(f"--out {out}: cannot create the directory ({exc.strerror})") from None
+        header_path = out / "sweep.json"
+        if header_path.is_file():
+            old = json.loads(header_path.read_text())
+            if not resume and self.episodes_path.is_file() and self.episodes_path.stat().st_size:
+                raise ConfigError(f"--out {out}: already holds episodes of a sweep; pass --resume to continue it, "
+                                  "or choose another --out")
+            mismatch = [k for k in ("seed", "fingerprint") if old.get(k) != self.header[k]]
+            if resume and mismatch:
+                raise ConfigError(f"--resume: {out} holds a sweep with another {' and '.join(mismatch)} "
+                                  f"(seed {old.get('seed')}, sweep {old.get('sweep')}); it cannot be continued")
+        if resume:
+            self.done = self._read()
+        elif self.episodes_path.exists():
+            self.episodes_path.unlink()
+        try:
+            header_path.write_text(json.dumps(self.header, indent=2) + "\n")
+            self._file = self.episodes_path.open("a")
+        except OSError as exc:
+            raise ConfigError(f"--out {out}: cannot write ({exc.strerror})") from None
+
+    def _read(self) -> dict[int, Episode]:
+        done: dict[int, Episode] = {}
+        if not self.episodes_path.is_file():
+            return done
+        text = self.episodes_path.read_text()
+        if text and not text.endswith("\n"):  # the last line was cut short by an interruption: it runs again
+            text = text[: text.rfind("\n") + 1]
+            self.episodes_path.write_text(text)
+        for line in text.splitlines():
+            try:
+                ep = Episode.from_json(json.loads(line))
+            except (json.JSONDecodeError, TypeError):
+                continue
+            done[ep.index] = ep
+        return done
+
+    def add(self, episode: Episode) -> None:
+        """Append one finished episode and flush it to disk."""
+        self.done[episode.index] = episode
+        self._file.write(json.dumps(episode.to_json(), default=_plain) + "\n")
+        self._file.flush()
+        os.fsync(self._file.fileno())
+
+    def close(self) -> None:
+        """Close the episodes file."""
+        self._file.close()
+
+
+def _plain(x: Any) -> Any:
+    if hasattr(x, "tolist"):
+        return x.tolist()
+    raise TypeError(f"not JSON serialisable: {type(x).__name__}")

@@ -1,0 +1,195 @@
+r"""Sweep statistics: success rate with its Wilson interval, error quantiles, failures grouped, rates per parameter bin.
+
+The 95 % Wilson score interval of :math:`k` successes in :math:`n` episodes, :math:`\hat p = k/n`, :math:`z = 1.96`:
+
+.. math:: \frac{\hat p + z^2/2n \pm z\sqrt{\hat p(1-\hat p)/n + z^2/4n^2}}{1 + z^2/n}
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from nextage_qp.sweep.episode import STATUSES, Episode
+from nextage_qp.sweep.run import replay_commands
+from nextage_qp.sweep.spec import SweepSpec
+
+Z95 = 1.959963984540054
+BINS = 4
+"""Equal-width bins per randomised parameter component in the per-parameter table."""
+
+
+def wilson(successes: int, n: int, z: float = Z95) -> tuple[float, float]:
+    """95 % Wilson score interval of a success rate (``(0, 1)`` when ``n`` is 0)."""
+    if n == 0:
+        return 0.0, 1.0
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def object_error(ep: Episode) -> float | None:
+    """The error the episode's success criterion tests [m] (None when the run never produced a result)."""
+    if ep.result is None:
+        return None
+    crit = ep.result.get("criteria", {}).get("object_error")
+    return float(crit["value"]) if crit else float(ep.result["object_error_m"])
+
+
+def error_limit(episodes: Sequence[Episode]) -> float | None:
+    """The success threshold of the object error [m], as the results state it."""
+    for ep in episodes:
+        crit = (ep.result or {}).get("criteria", {}).get("object_error")
+        if crit:
+            return float(crit["limit"])
+    return None
+
+
+def _quantiles(values: list[float]) -> dict[str, float | None]:
+    if not values:
+        return {"median": None, "p90": None, "p99": None, "max": None}
+    a = np.asarray(values)
+    return {"median": float(np.median(a)), "p90": float(np.percentile(a, 90)), "p99": float(np.percentile(a, 99)),
+            "max": float(a.max())}
+
+
+def parameter_components(spec: SweepSpec) -> list[tuple[str, str, int | None, tuple[float, float] | None]]:
+    """(label, key, component index or None, range) of every randomised quantity that varies.
+
+    A choice has range None; a vector key yields one entry per component whose range is not a point.
+    """
+    out: list[tuple[str, str, int | None, tuple[float, float] | None]] = []
+    for key, dist in spec.distributions.items():
+        if dist.bounds is None:
+            out.append((key, key, None, None))
+            continue
+        lo, hi = (np.atleast_1d(np.asarray(spec.value_at(key, b), dtype=float)) for b in dist.bounds)
+        for j in range(lo.size):
+            if hi[j] - lo[j] <= 1e-15:
+                continue
+            label = key if lo.size == 1 else f"{key}.{'xyz'[j]}" if lo.size == 3 else f"{key}[{j}]"
+            out.append((label, key, None if lo.size == 1 else j, (float(lo[j]), float(hi[j]))))
+    return out
+
+
+def param_value(ep: Episode, key: str, component: int | None) -> Any:
+    """One randomised quantity of an episode."""
+    value = ep.params[key]
+    return value if component is None else value[component]
+
+
+def by_parameter(spec: SweepSpec, episodes: Sequence[Episode]) -> list[dict[str, Any]]:
+    """Success rate per bin of every randomised quantity (refused episodes left out)."""
+    ran = [e for e in episodes if e.status != "refused"]
+    rows = []
+    for label, key, comp, span in parameter_components(spec):
+        values = [param_value(e, key, comp) for e in ran]
+        if span is None:
+            groups: dict[str, list[Episode]] = {}
+            for e, v in zip(ran, values, strict=True):
+                groups.setdefault(str(v), []).append(e)
+            cells = [(name, members) for name, members in groups.items()]
+        else:
+            edges = np.linspace(span[0], span[1], BINS + 1)
+            which = np.clip(np.searchsorted(edges, np.asarray(values, dtype=float), side="right") - 1, 0, BINS - 1)
+            cells = [(f"[{edges[b]:.4g}, {edges[b + 1]:.4g}]", [e for e, w in zip(ran, which, strict=True) if w == b])
+                     for b in range(BINS)]
+        for name, members in cells:
+            k = sum(e.status == "success" for e in members)
+            rows.append({"parameter": label, "bin": name, "episodes": len(members), "successes": k,
+                         "success_rate": k / len(members) if members else None})
+    return rows
+
+
+def summarize(spec: SweepSpec, seed: int, episodes: Sequence[Episode], *, session_episodes: int,
+              session_wall_s: float) -> dict[str, Any]:
+    """The sweep summary printed on the terminal and written by ``--json`` (see ``docs/sweep.md``)."""
+    counts = Counter(e.status for e in episodes)
+    ran = [e for e in episodes if e.status != "refused"]
+    k = counts["success"]
+    lo, hi = wilson(k, len(ran))
+    errors = [v for e in ran if (v := object_error(e)) is not None]
+    errors_xy = [float(e.result["object_error_xy_m"]) for e in ran if e.result is not None]
+    failures = [e for e in ran if e.status != "success"]
+    by_phase = Counter(e.failed_phase or ("(episode error)" if e.status == "error" else "(all phases done)")
+                       for e in failures)
+    by_criterion = Counter(c for e in failures for c in (e.failed_criteria or ["(no result)"]))
+    listed = []
+    for e in [*failures, *(e for e in episodes if e.status == "refused")]:
+        listed.append({"index": e.index, "status": e.status, "failed_phase": e.failed_phase, "reason": e.reason,
+                       "object_error_m": object_error(e), "replay": replay_commands(spec, seed, e)})
+    return {
+        "sweep": str(spec.path),
+        "base": str(spec.base_path),
+        "seed": seed,
+        "episodes": len(episodes),
+        "counts": {s: counts[s] for s in STATUSES},
+        "ran": len(ran),
+        "success_rate": k / len(ran) if ran else None,
+        "success_rate_ci95": [lo, hi],
+        "error_limit_m": error_limit(episodes),
+        "object_error_m": _quantiles(errors),
+        "object_error_xy_m": _quantiles(errors_xy),
+        "failures_by_phase": dict(by_phase.most_common()),
+        "failures_by_criterion": dict(by_criterion.most_common()),
+        "by_parameter": by_parameter(spec, episodes),
+        "episodes_per_minute": 60.0 * session_episodes / session_wall_s if session_wall_s > 0 else None,
+        "session": {"episodes_run": session_episodes, "wall_time_s": session_wall_s},
+        "failed": listed,
+    }
+
+
+def plot_sweep(spec: SweepSpec, episodes: Sequence[Episode], path: Path) -> None:
+    """PNG: the CDF of the object error against the success threshold, and error against every parameter."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ran = [e for e in episodes if e.status != "refused" and object_error(e) is not None]
+    comps = parameter_components(spec)
+    ncols = 3
+    nrows = 1 + math.ceil(len(comps) / ncols)
+    fig = plt.figure(figsize=(4.2 * ncols, 3.3 * nrows), constrained_layout=True)
+    grid = fig.add_gridspec(nrows, ncols)
+    ax = fig.add_subplot(grid[0, :])
+    err = np.sort([object_error(e) for e in ran]) if ran else np.array([])
+    limit = error_limit(episodes)
+    if err.size:
+        ax.step(np.maximum(err, 1e-5), np.arange(1, err.size + 1) / err.size, where="post", lw=1.8,
+                label=f"{err.size} episodes")
+    if limit is not None:
+        ax.axvline(limit, color="k", ls="--", lw=1, label=f"success threshold {limit * 1e3:g} mm")
+    ax.set(xscale="log", xlabel="object error [m]", ylabel="fraction of episodes", ylim=(0, 1.02),
+           title=f"{spec.name}: object error CDF ({sum(e.status == 'success' for e in ran)}/{len(ran)} succeed)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(loc="lower right", fontsize=8)
+    ok = [e.status == "success" for e in ran]
+    for n, (label, key, comp, span) in enumerate(comps):
+        a = fig.add_subplot(grid[1 + n // ncols, n % ncols])
+        x = [param_value(e, key, comp) for e in ran]
+        y = [max(object_error(e) or 0.0, 1e-5) for e in ran]
+        numeric = all(isinstance(v, (int, float)) for v in x)
+        xs = x if numeric else [str(v) for v in x]
+        for flag, colour, name in ((True, "tab:green", "success"), (False, "tab:red", "failure")):
+            px = [xv for xv, o in zip(xs, ok, strict=True) if o is flag]
+            py = [yv for yv, o in zip(y, ok, strict=True) if o is flag]
+            if px:
+                a.scatter(px, py, s=12, color=colour, alpha=0.7, label=name)
+        if limit is not None:
+            a.axhline(limit, color="k", ls="--", lw=0.8)
+        a.set(yscale="log", xlabel=label, ylabel="object error [m]")
+        if span is not None:
+            a.set_xlim(span[0] - 0.03 * (span[1] - span[0]), span[1] + 0.03 * (span[1] - span[0]))
+        a.grid(alpha=0.3)
+        if n == 0:
+            a.legend(fontsize=7)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
