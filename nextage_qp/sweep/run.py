@@ -6,7 +6,7 @@ import shlex
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
-from nextage_qp.sweep.backends import run_local, run_ray
+from nextage_qp.sweep.backends import GRACE_S, run_local, run_ray
 from nextage_qp.sweep.episode import Episode, EpisodeTask, run_episode
 from nextage_qp.sweep.spec import SweepSpec
 from nextage_qp.sweep.store import SweepStore
@@ -33,6 +33,7 @@ def run_sweep(
     ray_address: str | None = None,
     on_episode: Callable[[Episode], None] | None = None,
     episode_fn: Callable[[EpisodeTask], Episode] = run_episode,
+    grace: float = GRACE_S,
 ) -> list[Episode]:
     """Run every task not already in ``store``; each finished episode is stored before ``on_episode`` sees it.
 
@@ -51,9 +52,9 @@ def run_sweep(
 
     if todo:
         if backend == "ray":
-            run_ray(todo, workers, finished, address=ray_address, episode_fn=episode_fn)
+            run_ray(todo, workers, finished, address=ray_address, episode_fn=episode_fn, grace=grace)
         else:
-            run_local(todo, workers, finished, episode_fn=episode_fn)
+            run_local(todo, workers, finished, episode_fn=episode_fn, grace=grace)
     return [done[t.index] for t in tasks if t.index in done]
 
 

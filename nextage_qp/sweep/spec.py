@@ -155,24 +155,35 @@ class SweepSpec:
         if dist.kind in ("offset", "scale"):
             if value is None:
                 raise self._fail(key, f"{dist.kind} needs a base value, and the base config sets none; use uniform")
-            base = np.atleast_1d(np.asarray(value, dtype=float))
+            try:
+                base = np.atleast_1d(np.asarray(value, dtype=float))
+            except (TypeError, ValueError):
+                raise self._fail(key, f"{dist.kind} needs a numeric base value, got {value!r}; use choice") from None
             lo = np.atleast_1d(np.asarray(dist.bounds[0] if dist.bounds else 0.0, dtype=float))
             if base.shape != lo.shape:
                 raise self._fail(key, f"bounds have {lo.size} component(s) but the base value {value} has {base.size}")
         return value
 
     def _check_draws(self) -> None:
-        """Validate the config at every key's extremes (and every choice), then the scene names once."""
+        """Validate the config at every key's extremes, and build a run for every choice and for episode 0.
+
+        Building the run (scene, names, gains, IK, simulation) catches what the schema cannot: an unknown body,
+        a gains file that does not exist. Problems a scene shows only at run time are the episode's own.
+        """
+        from nextage_qp.manipulation.runner import Runner
+
         for key, dist in self.distributions.items():
             values = dist.choice if dist.choice is not None else [self.value_at(key, b) for b in dist.bounds or ()]
             for value in values:
                 try:
-                    load_config(self.base_path, [f"{key}={yaml_scalar(value)}"])
+                    cfg = load_config(self.base_path, [f"{key}={yaml_scalar(value)}"])
+                    if dist.choice is not None:
+                        Runner(cfg, str(self.base_path))
                 except ConfigError as exc:
                     raise self._fail(key, f"value {yaml_scalar(value)}: {exc}") from None
         params, run_seed = self.draw(0, 0)
         try:
-            build_robot(load_config(self.base_path, self.overrides(params, run_seed)), str(self.base_path))
+            Runner(load_config(self.base_path, self.overrides(params, run_seed)), str(self.base_path))
         except ConfigError as exc:
             raise ConfigError(f"{self.path}: randomize: {exc}") from None
 

@@ -1,0 +1,285 @@
+"""The sweep instrument: validation, seeding, backends, failures kept, resume, replay, summary."""
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from nextage_qp.cli import main
+from nextage_qp.errors import ConfigError
+from nextage_qp.sweep.episode import Episode
+from nextage_qp.sweep.run import plan, replay_commands, run_sweep
+from nextage_qp.sweep.spec import SweepSpec, yaml_scalar
+from nextage_qp.sweep.store import SweepStore
+from nextage_qp.sweep.summary import summarize, wilson
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK = ROOT / "tests" / "data" / "quick_push.yaml"
+PUSH_BASE = ROOT / "configs" / "push_cube.yaml"
+
+
+def write_sweep(tmp_path, randomize, **top):
+    doc = {"base": str(PUSH_BASE), "randomize": randomize, **top}
+    path = tmp_path / "sweep.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+# --- sweep files -------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["push_cube", "dock_dumbbell"])
+def test_bundled_sweeps_cover_the_envelope(name):
+    spec = SweepSpec(ROOT / "configs" / "sweeps" / f"{name}.yaml")
+    obj, tgt = ("cube", "cube_target") if name == "push_cube" else ("dumbbell", "dumbbell_target")
+    d = spec.distributions
+    for body in (obj, tgt):
+        lo, hi = (np.asarray(b) for b in d[f"scene.poses.{body}.pos"].offset)
+        assert np.allclose(lo[:2], -0.05) and np.allclose(hi[:2], 0.05) and lo[2] == hi[2] == 0.0
+    assert d[f"scene.poses.{obj}.yaw"].offset == pytest.approx((-math.pi / 6, math.pi / 6), abs=1e-6)
+    assert d[f"scene.friction_scale.{obj}"].uniform == (0.5, 2.0)
+    assert d[f"scene.masses.{obj}"].uniform == ((0.05, 0.30) if name == "push_cube" else (0.15, 0.90))
+    if name == "dock_dumbbell":
+        assert d[f"scene.poses.{tgt}.yaw"].offset == pytest.approx((-math.pi / 6, math.pi / 6), abs=1e-6)
+        assert spec.base_values[f"scene.poses.{tgt}.yaw"] == pytest.approx(math.pi / 4, abs=1e-6)
+
+
+def test_draws_depend_on_seed_and_index_only():
+    spec = SweepSpec(QUICK)
+    a = [spec.draw(7, i) for i in range(5)]
+    b = [spec.draw(7, i) for i in reversed(range(5))][::-1]
+    assert a == b
+    assert spec.draw(7, 0) != spec.draw(8, 0)
+    assert len({json.dumps(p) for p, _ in a}) == 5
+    params, _ = a[0]
+    base = spec.base_values["scene.poses.cube.pos"]
+    assert all(abs(params["scene.poses.cube.pos"][k] - base[k]) <= 0.02 for k in range(2))
+    assert params["scene.poses.cube.pos"][2] == base[2]
+    assert 0.8 <= params["scene.friction_scale.cube"] <= 1.25
+    assert params["phases.0.attempts"] in (1, 2)
+
+
+@pytest.mark.parametrize("value", [0.1, 1e-05, -3.2e-07, 1e20, 0.33333333333333331, 12.0, -0.0])
+def test_yaml_scalar_reads_back_bit_exact(value):
+    assert yaml.safe_load(yaml_scalar(value)) == value
+    assert yaml.safe_load(yaml_scalar([value, 1.0])) == [value, 1.0]
+
+
+@pytest.mark.parametrize(
+    "randomize,top,message",
+    [
+        ({"ik.position_costt": {"uniform": [0, 1]}}, {}, "randomize.ik.position_costt: 'ik.position_costt' is not a key"),
+        ({"scene.masses.cube": {"uniform": [0.3, 0.1]}}, {}, "randomize.scene.masses.cube: lo > hi"),
+        ({"scene.masses.cube": {"uniform": [0.1, float("nan")]}}, {}, "randomize.scene.masses.cube"),
+        ({"scene.masses.cube": {"uniform": [0.1, float("inf")]}}, {}, "finite number"),
+        ({"scene.masses.cube": {"uniform": [0.1, 0.2], "scale": [1, 2]}}, {}, "exactly one of uniform, offset"),
+        ({"scene.masses.cube": {"unifrom": [0.1, 0.2]}}, {}, "unknown key; valid: choice, offset, scale, uniform"),
+        ({"scene.masses.cube": {"uniform": [-0.1, 0.2]}}, {}, "value -0.1"),
+        ({"scene.poses.cube.pos": {"offset": [[-0.05, 0], [0.05, 0]]}}, {}, "bounds have 2 component(s)"),
+        ({"scene.poses.cube.pos": {"offset": [[-0.05, 0, 0], [0.05, 0]]}}, {}, "same length"),
+        ({"phases.0.name": {"offset": [0, 1]}}, {}, "offset needs a numeric base value"),
+        ({"phases.3.speed": {"uniform": [0.1, 0.2]}}, {}, "list has 1 item(s)"),
+        ({"scene.poses.cubee.pos": {"uniform": [[0, 0, 1], [0, 0, 1]]}}, {}, "unknown body 'cubee'"),
+        ({"seed": {"uniform": [0, 1]}}, {}, "randomize.seed: the sweep sets each episode's run seed"),
+        ({"gains": {"choice": ["default", "nope"]}}, {}, "gains"),
+        ({}, {}, "randomize: Dictionary should have at least 1 item"),
+        ({"scene.masses.cube": {"uniform": [0.1, 0.2]}}, {"randomise": {}}, "randomise: unknown key; valid: base"),
+        ({"scene.masses.cube": {"uniform": [0.1, 0.2]}}, {"wall_limit": float("inf")}, "wall_limit"),
+        ({"scene.masses.cube": {"uniform": [0.1, 0.2]}}, {"base": "missing.yaml"}, "base: 'missing.yaml' is not a file"),
+    ],
+)
+def test_bad_sweep_files_give_one_line_and_exit_2(tmp_path, capsys, randomize, top, message):
+    path = write_sweep(tmp_path, randomize, **top)
+    with pytest.raises(ConfigError, match=None) as info:
+        SweepSpec(path)
+    assert message in str(info.value) and str(path) in str(info.value)
+    assert main(["sweep", str(path), "--n", "1", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err
+
+
+@pytest.mark.parametrize("text,message", [("[1, 2]", "expected a mapping"), ("base: [", "not valid YAML")])
+def test_sweep_file_that_is_not_a_mapping(tmp_path, capsys, text, message):
+    path = tmp_path / "s.yaml"
+    path.write_text(text)
+    assert main(["sweep", str(path), "--n", "1"]) == 2
+    assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "args,message",
+    [
+        (["--n", "0"], "--n must be between 1"),
+        ([], "--n is required"),
+        (["--n", "2", "--seed", "-1"], "--seed must be >= 0"),
+        (["--only", "x,1"], "--only 'x,1': expected episode indices"),
+        (["--n", "2", "--workers", "0"], "--workers must be between 1"),
+        (["--n", "2", "--ray-address", "1.2.3.4:6379"], "--ray-address needs --backend ray"),
+        (["--n", "2", "--json", "."], "is a directory"),
+        (["--n", "2", "--plot", "no/such/dir/p.png"], "does not exist"),
+    ],
+)
+def test_bad_sweep_arguments(capsys, args, message):
+    assert main(["sweep", str(QUICK), *args]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err
+
+
+def test_out_dir_with_episodes_needs_resume(tmp_path, capsys):
+    spec = SweepSpec(QUICK)
+    store = SweepStore(tmp_path, spec, 0, resume=False)
+    store.add(Episode(0, 1, {}, [], "failed"))
+    store.close()
+    assert main(["sweep", str(QUICK), "--n", "2", "--out", str(tmp_path)]) == 2
+    assert "pass --resume" in capsys.readouterr().err
+    assert main(["sweep", str(QUICK), "--n", "2", "--seed", "5", "--out", str(tmp_path), "--resume"]) == 2
+    assert "another seed" in capsys.readouterr().err
+
+
+# --- statistics --------------------------------------------------------------------------------------------------
+
+
+def test_wilson_interval_known_values():
+    lo, hi = wilson(0, 10)
+    assert lo == 0.0 and hi == pytest.approx(0.2775, abs=1e-4)
+    lo, hi = wilson(198, 200)
+    assert lo == pytest.approx(0.9643, abs=1e-4) and hi == pytest.approx(0.9973, abs=1e-4)
+    lo, hi = wilson(50, 100)
+    assert (lo, hi) == pytest.approx((0.4038, 0.5962), abs=1e-4)
+
+
+def test_summary_groups_failures_and_bins_parameters():
+    spec = SweepSpec(QUICK)
+    episodes = []
+    for i, (params, seed) in enumerate(spec.draw(0, i) for i in range(8)):
+        ok = i % 2 == 0
+        result = {"object_error_m": 0.001 * (i + 1), "object_error_xy_m": 0.001 * (i + 1),
+                  "criteria": {"object_error": {"value": 0.001 * (i + 1), "limit": 0.01, "ok": ok}}}
+        status = ["success", "failed", "success", "error", "success", "failed", "success", "refused"][i]
+        episodes.append(Episode(i, seed, params, spec.overrides(params, seed), status, failed_phase="push" if status == "failed" else None,
+                                failed_criteria=[] if ok else ["object_error"], result=None if i == 3 else result))
+    s = summarize(spec, 0, episodes, session_episodes=8, session_wall_s=60.0)
+    assert s["counts"] == {"success": 4, "failed": 2, "refused": 1, "error": 1}
+    assert s["ran"] == 7 and s["success_rate"] == pytest.approx(4 / 7)
+    assert s["failures_by_phase"] == {"push": 2, "(episode error)": 1}
+    assert s["failures_by_criterion"]["object_error"] == 3
+    assert s["object_error_m"]["max"] == pytest.approx(0.007)
+    assert s["episodes_per_minute"] == pytest.approx(8.0)
+    friction = [r for r in s["by_parameter"] if r["parameter"] == "scene.friction_scale.cube"]
+    assert len(friction) == 4 and sum(r["episodes"] for r in friction) == 7
+    assert {r["index"] for r in s["failed"]} == {1, 3, 5, 7}
+    replay = s["failed"][0]["replay"]
+    assert "--only 1" in replay["sweep"] and "--set seed=" in replay["run"]
+
+
+# --- running -----------------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def six_local(tmp_path_factory):
+    """The quick sweep's six episodes with one worker (the reference for the other backends)."""
+    spec = SweepSpec(QUICK)
+    return spec, run_sweep(plan(spec, 3, range(6)), store=None, workers=1)
+
+
+@pytest.mark.slow
+def test_two_workers_give_bit_identical_episodes(six_local):
+    spec, ref = six_local
+    two = run_sweep(plan(spec, 3, range(6)), store=None, workers=2)
+    assert [e.comparable() for e in two] == [e.comparable() for e in ref]
+    assert len({e.worker for e in two}) == 2
+    assert all(e.status in ("success", "failed") for e in ref)
+
+
+@pytest.mark.slow
+def test_ray_backend_gives_bit_identical_episodes(six_local):
+    pytest.importorskip("ray")
+    spec, ref = six_local
+    ray_eps = run_sweep(plan(spec, 3, range(6)), store=None, workers=2, backend="ray")
+    assert [e.comparable() for e in ray_eps] == [e.comparable() for e in ref]
+
+
+@pytest.mark.slow
+def test_replay_command_reproduces_the_episode(six_local, capsys):
+    spec, ref = six_local
+    episode = ref[4]
+    cmd = replay_commands(spec, 3, episode)["run"]
+    import shlex
+
+    argv = shlex.split(cmd)[1:]
+    code = main([*argv, "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == (0 if episode.status == "success" else 1)
+    assert abs(out["object_error_m"] - episode.result["object_error_m"]) <= 1e-9
+
+
+@pytest.mark.slow
+def test_failures_are_recorded_and_the_sweep_goes_on(tmp_path):
+    from sweep_helpers import faulty_episode
+
+    spec = SweepSpec(QUICK)
+    store = SweepStore(tmp_path, spec, 0, resume=False)
+    tasks = plan(spec, 0, range(5))
+    tasks[2] = dataclasses.replace(tasks[2], wall_limit=1.0)  # the hanging one: killed 1 + 2 s after it starts
+    episodes = run_sweep(tasks, store=store, workers=2, episode_fn=faulty_episode, grace=2.0)
+    store.close()
+    by = {e.index: e for e in episodes}
+    assert sorted(by) == [0, 1, 2, 3, 4]
+    assert by[1].status == "error" and "RuntimeError: boom in episode 1" in by[1].reason
+    assert by[2].status == "error" and "killed" in by[2].reason and "wall-time limit" in by[2].reason
+    assert by[3].status == "error" and "worker process died (exit code 3)" in by[3].reason
+    assert by[0].result is not None and by[4].result is not None
+    lines = (tmp_path / "episodes.jsonl").read_text().splitlines()
+    assert sorted(json.loads(ln)["index"] for ln in lines) == [0, 1, 2, 3, 4]
+
+
+@pytest.mark.slow
+def test_episode_past_its_wall_limit_fails_with_its_reason(tmp_path):
+    path = tmp_path / "slow.yaml"
+    doc = yaml.safe_load(QUICK.read_text())
+    doc["base"] = str(PUSH_BASE)
+    doc["wall_limit"] = 0.3
+    path.write_text(yaml.safe_dump(doc))
+    spec = SweepSpec(path)
+    (episode,) = run_sweep(plan(spec, 0, [0]), store=None, workers=1)
+    assert episode.status == "error"
+    assert "wall-time limit of 0.3 s" in episode.reason
+    assert episode.failed_phase == "push cube to target" and episode.result is not None
+
+
+@pytest.mark.slow
+def test_resume_runs_only_the_missing_episodes(tmp_path, six_local):
+    spec, ref = six_local
+    store = SweepStore(tmp_path, spec, 3, resume=False)
+    for e in ref[:3]:
+        store.add(e)
+    store.close()
+    with (tmp_path / "episodes.jsonl").open("a") as f:  # an interrupted write of episode 3
+        f.write(json.dumps(ref[3].to_json())[:40])
+    ran = []
+    resumed = SweepStore(tmp_path, spec, 3, resume=True)
+    assert sorted(resumed.done) == [0, 1, 2]
+    episodes = run_sweep(plan(spec, 3, range(6)), store=resumed, workers=2, on_episode=lambda e: ran.append(e.index))
+    resumed.close()
+    assert sorted(ran) == [3, 4, 5]
+    assert [e.comparable() for e in episodes] == [e.comparable() for e in ref]
+    assert len((tmp_path / "episodes.jsonl").read_text().splitlines()) == 6
+
+
+@pytest.mark.slow
+def test_sweep_cli_writes_summary_plot_and_replays(tmp_path, capsys):
+    out, js, png = tmp_path / "out", tmp_path / "s.json", tmp_path / "s.png"
+    assert main(["sweep", str(QUICK), "--n", "3", "--seed", "1", "--workers", "2", "--out", str(out),
+                 "--json", str(js), "--plot", str(png)]) == 0
+    text = capsys.readouterr().out
+    summary = json.loads(js.read_text())
+    assert summary["episodes"] == 3 and "95 % CI" in text
+    assert summary["success_rate_ci95"][0] <= (summary["success_rate"] or 0) <= summary["success_rate_ci95"][1]
+    assert png.stat().st_size > 20_000
+    assert (out / "summary.json").is_file()
+    assert main(["sweep", str(QUICK), "--seed", "1", "--only", "2"]) == 0
+    assert "episode 2:" in capsys.readouterr().out
