@@ -23,22 +23,54 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.robot import JOINT_NAMES
+from nextage_qp.nextage import JOINT_NAMES
 from nextage_qp.scene import package_root
-from nextage_qp.yaml_file import read_yaml_mapping
+from nextage_qp.yaml_file import read_yaml_mapping, validate
+
+NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False, strict=True)]
+
+
+class JointGains(BaseModel):
+    """One joint's gains: ``kp`` [N·m/rad] and ``kd`` [N·m·s/rad], finite and >= 0."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    kp: NonNegative
+    kd: NonNegative
+
+
+class GainsFile(BaseModel):
+    """The schema of a gains YAML: one entry per robot joint and the gravity-compensation switch."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    gravity_compensation: bool = Field(default=True, strict=True)
+    joints: dict[str, JointGains]
+
+    @field_validator("joints")
+    @classmethod
+    def _every_joint(cls, joints: dict[str, JointGains]) -> dict[str, JointGains]:
+        valid = ", ".join(JOINT_NAMES)
+        if bad := [j for j in joints if j not in JOINT_NAMES]:
+            raise ValueError(f"unknown joint {bad[0]!r}; valid joints: {valid}")
+        if missing := [j for j in JOINT_NAMES if j not in joints]:
+            raise ValueError(f"missing {', '.join(missing)}; every joint needs an entry; joints: {valid}")
+        return joints
 
 
 @dataclass(frozen=True)
 class Gains:
-    """PD gains of the 15 robot joints.
+    """PD gains of the robot's joints, as arrays in joint order.
 
     Attributes:
-        kp: Proportional gains [N·m/rad], (15,) in :data:`~nextage_qp.robot.JOINT_NAMES` order.
-        kd: Derivative gains [N·m·s/rad], (15,).
+        kp: Proportional gains [N·m/rad], one per joint (:data:`~nextage_qp.nextage.JOINT_NAMES` order).
+        kd: Derivative gains [N·m·s/rad].
         gravity_compensation: Add MuJoCo's bias force (gravity + Coriolis) to the PD torque.
         source: Where the gains came from (file path or ``"<code>"``).
     """
@@ -55,6 +87,13 @@ class Gains:
                 raise ConfigError(f"{self.source}: {name} must be {len(JOINT_NAMES)} finite values >= 0, got {arr}")
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
+
+    @classmethod
+    def from_file(cls, doc: GainsFile, source: str) -> Gains:
+        """Arrays in joint order from a validated gains file."""
+        kp = [doc.joints[j].kp for j in JOINT_NAMES]
+        kd = [doc.joints[j].kd for j in JOINT_NAMES]
+        return cls(np.array(kp), np.array(kd), doc.gravity_compensation, source)
 
     def as_dict(self) -> dict[str, dict[str, float]]:
         """``{joint: {"kp": .., "kd": ..}}``."""
@@ -83,39 +122,15 @@ def load_gains(path: str | Path) -> Gains:
 
     Raises:
         ConfigError: The file is missing or malformed, a joint is missing or unknown, a key is unknown,
-            or a gain is not a number >= 0. The message names the file, the key and the valid values.
+            or a gain is not a finite number >= 0. The message names the file, the key and the valid values.
     """
     file = gains_path(path)
     doc = read_yaml_mapping(file, "a mapping with keys 'joints' and 'gravity_compensation'")
-    if bad := sorted(set(doc) - {"joints", "gravity_compensation"}):
-        raise ConfigError(f"{file}: unknown key {bad[0]!r}; valid: gravity_compensation, joints")
-    joints = doc.get("joints")
-    if not isinstance(joints, dict):
-        raise ConfigError(f"{file}: joints: expected a mapping JOINT: {{kp, kd}} for every joint")
-    valid = ", ".join(JOINT_NAMES)
-    for name in joints:
-        if name not in JOINT_NAMES:
-            raise ConfigError(f"{file}: joints.{name}: unknown joint; valid joints: {valid}")
-    if missing := [j for j in JOINT_NAMES if j not in joints]:
-        raise ConfigError(f"{file}: joints: missing {', '.join(missing)}; every joint needs an entry; joints: {valid}")
-    kp, kd = np.zeros(len(JOINT_NAMES)), np.zeros(len(JOINT_NAMES))
-    for i, name in enumerate(JOINT_NAMES):
-        entry = joints[name]
-        if not isinstance(entry, dict) or set(entry) != {"kp", "kd"}:
-            raise ConfigError(f"{file}: joints.{name}: expected {{kp: N m/rad, kd: N m s/rad}}, got {entry!r}")
-        for key, arr in (("kp", kp), ("kd", kd)):
-            value = entry[key]
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value < np.inf:
-                raise ConfigError(f"{file}: joints.{name}.{key}: expected a number >= 0, got {value!r}")
-            arr[i] = value
-    comp = doc.get("gravity_compensation", True)
-    if not isinstance(comp, bool):
-        raise ConfigError(f"{file}: gravity_compensation: expected true or false, got {comp!r}")
     try:
         shown = str(file.resolve().relative_to(package_root()))
     except ValueError:
         shown = str(file)
-    return Gains(kp, kd, gravity_compensation=comp, source=shown)
+    return Gains.from_file(validate(GainsFile, doc, str(file)), shown)
 
 
 class PDController:

@@ -2,44 +2,30 @@
 
 A :class:`Robot` wraps one compiled ``MjModel`` (the robot alone or a task scene that includes it). Every
 joint, actuator and body carries the URDF name, so the report's tables map 1:1. Robot configurations are
-15-vectors ``q`` in :data:`JOINT_NAMES` order, independent of any free joints the scene adds for objects.
+15-vectors ``q`` in :data:`~nextage_qp.nextage.JOINT_NAMES` order, independent of any free joints the scene
+adds for objects.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from types import MappingProxyType
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError, UnknownFrameError, UnknownJointError, UnknownNameError
+from nextage_qp.nextage import GROUP_JOINTS, JOINT_NAMES, ROBOT_COLLISION_GROUPS, SCENE_GROUP_BODIES
 from nextage_qp.scene import SceneOverrides, compile_scene
 
-SIDES = ("left", "right")
-"""The two arms, in the order every per-arm loop uses."""
 
-ARM_PREFIX = MappingProxyType({"left": "LARM", "right": "RARM"})
+class GroupSpec(NamedTuple):
+    """A collision group given by bodies and/or whole subtrees (a body and every body below it)."""
 
-JOINT_NAMES: tuple[str, ...] = (
-    "CHEST_JOINT0",
-    "HEAD_JOINT0",
-    "HEAD_JOINT1",
-    *(f"LARM_JOINT{i}" for i in range(6)),
-    *(f"RARM_JOINT{i}" for i in range(6)),
-)
-"""The 15 robot joints, in model (and URDF) order."""
+    bodies: tuple[str, ...] = ()
+    subtrees: tuple[str, ...] = ()
 
-GROUP_JOINTS: Mapping[str, tuple[str, ...]] = MappingProxyType(
-    {
-        "chest": ("CHEST_JOINT0",),
-        "head": ("HEAD_JOINT0", "HEAD_JOINT1"),
-        "left_arm": tuple(f"LARM_JOINT{i}" for i in range(6)),
-        "right_arm": tuple(f"RARM_JOINT{i}" for i in range(6)),
-    }
-)
-"""Joint groups: the chest, the head and each arm."""
 
 class Robot:
     """Names and indices of the Nextage in one compiled scene.
@@ -85,6 +71,11 @@ class Robot:
         return cls(compile_scene(scene, overrides), scene=str(scene), overrides=overrides)
 
     # Names and indices.
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """The robot's joints, in q order."""
+        return JOINT_NAMES
 
     @property
     def nq(self) -> int:
@@ -191,33 +182,72 @@ class Robot:
 
     # Collision geometry.
 
-    def collision_geoms(self) -> dict[str, tuple[int, ...]]:
+    def collision_geoms(self, extra: Mapping[str, GroupSpec] | None = None) -> dict[str, tuple[int, ...]]:
         """Named groups of collision geom ids, for collision avoidance and contact checks.
 
-        Groups: ``left_arm`` / ``right_arm`` (all six links), ``left_hand`` / ``right_hand`` (the wrist link),
-        ``left_forearm`` / ``right_forearm`` (links 3-5), ``torso`` (chest, waist, pedestal), ``head``,
-        ``table``, ``obstacle`` and one group per object (e.g. ``cube``, ``dumbbell``) when present.
+        Groups: those of :data:`~nextage_qp.nextage.ROBOT_COLLISION_GROUPS` (``left_arm`` / ``right_arm``,
+        ``left_forearm`` / ``right_forearm``, ``left_hand`` / ``right_hand``, ``torso``, ``head``), ``table`` and
+        ``obstacle`` when the scene has them, one group per object (e.g. ``cube``), and the ``extra`` groups.
+
+        Raises:
+            UnknownNameError: An extra group names a body that is not in the scene.
         """
         m = self.model
         colliding = [g for g in range(m.ngeom) if m.geom_contype[g] or m.geom_conaffinity[g]]
 
-        def of_bodies(names: Sequence[str]) -> tuple[int, ...]:
-            ids = {m.body(n).id for n in names if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) >= 0}
+        def of_bodies(ids: set[int]) -> tuple[int, ...]:
             return tuple(g for g in colliding if int(m.geom_bodyid[g]) in ids)
 
-        groups: dict[str, tuple[int, ...]] = {}
-        for side in SIDES:
-            pre = ARM_PREFIX[side]
-            groups[f"{side}_arm"] = of_bodies([f"{pre}_JOINT{i}_Link" for i in range(6)])
-            groups[f"{side}_forearm"] = of_bodies([f"{pre}_JOINT{i}_Link" for i in (3, 4, 5)])
-            groups[f"{side}_hand"] = of_bodies([f"{pre}_JOINT5_Link"])
-        groups["torso"] = of_bodies(["CHEST_JOINT0_Link", "WAIST", "nextage_base"])
-        groups["head"] = of_bodies(["HEAD_JOINT0_Link", "HEAD_JOINT1_Link"])
-        for name in ("table", "obstacle", *self.object_names):
-            found = of_bodies([name])
-            if found:
+        def ids(names: Sequence[str], strict: bool, what: str) -> set[int]:
+            found = set()
+            for n in names:
+                bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n)
+                if bid < 0 and strict:
+                    raise UnknownNameError(what, n, self.body_names)
+                if bid >= 0:
+                    found.add(bid)
+            return found
+
+        groups = {name: of_bodies(ids(bodies, False, "body")) for name, bodies in ROBOT_COLLISION_GROUPS.items()}
+        for name in (*SCENE_GROUP_BODIES, *self.object_names):
+            if found := of_bodies(ids([name], False, "body")):
                 groups[name] = found
+        for name, spec in (extra or {}).items():
+            roots = ids(spec.subtrees, True, f"body (collision group {name!r} subtree)")
+            below = {b for b in range(m.nbody) if any(_descends(m, b, r) for r in roots)}
+            groups[name] = of_bodies(ids(spec.bodies, True, f"body (collision group {name!r})") | below)
         return groups
+
+
+PerJoint = float | tuple[float, ...] | dict[str, float]
+"""A per-joint setting: one value for every joint, a list in joint order, or ``{joint: value}``."""
+
+
+def per_joint(value: PerJoint, default: float, names: Sequence[str]) -> np.ndarray:
+    """The per-joint array of a setting; joints a mapping leaves out get ``default`` (one meaning everywhere).
+
+    Raises:
+        ConfigError: A list of the wrong length or a mapping with an unknown joint.
+    """
+    if isinstance(value, dict):
+        out = np.full(len(names), float(default))
+        for joint, v in value.items():
+            if joint not in names:
+                raise UnknownJointError(joint, names)
+            out[list(names).index(joint)] = v
+        return out
+    arr = np.broadcast_to(np.asarray(value, dtype=float), (len(names),)) if np.ndim(value) == 0 else np.asarray(value)
+    if arr.shape != (len(names),):
+        raise ConfigError(f"a per-joint list needs {len(names)} values, got {len(arr)}")
+    return np.array(arr, dtype=float)
+
+
+def _descends(m: mujoco.MjModel, body: int, root: int) -> bool:
+    while body > 0:
+        if body == root:
+            return True
+        body = int(m.body_parentid[body])
+    return root == 0
 
 
 def _ro(a: np.ndarray) -> np.ndarray:

@@ -24,16 +24,16 @@ import ruckig
 from pydantic import BaseModel, ConfigDict, field_validator
 
 from nextage_qp.errors import TrajectoryError
-from nextage_qp.robot import JOINT_NAMES
+from nextage_qp.nextage import JOINT_NAMES
+from nextage_qp.robot import PerJoint, per_joint
 
-Limit = float | tuple[float, ...] | dict[str, float]
 _OK = (ruckig.Result.Working, ruckig.Result.Finished)
 
 
 class TrajectoryLimits(BaseModel):
     """Kinematic bounds of the joint references, scalar (every joint) or per joint.
 
-    A per-joint value is a list in :data:`~nextage_qp.robot.JOINT_NAMES` order or a mapping
+    A per-joint value is a list in :data:`~nextage_qp.nextage.JOINT_NAMES` order or a mapping
     ``{joint: value}`` (joints left out take the default of the field).
 
     Attributes:
@@ -44,13 +44,13 @@ class TrajectoryLimits(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    max_velocity: Limit = 1.0
-    max_acceleration: Limit = 4.0
-    max_jerk: Limit = 40.0
+    max_velocity: PerJoint = 1.0
+    max_acceleration: PerJoint = 4.0
+    max_jerk: PerJoint = 40.0
 
     @field_validator("max_velocity", "max_acceleration", "max_jerk")
     @classmethod
-    def _check(cls, value: Limit) -> Limit:
+    def _check(cls, value: PerJoint) -> PerJoint:
         values = value.values() if isinstance(value, dict) else np.atleast_1d(value)
         if any(not (np.isfinite(v) and v > 0) for v in values):
             raise ValueError(f"every limit must be finite and > 0, got {value}")
@@ -60,20 +60,15 @@ class TrajectoryLimits(BaseModel):
             raise ValueError(f"a per-joint list needs {len(JOINT_NAMES)} values, got {len(value)}")
         return value
 
-    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Per-joint (velocity, acceleration, jerk) bounds as three (15,) arrays."""
+    def arrays(self, names: Sequence[str] = JOINT_NAMES) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per-joint (velocity, acceleration, jerk) bounds over ``names``.
+
+        Joints a mapping leaves out get the field's default.
+        """
         defaults = type(self).model_fields
-        out = []
-        for name in ("max_velocity", "max_acceleration", "max_jerk"):
-            value = getattr(self, name)
-            if isinstance(value, dict):
-                base = np.full(len(JOINT_NAMES), float(defaults[name].default))
-                for joint, v in value.items():
-                    base[JOINT_NAMES.index(joint)] = v
-                out.append(base)
-            else:
-                out.append(np.broadcast_to(np.asarray(value, dtype=float), (len(JOINT_NAMES),)).copy())
-        return out[0], out[1], out[2]
+        v, a, j = (per_joint(getattr(self, f), float(defaults[f].default), names)
+                   for f in ("max_velocity", "max_acceleration", "max_jerk"))
+        return v, a, j
 
 
 class RefState(NamedTuple):
@@ -84,8 +79,8 @@ class RefState(NamedTuple):
     qdd: np.ndarray
 
 
-def _fill_limits(inp: ruckig.InputParameter, limits: TrajectoryLimits) -> None:
-    v, a, j = limits.arrays()
+def _fill_limits(inp: ruckig.InputParameter, limits: TrajectoryLimits, names: Sequence[str]) -> None:
+    v, a, j = limits.arrays(names)
     inp.max_velocity, inp.max_acceleration, inp.max_jerk = v.tolist(), a.tolist(), j.tolist()
 
 
@@ -109,7 +104,7 @@ class JointTrajectory:
         dt: Control period [s]; each :meth:`update` advances the reference by ``dt``.
         lower: Optional joint lower limits [rad]; a target outside ``[lower, upper]`` is an error.
         upper: Optional joint upper limits [rad].
-        joint_names: Names used in error messages (default :data:`~nextage_qp.robot.JOINT_NAMES`).
+        joint_names: Names used in error messages (default :data:`~nextage_qp.nextage.JOINT_NAMES`).
     """
 
     def __init__(
@@ -131,7 +126,7 @@ class JointTrajectory:
         self._otg = ruckig.Ruckig(self.n, dt)
         self._inp = ruckig.InputParameter(self.n)
         self._out = ruckig.OutputParameter(self.n)
-        _fill_limits(self._inp, limits)
+        _fill_limits(self._inp, limits, self.names)
         self._result = ruckig.Result.Finished
         self.reset(np.zeros(self.n))
 
@@ -255,7 +250,7 @@ def plan_segment(
     """
     n = len(joint_names)
     inp = ruckig.InputParameter(n)
-    _fill_limits(inp, limits)
+    _fill_limits(inp, limits, joint_names)
     inp.current_position, inp.target_position = np.asarray(q0, float).tolist(), np.asarray(q1, float).tolist()
     inp.current_velocity = [0.0] * n if qd0 is None else np.asarray(qd0, float).tolist()
     inp.target_velocity = [0.0] * n if qd1 is None else np.asarray(qd1, float).tolist()

@@ -1,11 +1,17 @@
-"""Read a YAML file whose top level must be a mapping, turning every failure into a one-line ConfigError."""
+"""YAML files in, one-line errors out.
+
+Reading a mapping, and turning a pydantic failure into a message that names the file, the dotted key, what is wrong, the
+bad value and what would be valid.
+"""
 
 from __future__ import annotations
 
+import typing
 from pathlib import Path
 from typing import Any
 
 import yaml
+from pydantic import BaseModel, ValidationError
 
 from nextage_qp.errors import ConfigError
 
@@ -29,3 +35,87 @@ def read_yaml_mapping(file: Path, expected: str) -> dict[str, Any]:
     if not isinstance(doc, dict):
         raise ConfigError(f"{file}: expected {expected}")
     return doc
+
+
+def validate(model: type[BaseModel], doc: Any, source: str) -> Any:
+    """``model.model_validate(doc)``, with a failure turned into a one-line :class:`ConfigError`."""
+    try:
+        return model.model_validate(doc)
+    except ValidationError as exc:
+        raise ConfigError(format_validation_error(source, exc, model)) from None
+
+
+def format_validation_error(source: str, exc: ValidationError, root: type[BaseModel]) -> str:
+    """One line: ``source: dotted.key: message (got value)`` for the first error, plus a count of the rest.
+
+    An unknown key lists the keys valid at its level; an unknown tag of a tagged union (e.g. a phase ``kind``)
+    lists the valid tags.
+    """
+    errors = exc.errors()
+    first = errors[0]
+    loc = tuple(first["loc"])
+    key = _dotted(root, loc) or "<top level>"
+    msg = first["msg"].removeprefix("Value error, ")
+    if first["type"] == "extra_forbidden":
+        msg = f"unknown key; valid: {', '.join(valid_keys(root, loc[:-1]))}"
+    elif first["type"] == "union_tag_invalid":
+        tags = str(first.get("ctx", {}).get("expected_tags", "")).replace("'", "")
+        msg = f"unknown {first.get('ctx', {}).get('discriminator', 'kind').strip(chr(39))}; valid: {tags}"
+    got = first.get("input")
+    shown = "" if first["type"] in ("missing", "extra_forbidden") or isinstance(got, dict) else f" (got {got!r})"
+    more = f" [+{len(errors) - 1} more]" if len(errors) > 1 else ""
+    return f"{source}: {key}: {msg}{shown}{more}"
+
+
+def _models_in(annotation: Any) -> list[type[BaseModel]]:
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    return [m for arg in typing.get_args(annotation) for m in _models_in(arg)]
+
+
+def _tag(model: type[BaseModel]) -> str | None:
+    field = model.model_fields.get("kind")
+    args = typing.get_args(field.annotation) if field is not None else ()
+    return str(args[0]) if len(args) == 1 else None
+
+
+def _walk(root: type[BaseModel], loc: tuple[int | str, ...]) -> tuple[list[type[BaseModel]], list[str]]:
+    """The models valid after ``loc`` and the parts of ``loc`` a reader should see (union tags left out)."""
+    candidates: list[type[BaseModel]] = [root]
+    shown: list[str] = []
+    user_key = False
+    for part in loc:
+        if isinstance(part, int):
+            shown.append(f"[{part}]")
+            continue
+        if user_key:  # a key of a dict field, e.g. the body name in scene.poses
+            user_key = False
+            shown.append(str(part))
+            continue
+        tagged = [m for m in candidates if _tag(m) == part]
+        if tagged and len(candidates) > 1:
+            candidates = tagged
+            continue
+        shown.append(str(part))
+        model = next((m for m in candidates if part in m.model_fields), None)
+        if model is None:
+            candidates = []
+            continue
+        annotation = model.model_fields[part].annotation
+        user_key = typing.get_origin(annotation) is dict or any(
+            typing.get_origin(a) is dict for a in typing.get_args(annotation))
+        candidates = _models_in(annotation)
+    return candidates, shown
+
+
+def _dotted(root: type[BaseModel], loc: tuple[int | str, ...]) -> str:
+    out = ""
+    for part in _walk(root, loc)[1]:
+        out += part if part.startswith("[") or not out else f".{part}"
+    return out
+
+
+def valid_keys(root: type[BaseModel], loc: tuple[int | str, ...]) -> list[str]:
+    """Keys accepted at a location of a model (for 'unknown key' messages)."""
+    candidates = _walk(root, loc)[0]
+    return sorted(candidates[0].model_fields) if len(candidates) == 1 else []

@@ -5,7 +5,7 @@ import pytest
 
 from nextage_qp.control import Gains, PDController, load_gains
 from nextage_qp.errors import ConfigError
-from nextage_qp.robot import JOINT_NAMES
+from nextage_qp.nextage import JOINT_NAMES
 
 N = len(JOINT_NAMES)
 
@@ -78,13 +78,20 @@ def test_missing_joint_rejected_with_one_line_message(tmp_path):
 
 def test_unknown_joint_rejected_with_valid_list(tmp_path):
     path = _write(tmp_path, [*JOINT_NAMES, "LARM_JOINT6"])
-    with pytest.raises(ConfigError, match=re.escape("joints.LARM_JOINT6: unknown joint; valid joints: CHEST_JOINT0")):
+    with pytest.raises(ConfigError, match=re.escape("joints: unknown joint 'LARM_JOINT6'; valid joints: CHEST_JOINT0")):
         load_gains(path)
 
 
 @pytest.mark.parametrize(
     ("entry", "match"),
-    [("{kp: -1.0, kd: 1.0}", "expected a number >= 0"), ("{kp: 1.0}", "expected {kp"), ("{kp: x, kd: 1}", "number")],
+    [
+        ("{kp: -1.0, kd: 1.0}", "joints.CHEST_JOINT0.kp: Input should be greater than or equal to 0 (got -1.0)"),
+        ("{kp: 1.0}", "joints.CHEST_JOINT0.kd: Field required"),
+        ("{kp: x, kd: 1}", "joints.CHEST_JOINT0.kp: Input should be a valid number"),
+        ("{kp: .inf, kd: 1}", "joints.CHEST_JOINT0.kp: Input should be a finite number"),
+        ("{kp: yes, kd: 1}", "joints.CHEST_JOINT0.kp: Input should be a valid number"),
+        ("{kp: 1, kd: 1, ki: 0}", "joints.CHEST_JOINT0.ki: unknown key; valid: kd, kp"),
+    ],
 )
 def test_bad_entry_rejected(tmp_path, entry, match):
     path = _write(tmp_path, JOINT_NAMES[1:], extra="")
@@ -95,7 +102,7 @@ def test_bad_entry_rejected(tmp_path, entry, match):
 
 def test_unknown_top_level_key_and_missing_file(tmp_path):
     path = _write(tmp_path, JOINT_NAMES, extra="integral: 3")
-    with pytest.raises(ConfigError, match="unknown key 'integral'"):
+    with pytest.raises(ConfigError, match="integral: unknown key; valid: gravity_compensation, joints"):
         load_gains(path)
     with pytest.raises(ConfigError, match="bundled: default"):
         load_gains(tmp_path / "nope.yaml")

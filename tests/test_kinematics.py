@@ -3,7 +3,7 @@ import pytest
 
 from nextage_qp.errors import UnknownFrameError
 from nextage_qp.kinematics import NEXTAGE_TOPOLOGY, Kinematics, chain_fk
-from nextage_qp.robot import JOINT_NAMES
+from nextage_qp.nextage import JOINT_NAMES
 
 # Spec section 1.4: world positions of the link frames.
 REF_ZERO = {

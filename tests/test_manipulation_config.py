@@ -46,7 +46,7 @@ def test_override_into_phase_list():
         (lambda d: d.update(taks="x"), "taks: unknown key; valid: gains, ik, object"),
         (lambda d: d["phases"][0].update(tolerence=0.1), "phases[0].tolerence: unknown key; valid: approach"),
         (lambda d: d["phases"][0].update(tolerance=-0.01), "phases[0].tolerance: Input should be greater than 0"),
-        (lambda d: d["phases"][0].update(kind="jump"), "phases[0]: unknown phase kind; valid: move, push"),
+        (lambda d: d["phases"][0].update(kind="jump"), "phases[0]: unknown kind; valid: move, push"),
         (lambda d: d["ik"].update(solver="cplex"), "ik.solver: solver 'cplex' is not installed; available: daqp"),
         (lambda d: d["timing"].update(ctrl_dt=0.0045), "must be a whole multiple of sim_dt"),
         (lambda d: d["phases"][0].update(frame="left_hnd"), "phases[0].frame: 'left_hnd' is not valid; valid: left_wrist"),

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from nextage_qp.errors import ConfigError, UnknownJointError, UnknownNameError
-from nextage_qp.robot import JOINT_NAMES, Robot
+from nextage_qp.nextage import JOINT_NAMES
+from nextage_qp.robot import Robot
 from nextage_qp.scene import BodyPose, SceneOverrides, scene_path
 
 # Spec section 1.2: link masses [kg].

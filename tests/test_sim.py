@@ -2,11 +2,13 @@ import json
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 
 from nextage_qp.control import Gains, load_gains
 from nextage_qp.errors import SimulationError
-from nextage_qp.robot import JOINT_NAMES, Robot
-from nextage_qp.sim import Simulation
+from nextage_qp.nextage import JOINT_NAMES
+from nextage_qp.robot import Robot
+from nextage_qp.sim import Simulation, Timing
 from nextage_qp.trajectory import TrajectoryLimits
 
 N = len(JOINT_NAMES)
@@ -97,22 +99,22 @@ def test_nan_state_is_caught_with_time_and_joint(robot, gains, tmp_path, monkeyp
     assert json.loads((tmp_path / "nan.json").read_text())["samples"] == 104
 
 
-def test_ctrl_dt_must_be_multiple_of_sim_dt(gains):
-    with pytest.raises(SimulationError, match="integer multiple"):
-        Simulation(Robot.from_scene("nextage"), gains, ctrl_dt=0.0025)
+def test_ctrl_dt_must_be_multiple_of_sim_dt():
+    with pytest.raises(ValidationError, match="must be a whole multiple of sim_dt"):
+        Timing(ctrl_dt=0.0025)
+    assert Timing(sim_dt=0.002, ctrl_dt=0.006).n_substeps == 3
 
 
 def test_obstacle_contacts_are_counted_per_physics_step(gains):
     """With the wall moved onto the left wrist, every physics step in contact counts once."""
-    from nextage_qp.manipulation.runner import OutcomeMonitor
+    from nextage_qp.manipulation.metrics import OutcomeMonitor
     from nextage_qp.scene import BodyPose, SceneOverrides
 
     wall = SceneOverrides(poses={"obstacle": BodyPose(pos=(0.505, 0.23, 1.03), yaw=0.0)})
     robot = Robot.from_scene("dock_dumbbell", wall)
     sim = Simulation(robot, gains)
     monitor = OutcomeMonitor(robot, "dumbbell")
-    sim.hooks.append(monitor.on_tick)
-    sim.substep_hooks.append(monitor.on_substep)
+    monitor.attach(sim)
     touching_steps = []
 
     def count(s: Simulation) -> None:

@@ -3,7 +3,7 @@ import pytest
 from pydantic import ValidationError
 
 from nextage_qp.errors import TrajectoryError
-from nextage_qp.robot import JOINT_NAMES
+from nextage_qp.nextage import JOINT_NAMES
 from nextage_qp.trajectory import JointTrajectory, TrajectoryLimits, chain_waypoints, plan_segment
 
 N = len(JOINT_NAMES)

@@ -3,9 +3,11 @@
 Measured in one run on one core:
 
 * bare physics: ``mj_step`` on the same scene with a constant gravity-holding torque (the ceiling);
-* the full loop (``nextage-qp reach``'s pipeline: QP IK -> Ruckig -> PD at every physics step -> MuJoCo,
-  with recording) on reach motions of the left wrist, as simulated seconds per wall second;
-* an instrumented copy of the same loop, timing each stage separately (median and p99 per call).
+* the full loop (``nextage-qp reach``'s pipeline: the servo tick's QP IK -> Ruckig -> PD at every physics step
+  -> MuJoCo, with recording) on reach motions of the left wrist, as simulated seconds per wall second;
+* the same loop with the simulation's stage timer on, timing the servo (IK) and each stage of the real
+  ``Simulation.tick`` separately (median and p99 per call);
+* with ``--task CONFIG``, the same stage profile of a whole task run (the manipulation runner).
 
 Example: ``.venv/bin/python tools/bench_loop.py --repeats 3 --json``
 """
@@ -26,11 +28,14 @@ from importlib import metadata  # noqa: E402
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-from nextage_qp.commands.reach import run_reach  # noqa: E402
 from nextage_qp.control import load_gains  # noqa: E402
+from nextage_qp.experiments.reach import run_reach  # noqa: E402
 from nextage_qp.ik import QPIK, FrameTarget, IKConfig  # noqa: E402
+from nextage_qp.manipulation.config import load_config  # noqa: E402
+from nextage_qp.manipulation.runner import Runner  # noqa: E402
 from nextage_qp.robot import Robot  # noqa: E402
-from nextage_qp.sim import Simulation  # noqa: E402
+from nextage_qp.servo import Command, Servo  # noqa: E402
+from nextage_qp.sim import Simulation, StageTimer  # noqa: E402
 
 TARGETS = [(0.45, 0.25, 1.05), (0.40, 0.15, 1.00), (0.50, 0.30, 1.10), (0.35, 0.20, 0.98), (0.55, 0.10, 1.05)]
 
@@ -72,46 +77,46 @@ def loop_rtf(scene: str, duration: float, repeats: int) -> tuple[list[float], li
     return rtfs, errors
 
 
+def _stats(samples: dict[str, list[float]]) -> dict[str, dict[str, float]]:
+    return {k: {"median_us": float(np.median(v) * 1e6), "p99_us": float(np.percentile(v, 99) * 1e6), "calls": len(v)}
+            for k, v in samples.items()}
+
+
 def stage_costs(scene: str, duration: float) -> dict[str, dict[str, float]]:
-    """Per-call wall time [us] of each stage, from an instrumented copy of ``Simulation.tick``."""
+    """Per-call wall time [us] of the servo tick (IK) and of each stage of the real ``Simulation.tick``."""
     robot, gains = Robot.from_scene(scene), load_gains("default")
     sim = Simulation(robot, gains, frames=("left_wrist",))
-    ik = QPIK(robot, IKConfig())
-    m, d, qi, di, ai = sim.model, sim.data, robot.qpos_idx, robot.dof_idx, robot.actuator_ids
-    q_cmd = robot.keyframe_q()
-    sim.reset(q_cmd)
-    target = [FrameTarget(frame="left_wrist", pos=np.array(TARGETS[0]))]
-    cost: dict[str, list[float]] = {"ik": [], "ruckig": [], "pd": [], "physics": [], "record": []}
+    q0 = robot.keyframe_q()
+    sim.reset(q0)
+    servo = Servo(QPIK(robot, IKConfig()), sim, q0)
+    command = Command((FrameTarget(frame="left_wrist", pos=np.array(TARGETS[0])),))
+    sim.timer = timer = StageTimer()
     clock = time.perf_counter
+    servo_s = []
     for _ in range(round(duration / sim.ctrl_dt)):
         t0 = clock()
-        v = ik.step(q_cmd, target, sim.ctrl_dt)
-        q_cmd = np.clip(q_cmd + v * sim.ctrl_dt, robot.lower, robot.upper)
-        t1 = clock()
-        sim.traj.set_target(q_cmd)
-        sim.traj.update()
-        refs = [sim.traj.interpolate(k * sim.sim_dt) for k in range(sim.n_substeps)]
-        t2 = clock()
-        cost["ik"].append(t1 - t0)
-        cost["ruckig"].append(t2 - t1)
-        for ref in refs:
-            a = clock()
-            mujoco.mj_step1(m, d)
-            b = clock()
-            q, qd = d.qpos[qi], d.qvel[di]
-            tau = sim.pd.torque(q, qd, ref.q, ref.qd, d.qfrc_bias[di])
-            d.ctrl[ai] = tau
-            c = clock()
-            sim.recorder.record(sim.time, q, qd, ref.q, ref.qd, tau, sim._frame_poses(), sim._object_poses())
-            e = clock()
-            mujoco.mj_step2(m, d)
-            f = clock()
-            sim._step += 1
-            cost["physics"].append((b - a) + (f - e))
-            cost["pd"].append(c - b)
-            cost["record"].append(e - c)
-    return {k: {"median_us": float(np.median(v) * 1e6), "p99_us": float(np.percentile(v, 99) * 1e6), "calls": len(v)}
-            for k, v in cost.items()}
+        servo.step(command)
+        servo_s.append(clock() - t0)
+        sim.tick()
+    return _stats({"servo (ik)": servo_s, **timer.samples})
+
+
+def task_costs(config: str) -> tuple[dict[str, dict[str, float]], float]:
+    """Stage profile of a whole task run, and its real-time factor (the runner's servo timed per tick)."""
+    runner = Runner(load_config(config), config)
+    runner.sim.timer = timer = StageTimer()
+    servo_s: list[float] = []
+    step = runner.servo.step
+
+    def timed_step(*args, **kwargs):  # type: ignore[no-untyped-def]
+        t0 = time.perf_counter()
+        out = step(*args, **kwargs)
+        servo_s.append(time.perf_counter() - t0)
+        return out
+
+    runner.servo.step = timed_step  # type: ignore[method-assign]
+    result = runner.run()
+    return _stats({"servo (ik)": servo_s, **timer.samples}), float(result["real_time_factor"] or 0.0)
 
 
 def main() -> None:
@@ -119,6 +124,8 @@ def main() -> None:
     parser.add_argument("--scene", default="scene", help="bundled scene or MJCF path (default: scene)")
     parser.add_argument("--duration", type=float, default=3.0, help="simulated seconds per reach (default 3)")
     parser.add_argument("--repeats", type=int, default=5, help="reach runs for the loop RTF (default 5)")
+    parser.add_argument("--task", action="append", default=[], metavar="CONFIG",
+                        help="also profile a whole task run of this config (repeatable)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args()
     bare = [bare_rtf(args.scene, args.duration) for _ in range(3)]
@@ -135,7 +142,11 @@ def main() -> None:
         "loop_over_bare_ratio": float(np.median(rtfs) / np.median(bare)),
         "reach_final_error_m_max": float(np.max(errors)),
         "per_call_us": stages,
+        "tasks": {},
     }
+    for config in args.task:
+        task_stages, rtf = task_costs(config)
+        out["tasks"][config] = {"real_time_factor": rtf, "per_call_us": task_stages}
     if args.json:
         print(json.dumps(out, indent=2))
         return
@@ -147,9 +158,16 @@ def main() -> None:
           f"{out['loop_over_bare_ratio']:.2f} of bare)")
     print(f"reach final error max  {out['reach_final_error_m_max'] * 1e3:.4f} mm\n")
     print(f"{'stage':10s} {'per':>6s} {'median us':>10s} {'p99 us':>9s}")
+    _print_stages(stages)
+    for config, task in out["tasks"].items():
+        print(f"\ntask {config}: RTF {task['real_time_factor']:.1f}x")
+        _print_stages(task["per_call_us"])
+
+
+def _print_stages(stages: dict[str, dict[str, float]]) -> None:
+    print(f"{'stage':14s} {'calls':>8s} {'median us':>10s} {'p99 us':>9s}")
     for name, s in stages.items():
-        per = "tick" if name in ("ik", "ruckig") else "step"
-        print(f"{name:10s} {per:>6s} {s['median_us']:10.1f} {s['p99_us']:9.1f}")
+        print(f"{name:14s} {s['calls']:8d} {s['median_us']:10.1f} {s['p99_us']:9.1f}")
 
 
 if __name__ == "__main__":

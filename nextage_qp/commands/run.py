@@ -13,7 +13,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from nextage_qp.commands.common import print_json
-from nextage_qp.manipulation.config import load_config
+from nextage_qp.manipulation.config import jitter_overrides, load_config
 from nextage_qp.manipulation.runner import Runner
 
 
@@ -33,40 +33,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def seeded_overrides(cfg_path: str, seed: int, base: list[str]) -> list[str]:
-    """Overrides that shift the object start and target by a seeded random offset (<= 2 cm, <= 10 deg)."""
-    import numpy as np
-
-    cfg = load_config(cfg_path, base)
-    rng = np.random.default_rng(seed)
-    out = list(base)
-    for body in (cfg.object, cfg.target):
-        pose = cfg.scene.poses.get(body)
-        if pose is None or pose.pos is None:
-            continue
-        dx, dy = rng.uniform(-0.02, 0.02, 2)
-        yaw = (pose.yaw or 0.0) + float(rng.uniform(-np.pi / 18, np.pi / 18))
-        x, y, z = pose.pos
-        out += [f"scene.poses.{body}.pos=[{x + dx:.4f},{y + dy:.4f},{z}]", f"scene.poses.{body}.yaw={yaw:.4f}"]
-    return out
-
-
 def run(args: argparse.Namespace) -> int:
     """Run the config; exit 0 on success, 1 when the task failed (outputs are written either way)."""
-    overrides = seeded_overrides(args.config, args.seed, args.overrides) if args.seed is not None else args.overrides
+    overrides = jitter_overrides(args.config, args.seed, args.overrides) if args.seed is not None else args.overrides
     cfg = load_config(args.config, overrides)
     runner = Runner(cfg, args.config)
     err = Console(stderr=True)
     callbacks = []
     recorder_video = None
     if args.video:
-        from nextage_qp.viz import VideoRecorder
+        from nextage_qp.viz.run import VideoRecorder
 
         recorder_video = VideoRecorder(runner, args.video)
         callbacks.append(recorder_video.on_tick)
     viewer = None
     if args.viewer:
-        from nextage_qp.viz import LiveViewer
+        from nextage_qp.viz.run import LiveViewer
 
         viewer = LiveViewer(runner)
         callbacks.append(viewer.on_tick)
@@ -104,7 +86,7 @@ def _write_outputs(runner: Runner, args: argparse.Namespace, video: Any) -> dict
         written["log"] = str(args.log)
         written["log_summary"] = str(runner.sim.recorder.save(args.log))
     if args.plot:
-        from nextage_qp.viz import plot_run
+        from nextage_qp.viz.run import plot_run
 
         plot_run(runner, args.plot)
         written["plot"] = str(args.plot)

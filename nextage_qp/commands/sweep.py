@@ -21,7 +21,7 @@ from nextage_qp.sweep.episode import Episode
 from nextage_qp.sweep.run import BACKENDS, plan, run_sweep
 from nextage_qp.sweep.spec import SweepSpec
 from nextage_qp.sweep.store import SweepStore
-from nextage_qp.sweep.summary import BINS, plot_sweep, summarize
+from nextage_qp.sweep.summary import BINS, summarize
 
 PLAIN_PROGRESS_S = 10.0
 """Seconds between progress lines when stderr is not a terminal."""
@@ -159,6 +159,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         args.json.write_text(json.dumps(summary, indent=2) + "\n")
     if args.plot:
+        from nextage_qp.viz.sweep import plot_sweep
+
         plot_sweep(spec, episodes, args.plot)
     console = Console()
     if not console.is_terminal:

@@ -5,7 +5,7 @@ from nextage_qp.ik.config import CollisionPairConfig, IKConfig
 from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.ik.model import kinematic_model
 from nextage_qp.ik.qp import QPIK
-from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, target_errors
+from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, RelativeTarget, target_errors
 
 __all__ = [
     "QPIK",
@@ -16,6 +16,7 @@ __all__ = [
     "IKInfeasibleError",
     "IKResult",
     "JointBoxLimit",
+    "RelativeTarget",
     "kinematic_model",
     "target_errors",
 ]

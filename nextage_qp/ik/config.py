@@ -11,6 +11,8 @@ from typing import Literal
 import qpsolvers
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from nextage_qp.robot import GroupSpec
+
 
 class CollisionPairConfig(BaseModel):
     """Collision avoidance between two named geom groups (see :meth:`Robot.collision_geoms`).
@@ -34,6 +36,25 @@ class CollisionPairConfig(BaseModel):
             raise ValueError(
                 f"detection_distance ({self.detection_distance} m) must exceed min_distance ({self.min_distance} m)"
             )
+        return self
+
+
+class CollisionGroupConfig(BaseModel):
+    """A named geom group of its own.
+
+    Every collision geom of the listed bodies and of the subtrees below the listed roots (e.g. ``{subtrees:
+    [LARM_JOINT3_Link]}`` for a forearm).
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    bodies: tuple[str, ...] = ()
+    subtrees: tuple[str, ...] = ()
+
+    @model_validator(mode="after")
+    def _something(self) -> CollisionGroupConfig:
+        if not self.bodies and not self.subtrees:
+            raise ValueError("a collision group needs bodies or subtrees")
         return self
 
 
@@ -71,7 +92,7 @@ class IKConfig(BaseModel):
     pos_tol: float = Field(default=1e-4, gt=0.0, description="Position tolerance of solve() [m].")
     rot_tol: float = Field(default=1e-3, gt=0.0, description="Orientation tolerance of solve() [rad].")
     velocity_limit: float | dict[str, float] = Field(
-        default=3.0, description="Joint speed limit [rad/s]: one value or joint -> value (others unlimited)."
+        default=3.0, description="Joint speed limit [rad/s]: one value or joint -> value (others at 3.0)."
     )
     limit_gain: float = Field(
         default=0.95, gt=0.0, le=1.0, description="Fraction of the distance to a joint limit allowed per step."
@@ -82,6 +103,9 @@ class IKConfig(BaseModel):
     seed: int = Field(default=0, description="Seed of the restart configurations (solve() is deterministic).")
     collision_pairs: tuple[CollisionPairConfig, ...] = Field(
         default=(), description="Geom-group pairs kept apart (e.g. left_arm/table)."
+    )
+    collision_groups: dict[str, CollisionGroupConfig] = Field(
+        default_factory=dict, description="Extra geom groups for collision_pairs, by body or subtree."
     )
     collision_gain: float = Field(
         default=0.85, gt=0.0, le=1.0, description="Fraction of the gap to min_distance a pair may close per step."
@@ -104,6 +128,10 @@ class IKConfig(BaseModel):
         if not all(v > 0 for v in values):
             raise ValueError(f"velocity_limit must be > 0 rad/s, got {value}")
         return value
+
+    def group_specs(self) -> dict[str, GroupSpec]:
+        """The extra collision groups as :class:`~nextage_qp.robot.GroupSpec` values."""
+        return {name: GroupSpec(g.bodies, g.subtrees) for name, g in self.collision_groups.items()}
 
     @model_validator(mode="after")
     def _some_cost(self) -> IKConfig:

@@ -21,8 +21,8 @@ from nextage_qp.ik.collision import ActiveCollisionLimit
 from nextage_qp.ik.config import IKConfig
 from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.ik.model import Frame, ObjectPoses, chain_dofs, kinematic_model, resolve_frame, set_object_poses
-from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, worst_errors
-from nextage_qp.robot import JOINT_NAMES, Robot
+from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, RelativeTarget, worst_errors
+from nextage_qp.robot import Robot, per_joint
 
 
 class QPIK:
@@ -46,14 +46,10 @@ class QPIK:
             q_posture = robot.q_from_names(config.posture_target, base=robot.keyframe_q("home"))
         self.posture = mink.PostureTask(self.model, cost=config.posture_cost)
         self.posture.set_target(q_posture)
-        vmax = np.full(
-            robot.nq, float(config.velocity_limit) if not isinstance(config.velocity_limit, dict) else np.inf
-        )
-        if isinstance(config.velocity_limit, dict):
-            for name, value in config.velocity_limit.items():
-                vmax[robot.joint_index(name)] = value
+        default = float(IKConfig.model_fields["velocity_limit"].default)
+        vmax = per_joint(config.velocity_limit, default, robot.joint_names)
         self.box = JointBoxLimit(np.array(robot.lower), np.array(robot.upper), vmax, config.limit_gain)
-        groups = robot.collision_geoms()
+        groups = robot.collision_geoms(config.group_specs())
         pairs = []
         for i, pair in enumerate(config.collision_pairs):
             for name in (pair.a, pair.b):
@@ -64,6 +60,7 @@ class QPIK:
         self._frames: dict[str, Frame] = {}
         self._frame_tasks: dict[str, mink.FrameTask] = {}
         self._axis_tasks: dict[str, mink.AxisAlignTask] = {}
+        self._relative_tasks: dict[tuple[str, str], mink.RelativeFrameTask] = {}
 
     def set_object_poses(self, poses: ObjectPoses) -> None:
         """Place objects (cube, dumbbell, ...) for collision avoidance: name -> (pos [m], quat wxyz)."""
@@ -108,13 +105,30 @@ class QPIK:
                 tasks.append(axis_task)
         return tasks
 
+    def _relative(self, targets: Sequence[RelativeTarget]) -> list[mink.Task]:
+        """Mink relative-frame tasks for the targets, one per (frame, root) pair, reused across ticks."""
+        tasks: list[mink.Task] = []
+        for target in targets:
+            key = (target.frame, target.root)
+            task = self._relative_tasks.get(key)
+            if task is None:
+                frame, root = self.frame(target.frame), self.frame(target.root)
+                task = mink.RelativeFrameTask(frame.name, frame.kind, root.name, root.kind,
+                                              position_cost=target.cost, orientation_cost=target.cost)
+                self._relative_tasks[key] = task
+            task.set_position_cost(target.cost)
+            task.set_orientation_cost(target.cost)
+            task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(target.rot), target.pos))
+            tasks.append(task)
+        return tasks
+
     def step(
         self,
         q: np.ndarray,
         targets: Sequence[FrameTarget],
         dt: float,
         *,
-        extra_tasks: Sequence[mink.Task] = (),
+        relative: Sequence[RelativeTarget] = (),
         object_poses: ObjectPoses | None = None,
     ) -> np.ndarray:
         """One IK step: the joint velocity v [rad/s] (15,) minimising the task costs for a step of ``dt`` [s].
@@ -125,7 +139,7 @@ class QPIK:
         if object_poses:
             set_object_poses(self.model, self.configuration.data, object_poses)
         self.configuration.update(np.asarray(q, dtype=float))
-        return self._step(targets, dt, extra_tasks)
+        return self._step(targets, dt, self._relative(relative))
 
     def _step(self, targets: Sequence[FrameTarget], dt: float, extra_tasks: Sequence[mink.Task]) -> np.ndarray:
         """:meth:`step` at the configuration already loaded in :attr:`configuration`."""
@@ -143,7 +157,7 @@ class QPIK:
 
     def _explain(self, q: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> str:
         """Describe the limits active at an infeasible step."""
-        parts = self.box.violated(q, lb, ub, JOINT_NAMES)
+        parts = self.box.violated(q, lb, ub, self.robot.joint_names)
         parts += self.collision.violated(self.model) if self.collision is not None else []
         what = "; ".join(parts) or "no single limit violated (conflicting limits or extra tasks)"
         return f"IK QP infeasible ({self.config.solver}): active limits: {what}"

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -79,6 +79,33 @@ def _unit(value: np.ndarray, where: str) -> np.ndarray:
     if norm < 1e-9:
         raise ConfigError(f"{where} must be non-zero")
     return vec / norm
+
+
+@dataclass(frozen=True)
+class RelativeTarget:
+    """Where one frame should be in another frame's coordinates (e.g. one clamp pad relative to the other).
+
+    Attributes:
+        frame: The frame whose pose is constrained.
+        root: The frame it is expressed in.
+        pos: ``frame``'s origin in ``root`` coordinates [m].
+        rot: ``frame``'s rotation in ``root`` coordinates (3 x 3).
+        cost: Weight of the position [1/m] and orientation [1/rad] errors.
+    """
+
+    frame: str
+    root: str
+    pos: np.ndarray
+    rot: np.ndarray
+    cost: float = 1.0
+
+    @classmethod
+    def between(
+        cls, frame: str, root: str, poses: Mapping[str, tuple[np.ndarray, np.ndarray]], cost: float
+    ) -> RelativeTarget:
+        """The relative pose of ``frame`` in ``root`` given both frames' world poses."""
+        (p, r), (p0, r0) = poses[frame], poses[root]
+        return cls(frame, root, r0.T @ (p - p0), r0.T @ r, cost)
 
 
 class IKResult(NamedTuple):

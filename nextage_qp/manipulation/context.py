@@ -1,17 +1,23 @@
-"""What a phase sees each control tick: live body poses, commanded and measured frame poses, setpoints."""
+"""What a phase sees: a read-only :class:`View` of the run, the :class:`Grip` a clamp leaves, and moving setpoints.
+
+Phases never touch the simulation, the IK or mink: they read the view and return a
+:class:`~nextage_qp.servo.Command`. :class:`SimView` is the view of a running simulation; tests script their own.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol
 
 import mujoco
 import numpy as np
 
 from nextage_qp.errors import UnknownNameError
-from nextage_qp.ik import QPIK, FrameTarget
-from nextage_qp.manipulation.config import TargetSpec, Waypoint
+from nextage_qp.ik import FrameTarget, RelativeTarget
 from nextage_qp.robot import Robot
-from nextage_qp.sim import Simulation
+from nextage_qp.servo import Servo
+from nextage_qp.sim import Pose, Simulation
 
 
 def rot_z(yaw: float) -> np.ndarray:
@@ -43,77 +49,157 @@ class Setpoint:
         return False
 
 
-@dataclass
-class RunContext:
-    """Shared state of a run: the simulation, the IK and the IK's own joint state ``q_cmd``.
+@dataclass(frozen=True)
+class Grip:
+    """An object clamped between pad frames: what ``grasp`` leaves for ``carry``, and ``release`` ends.
 
     Attributes:
-        q_cmd: Joint vector the IK integrates [rad]; Ruckig follows it, the PD tracks Ruckig.
-        extra_tasks: mink tasks that stay active across phases (e.g. the clamp's relative-pose task).
-        holding: Object currently clamped (for drop detection), or None.
-        grasp_offsets: Pad frame -> its clamp point in the held object's frame [m].
-        grasp_rot: Pad frame -> its rotation in the held object's frame.
+        object: The clamped body.
+        frames: The pad frames, +y side first.
+        offsets: Pad frame -> its clamp point in the object's frame [m].
+        rotations: Pad frame -> its rotation in the object's frame.
+        relative: The first pad's commanded pose in the second pad's frame when the clamp closed.
     """
 
-    robot: Robot
-    sim: Simulation
-    ik: QPIK
-    q_cmd: np.ndarray
-    extra_tasks: list = field(default_factory=list)
-    holding: str | None = None
-    grasp_offsets: dict[str, np.ndarray] = field(default_factory=dict)
-    grasp_rot: dict[str, np.ndarray] = field(default_factory=dict)
+    object: str
+    frames: tuple[str, ...]
+    offsets: Mapping[str, np.ndarray]
+    rotations: Mapping[str, np.ndarray]
+    relative: RelativeTarget
+
+
+class View(Protocol):
+    """The read-only run state a phase works from.
+
+    Attributes:
+        t: Simulated time [s].
+        dt: Control period [s].
+        grip: The current clamp, or None.
+    """
 
     @property
-    def dt(self) -> float:
-        """Control period [s]."""
-        return self.sim.ctrl_dt
+    def t(self) -> float:
+        """Simulated time [s]."""
 
-    def body_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """Live world position [m] and rotation of a body in the simulation."""
+    dt: float
+    grip: Grip | None
+
+    def body_pose(self, name: str) -> Pose:
+        """Measured world pose of a free object; the fixed pose of any other body (target, obstacle)."""
+
+    def frame_pose(self, name: str) -> Pose:
+        """Measured world pose of a site or body of the robot."""
+
+    def commanded_pose(self, name: str) -> Pose:
+        """World pose of a site or body at the commanded joints."""
+
+    def joint_positions(self, names: tuple[str, ...]) -> np.ndarray:
+        """Measured positions [rad] of the named joints."""
+
+    def settled(self) -> bool:
+        """True when the reference has caught up with the commanded joints and the robot is nearly still."""
+
+    def extent(self, obj: str, direction: np.ndarray) -> float:
+        """Half-extent [m] of an object's collision boxes along a world direction (its pushing half-width)."""
+
+
+class SimView:
+    """The :class:`View` of a running simulation (what the phases of :class:`~.runner.Runner` see).
+
+    Object poses come from the simulation's measurement seam; everything else from the model and the servo.
+    """
+
+    def __init__(self, robot: Robot, sim: Simulation, servo: Servo, *, qd_tol: float = 0.05) -> None:
+        self.robot, self._sim, self._servo, self.qd_tol = robot, sim, servo, qd_tol
+        self.dt = sim.ctrl_dt
+        self.grip: Grip | None = None
+        self._boxes: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+
+    @property
+    def t(self) -> float:
+        """Simulated time [s]."""
+        return self._sim.time
+
+    def body_pose(self, name: str) -> Pose:  # noqa: D102
+        measured = self._sim.measured.objects.get(name)
+        if measured is not None:
+            return Pose(measured.pos.copy(), measured.rot.copy())
         bid = mujoco.mj_name2id(self.robot.model, mujoco.mjtObj.mjOBJ_BODY, name)
         if bid < 0:
             raise UnknownNameError("body", name, self.robot.body_names)
-        d = self.sim.data
-        return d.xpos[bid].copy(), d.xmat[bid].reshape(3, 3).copy()
+        d = self._sim.data
+        return Pose(d.xpos[bid].copy(), d.xmat[bid].reshape(3, 3).copy())
 
-    def frame_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """Measured world pose of a site or body in the simulation."""
+    def frame_pose(self, name: str) -> Pose:  # noqa: D102
         kind, fid = self.robot.frame(name)
-        d = self.sim.data
+        d = self._sim.data
         if kind == "site":
-            return d.site_xpos[fid].copy(), d.site_xmat[fid].reshape(3, 3).copy()
-        return d.xpos[fid].copy(), d.xmat[fid].reshape(3, 3).copy()
+            return Pose(d.site_xpos[fid].copy(), d.site_xmat[fid].reshape(3, 3).copy())
+        return Pose(d.xpos[fid].copy(), d.xmat[fid].reshape(3, 3).copy())
 
-    def commanded_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """Pose of a frame at the IK's joint state ``q_cmd`` (where the robot is being sent)."""
-        pos, rot = self.ik.frame(name).pose(self.ik.configuration.data)
-        return pos.copy(), rot.copy()
+    def commanded_pose(self, name: str) -> Pose:  # noqa: D102
+        return self._servo.commanded_pose(name)
 
-    def reference(self, relative_to: str) -> tuple[np.ndarray, float]:
-        """Position [m] and yaw [rad] of a reference body, or the world origin."""
-        if relative_to == "world":
-            return np.zeros(3), 0.0
-        pos, rot = self.body_pose(relative_to)
-        return pos, yaw_of(rot)
+    def joint_positions(self, names: tuple[str, ...]) -> np.ndarray:  # noqa: D102
+        idx = [self.robot.joint_index(n) for n in names]
+        return self._sim.measured.q[idx].copy()
 
-    def resolve_point(self, spec: TargetSpec | Waypoint) -> tuple[np.ndarray, float]:
-        """World position [m] and yaw [rad] of a body-relative point spec, from the live reference pose."""
-        ref_pos, ref_yaw = self.reference(spec.relative_to)
-        rot = rot_z(ref_yaw) if spec.axes == "yaw" else np.eye(3)
-        pos = ref_pos + rot @ np.asarray(spec.offset)
-        base = float(np.arctan2(pos[1], pos[0])) if getattr(spec, "heading", "reference") == "radial" else ref_yaw
-        return pos, base + (spec.yaw if spec.yaw is not None else 0.0)
+    def settled(self) -> bool:  # noqa: D102
+        ref_gap = float(np.max(np.abs(self._sim.ref.q - self._servo.q_cmd)))
+        return ref_gap < 2e-3 and float(np.max(np.abs(self._sim.measured.qd))) < self.qd_tol
 
-    def frame_target(self, spec: TargetSpec, pos: np.ndarray) -> FrameTarget:
-        """An IK target at ``pos`` with the orientation the spec asks for."""
-        if spec.yaw is not None:
-            _, ref_yaw = self.reference(spec.relative_to)
-            return FrameTarget(spec.frame, pos=pos, rot=rot_z(ref_yaw + spec.yaw))
-        if spec.quat is not None:
-            mat = np.empty(9)
-            mujoco.mju_quat2Mat(mat, np.asarray(spec.quat, dtype=float))
-            return FrameTarget(spec.frame, pos=pos, rot=mat.reshape(3, 3))
-        if spec.axis is not None and spec.direction is not None:
-            return FrameTarget(spec.frame, pos=pos, axis=np.asarray(spec.axis), direction=np.asarray(spec.direction))
-        return FrameTarget(spec.frame, pos=pos)
+    def extent(self, obj: str, direction: np.ndarray) -> float:  # noqa: D102
+        boxes = self._boxes.get(obj)
+        if boxes is None:
+            boxes = self._boxes[obj] = _boxes_of(self.robot.model, obj)
+        rot = self.body_pose(obj).rot
+        local = rot.T @ direction
+        return max((float(c @ local) + float(np.abs(r.T @ local) @ size) for c, r, size in boxes), default=0.0)
+
+
+def _boxes_of(model: mujoco.MjModel, obj: str) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """(centre, rotation, half-sizes) of every box geom of a body, in the body's frame."""
+    body = model.body(obj).id
+    out = []
+    for g in range(model.ngeom):
+        if model.geom_bodyid[g] == body and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
+            rot = np.empty(9)
+            mujoco.mju_quat2Mat(rot, model.geom_quat[g])
+            out.append((model.geom_pos[g].copy(), rot.reshape(3, 3), model.geom_size[g].copy()))
+    return out
+
+
+def reference(view: View, relative_to: str) -> tuple[np.ndarray, float]:
+    """Position [m] and yaw [rad] of a reference body, or the world origin."""
+    if relative_to == "world":
+        return np.zeros(3), 0.0
+    pos, rot = view.body_pose(relative_to)
+    return pos, yaw_of(rot)
+
+
+def resolve_point(view: View, spec: Any) -> tuple[np.ndarray, float]:
+    """World position [m] and yaw [rad] of a body-relative point spec, from the live reference pose.
+
+    The position is ``ref.pos + R @ offset`` with ``R`` the reference's yaw (``axes: yaw``) or the identity
+    (``axes: world``); the yaw is the reference's (or, with ``heading: radial``, the direction away from the
+    chest axis) plus the spec's ``yaw``.
+    """
+    ref_pos, ref_yaw = reference(view, spec.relative_to)
+    rot = rot_z(ref_yaw) if spec.axes == "yaw" else np.eye(3)
+    pos = ref_pos + rot @ np.asarray(spec.offset)
+    base = float(np.arctan2(pos[1], pos[0])) if getattr(spec, "heading", "reference") == "radial" else ref_yaw
+    return pos, base + (spec.yaw if spec.yaw is not None else 0.0)
+
+
+def frame_target(view: View, spec: Any, pos: np.ndarray) -> FrameTarget:
+    """An IK target for ``spec.frame`` at ``pos`` with the orientation the spec asks for (yaw, quat or axis)."""
+    if spec.yaw is not None:
+        _, ref_yaw = reference(view, spec.relative_to)
+        return FrameTarget(spec.frame, pos=pos, rot=rot_z(ref_yaw + spec.yaw))
+    if spec.quat is not None:
+        mat = np.empty(9)
+        mujoco.mju_quat2Mat(mat, np.asarray(spec.quat, dtype=float))
+        return FrameTarget(spec.frame, pos=pos, rot=mat.reshape(3, 3))
+    if spec.axis is not None and spec.direction is not None:
+        return FrameTarget(spec.frame, pos=pos, axis=np.asarray(spec.axis), direction=np.asarray(spec.direction))
+    return FrameTarget(spec.frame, pos=pos)

@@ -13,6 +13,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.nextage import TOOL_SITES
 
 if TYPE_CHECKING:
     from nextage_qp.manipulation.runner import Runner
@@ -21,15 +22,15 @@ GREEN, BLUE, RED, YELLOW = (0.1, 0.9, 0.2, 0.8), (0.2, 0.4, 1.0, 0.8), (1.0, 0.2
 
 
 def _tool_frames(runner: Runner) -> list[str]:
-    return [f for f in ("left_tool", "right_tool", "left_pad", "right_pad") if f in runner.robot.site_names]
+    return [f for f in TOOL_SITES if f in runner.robot.site_names]
 
 
 def add_markers(scene: mujoco.MjvScene, runner: Runner, starts: dict[str, np.ndarray]) -> None:
     """Append marker spheres for the target, commanded, measured and start tool positions to ``scene``."""
-    ctx = runner.ctx
-    points = [(ctx.body_pose(runner.cfg.target)[0], GREEN, 0.015)]
+    view = runner.view
+    points = [(view.body_pose(runner.cfg.target).pos, GREEN, 0.015)]
     for frame in _tool_frames(runner):
-        points += [(ctx.commanded_pose(frame)[0], BLUE, 0.008), (ctx.frame_pose(frame)[0], RED, 0.006),
+        points += [(view.commanded_pose(frame).pos, BLUE, 0.008), (view.frame_pose(frame).pos, RED, 0.006),
                    (starts[frame], YELLOW, 0.006)]
     for pos, rgba, size in points:
         if scene.ngeom >= scene.maxgeom:
@@ -53,7 +54,7 @@ class VideoRecorder:
         path.parent.mkdir(parents=True, exist_ok=True)
         self.writer = imageio.get_writer(str(path), fps=fps, macro_block_size=1)
         self.period, self.next_t, self.camera = 1.0 / fps, 0.0, camera
-        self.starts = {f: runner.ctx.frame_pose(f)[0] for f in _tool_frames(runner)}
+        self.starts = {f: runner.view.frame_pose(f).pos for f in _tool_frames(runner)}
 
     def on_tick(self, runner: Runner, phase: Any) -> None:
         """Tick callback: render a frame when one is due."""
@@ -80,7 +81,7 @@ class LiveViewer:
             self.handle = mujoco.viewer.launch_passive(runner.robot.model, runner.sim.data)
         except Exception as exc:
             raise ConfigError(f"--viewer: cannot open a window ({exc}); use --video on a headless machine") from None
-        self.starts = {f: runner.ctx.frame_pose(f)[0] for f in _tool_frames(runner)}
+        self.starts = {f: runner.view.frame_pose(f).pos for f in _tool_frames(runner)}
         self.next_t = 0.0
 
     def on_tick(self, runner: Runner, phase: Any) -> None:
@@ -108,7 +109,7 @@ def plot_run(runner: Runner, path: Path) -> None:
     rec = runner.sim.recorder.arrays()
     t = rec["t"]
     obj = rec[f"object_{runner.cfg.object}"][:, :3]
-    tgt = runner.ctx.body_pose(runner.cfg.target)[0]
+    tgt = runner.view.body_pose(runner.cfg.target).pos
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
     ax1.semilogy(t, np.maximum(np.linalg.norm(obj - tgt, axis=1), 1e-5), label="3-D")
     ax1.semilogy(t, np.maximum(np.linalg.norm((obj - tgt)[:, :2], axis=1), 1e-5), label="x-y")

@@ -1,0 +1,1 @@
+"""Library experiments behind the CLI's reach and step-response commands."""

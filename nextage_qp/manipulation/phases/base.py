@@ -1,0 +1,100 @@
+"""The contract of a phase kind: a spec (its YAML schema) and a behaviour (start, then one command per tick).
+
+A spec is a pydantic model with a ``kind`` literal. Fields that hold names of the scene are declared with
+:func:`name_field`, so the runner checks every name of every kind in one loop (:func:`names_in`). A behaviour
+subclasses :class:`Phase` and fills two methods, as mink's tasks fill two.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Iterator
+from typing import Any, ClassVar, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from nextage_qp.manipulation.context import Grip, View
+from nextage_qp.servo import Command
+
+NameKind = Literal["frame", "object", "body", "reference", "joint"]
+"""What a name field refers to: a site or body of the robot (``frame``), a free object, any body, a body or
+``world`` (``reference``), or a robot joint (the keys of a mapping)."""
+
+MAX_SECONDS = 3600.0
+"""Upper bound of every duration in a config [s]: a run always has a bounded length."""
+
+
+def name_field(kind: NameKind, *args: Any, **kwargs: Any) -> Any:
+    """A pydantic ``Field`` whose names are checked against the scene's names of ``kind``.
+
+    The value may be a name, a list of names or a mapping keyed by names.
+    """
+    return Field(*args, json_schema_extra={"names": kind}, **kwargs)
+
+
+class Spec(BaseModel):
+    """Fields every phase has; subclasses add ``kind: Literal[...]`` and their own."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    kind: str
+    name: str | None = Field(default=None, description="Label in progress and results (default: kind + index).")
+    timeout: float = Field(default=10.0, gt=0, le=MAX_SECONDS, description="Simulated time before the phase fails [s].")
+
+    @classmethod
+    def kind_name(cls) -> str:
+        """The value of the spec's ``kind`` literal."""
+        return str(cls.model_fields["kind"].annotation.__args__[0])  # type: ignore[union-attr]
+
+
+def names_in(model: BaseModel, key: str) -> Iterator[tuple[str, NameKind, str]]:
+    """Every (dotted key, kind, name) a spec refers to, through nested models and lists of them."""
+    for field, info in type(model).model_fields.items():
+        value = getattr(model, field)
+        where = f"{key}.{field}"
+        extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+        kind = extra.get("names")
+        if kind is not None:
+            if isinstance(value, str):
+                yield where, kind, value  # type: ignore[misc]
+            elif isinstance(value, dict):
+                yield from ((where, kind, k) for k in value)  # type: ignore[misc]
+            elif value is not None:
+                yield from ((f"{where}[{i}]", kind, v) for i, v in enumerate(value))  # type: ignore[misc]
+        elif isinstance(value, BaseModel):
+            yield from names_in(value, where)
+        elif isinstance(value, (list, tuple)):
+            for i, item in enumerate(value):
+                if isinstance(item, BaseModel):
+                    yield from names_in(item, f"{where}[{i}]")
+
+
+class Phase(ABC):
+    """A phase of a run: :meth:`start` once, then :meth:`update` every control tick until a command is done.
+
+    Args:
+        spec: The phase's validated spec.
+        name: Its label.
+
+    Attributes:
+        info: Figures the phase reports in the run's result (attempts, errors, ...).
+    """
+
+    spec_type: ClassVar[type[Spec]]
+
+    def __init__(self, spec: Any, name: str) -> None:
+        self.spec, self.name = spec, name
+        self.t0 = 0.0
+        self.info: dict[str, Any] = {}
+
+    @abstractmethod
+    def start(self, view: View) -> None:
+        """Called on the tick the phase begins (``view`` shows the state at that tick)."""
+
+    @abstractmethod
+    def update(self, view: View) -> Command:
+        """This tick's command; ``done=True`` ends the phase after the tick."""
+
+    def grip(self, current: Grip | None) -> Grip | None:
+        """The clamp in force after this phase's start or latest update (default: unchanged)."""
+        return current

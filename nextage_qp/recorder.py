@@ -1,0 +1,112 @@
+"""The log of a simulated run: every physics step's joint state, reference, torque and chosen poses.
+
+Saved as ``.npz`` (arrays) plus a ``.json`` summary (duration, peak torques and tracking errors, final state).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+class Recorder:
+    """Per-physics-step log of the loop, growing in chunks; saved as ``.npz`` plus a ``.json`` summary.
+
+    Arrays in the ``.npz``: ``t`` [s] (k,), ``q``, ``qd``, ``q_ref``, ``qd_ref`` [rad, rad/s] and ``tau``
+    [N·m] (k, 15), ``frame_<name>`` and ``object_<name>`` (k, 7: position [m], quaternion w x y z), and for
+    every signal added with :meth:`add` ``extra_<name>`` (m, ...) with its times ``extra_<name>_t``.
+
+    Attributes:
+        meta: Free-form facts merged into the JSON summary (e.g. ``error``, the target).
+    """
+
+    def __init__(
+        self,
+        joint_names: Sequence[str],
+        frames: Sequence[str],
+        objects: Sequence[str],
+        *,
+        sim_dt: float,
+        ctrl_dt: float,
+    ) -> None:
+        self.joint_names = tuple(joint_names)
+        n = len(self.joint_names)
+        self.frames, self.objects = tuple(frames), tuple(objects)
+        self._dims = {"t": 1, "q": n, "qd": n, "q_ref": n, "qd_ref": n, "tau": n}
+        self._dims |= {f"frame_{f}": 7 for f in self.frames} | {f"object_{o}": 7 for o in self.objects}
+        self._timing = {"sim_dt": sim_dt, "ctrl_dt": ctrl_dt}
+        self.clear()
+
+    def clear(self) -> None:
+        """Drop everything recorded."""
+        self._n = 0
+        self._buf = {k: np.empty((4096, dim)) for k, dim in self._dims.items()}
+        self._extra: dict[str, tuple[list[float], list[Any]]] = {}
+        self.meta: dict[str, Any] = {}
+
+    def __len__(self) -> int:
+        return self._n
+
+    def record(self, t: float, *rows: Any) -> None:
+        """Append one step: time, q, qd, q_ref, qd_ref, tau, a list of frame poses, a list of object poses."""
+        if self._n == len(self._buf["t"]):
+            self._buf = {k: np.concatenate([b, np.empty_like(b)]) for k, b in self._buf.items()}
+        i, buf = self._n, self._buf
+        buf["t"][i, 0] = t
+        for key, row in zip(("q", "qd", "q_ref", "qd_ref", "tau"), rows[:5], strict=True):
+            buf[key][i] = row
+        for name, pose in zip(self.frames, rows[5], strict=True):
+            buf[f"frame_{name}"][i] = pose
+        for name, pose in zip(self.objects, rows[6], strict=True):
+            buf[f"object_{name}"][i] = pose
+        self._n += 1
+
+    def add(self, name: str, t: float, value: Any) -> None:
+        """Append an extra signal sample (e.g. from a hook): ``extra_<name>`` at time ``t`` [s]."""
+        ts, values = self._extra.setdefault(name, ([], []))
+        ts.append(t)
+        values.append(np.asarray(value, dtype=float))
+
+    def recent(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The last ``n`` steps' time [s], q [rad] and qd [rad/s] (views, no copy)."""
+        lo = max(0, self._n - n)
+        b = self._buf
+        return b["t"][lo : self._n, 0], b["q"][lo : self._n], b["qd"][lo : self._n]
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Everything recorded so far, as arrays (``t`` is 1-D)."""
+        out = {k: b[: self._n].copy() for k, b in self._buf.items()}
+        out["t"] = out["t"][:, 0]
+        for name, (ts, values) in self._extra.items():
+            out[f"extra_{name}"], out[f"extra_{name}_t"] = np.asarray(values), np.asarray(ts)
+        return out
+
+    def summary(self) -> dict[str, Any]:
+        """Key figures of the run: duration, peak torques, peak tracking errors, final state, plus ``meta``."""
+        a, names = self.arrays(), self.joint_names
+        out: dict[str, Any] = {"samples": self._n, **self._timing, "frames": list(self.frames)}
+        if self._n:
+            err = np.abs(a["q_ref"] - a["q"])
+            out |= {
+                "duration_s": float(a["t"][-1] + self._timing["sim_dt"]),
+                "max_abs_torque_nm": dict(zip(names, np.abs(a["tau"]).max(0).round(4).tolist(), strict=True)),
+                "max_tracking_error_rad": dict(zip(names, err.max(0).round(6).tolist(), strict=True)),
+                "final_q": dict(zip(names, a["q"][-1].round(6).tolist(), strict=True)),
+                "final_frames": {f: a[f"frame_{f}"][-1].round(6).tolist() for f in self.frames},
+                "final_objects": {o: a[f"object_{o}"][-1].round(6).tolist() for o in self.objects},
+            }
+        return out | self.meta
+
+    def save(self, npz_path: str | Path) -> Path:
+        """Write ``npz_path`` (arrays) and the same name with ``.json`` (summary); returns the JSON path."""
+        path = Path(npz_path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        savez: Any = np.savez_compressed  # numpy's stub mistypes **arrays
+        savez(path, **self.arrays())
+        js = path.with_suffix(".json")
+        js.write_text(json.dumps(self.summary(), indent=2, default=str) + "\n")
+        return js
