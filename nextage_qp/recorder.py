@@ -6,6 +6,7 @@ Saved as ``.npz`` (arrays) plus a ``.json`` summary (duration, peak torques and 
 from __future__ import annotations
 
 import json
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -110,3 +111,21 @@ class Recorder:
         js = path.with_suffix(".json")
         js.write_text(json.dumps(self.summary(), indent=2, default=str) + "\n")
         return js
+
+
+class StageTimer:
+    """Wall time of each stage of :meth:`Simulation.tick` (set ``sim.timer`` to measure; None costs nothing)."""
+
+    def __init__(self) -> None:
+        self.samples: dict[str, list[float]] = {}
+        self._t = time.perf_counter()
+
+    def start(self) -> None:
+        """Mark the start of the next stage."""
+        self._t = time.perf_counter()
+
+    def lap(self, stage: str) -> None:
+        """Charge the time since the last mark to ``stage`` and mark again."""
+        now = time.perf_counter()
+        self.samples.setdefault(stage, []).append(now - self._t)
+        self._t = now

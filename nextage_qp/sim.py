@@ -17,10 +17,7 @@ Every physics step is recorded (:class:`~nextage_qp.recorder.Recorder`). A NaN o
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
-from typing import NamedTuple, Protocol
+from collections.abc import Callable, Sequence
 
 import mujoco
 import numpy as np
@@ -28,8 +25,9 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from nextage_qp.control import Gains, PDController
 from nextage_qp.errors import SimulationError
-from nextage_qp.recorder import Recorder
+from nextage_qp.recorder import Recorder, StageTimer
 from nextage_qp.robot import Robot
+from nextage_qp.sensors import Measurement, PerfectSensors, Pose, Sensors
 from nextage_qp.trajectory import JointTrajectory, RefState, TrajectoryLimits
 
 Hook = Callable[["Simulation"], None]
@@ -55,64 +53,6 @@ class Timing(BaseModel):
     def n_substeps(self) -> int:
         """Physics steps per control period."""
         return round(self.ctrl_dt / self.sim_dt)
-
-
-class Pose(NamedTuple):
-    """A body's world position [m] and rotation matrix."""
-
-    pos: np.ndarray
-    rot: np.ndarray
-
-
-@dataclass(frozen=True)
-class Measurement:
-    """What the controller knows after a tick.
-
-    Time [s], joint positions [rad] and velocities [rad/s], and the pose of every free object.
-    """
-
-    t: float
-    q: np.ndarray
-    qd: np.ndarray
-    objects: Mapping[str, Pose] = field(default_factory=dict)
-
-
-class Sensors(Protocol):
-    """The seam between physics and controller (default: :class:`PerfectSensors`)."""
-
-    def joints(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Measured joint positions [rad] and velocities [rad/s] at time ``t`` [s] (every physics step)."""
-
-    def objects(self, t: float, true: Mapping[str, Pose]) -> Mapping[str, Pose]:
-        """Measured object poses at time ``t`` [s] (every control tick)."""
-
-
-class PerfectSensors:
-    """Sensors that report the simulator's state exactly."""
-
-    def joints(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
-        return q, qd
-
-    def objects(self, t: float, true: Mapping[str, Pose]) -> Mapping[str, Pose]:  # noqa: D102
-        return true
-
-
-class StageTimer:
-    """Wall time of each stage of :meth:`Simulation.tick` (set ``sim.timer`` to measure; None costs nothing)."""
-
-    def __init__(self) -> None:
-        self.samples: dict[str, list[float]] = {}
-        self._t = time.perf_counter()
-
-    def start(self) -> None:
-        """Mark the start of the next stage."""
-        self._t = time.perf_counter()
-
-    def lap(self, stage: str) -> None:
-        """Charge the time since the last mark to ``stage`` and mark again."""
-        now = time.perf_counter()
-        self.samples.setdefault(stage, []).append(now - self._t)
-        self._t = now
 
 
 class Simulation:

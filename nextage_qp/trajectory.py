@@ -1,4 +1,4 @@
-r"""Jerk-limited joint references: the one module that owns Ruckig.
+r"""Jerk-limited joint references streamed online (Ruckig); offline segments live in :mod:`.trajectory_offline`.
 
 Ruckig computes time-optimal trajectories whose velocity, acceleration and jerk stay inside per-joint
 bounds, :math:`|\dot q| \le v_{max}` [rad/s], :math:`|\ddot q| \le a_{max}` [rad/s²],
@@ -6,8 +6,8 @@ bounds, :math:`|\dot q| \le v_{max}` [rad/s], :math:`|\ddot q| \le a_{max}` [rad
 
 * :class:`JointTrajectory` (alias :data:`ReferenceGenerator`) streams a reference online: the target may
   change every control tick and each :meth:`~JointTrajectory.update` advances the reference by ``dt``.
-* :func:`chain_waypoints` plans an offline trajectory through waypoints, one state-to-state segment
-  per pair (the community edition's intermediate waypoints need Ruckig's cloud service).
+* :func:`~nextage_qp.trajectory_offline.chain_waypoints` plans an offline trajectory through waypoints, one
+  state-to-state segment per pair (the community edition's intermediate waypoints need Ruckig's cloud service).
 
 Every Ruckig result is checked; invalid input raises :class:`~nextage_qp.errors.TrajectoryError` naming
 the joints involved.
@@ -79,17 +79,19 @@ class RefState(NamedTuple):
     qdd: np.ndarray
 
 
-def _fill_limits(inp: ruckig.InputParameter, limits: TrajectoryLimits, names: Sequence[str]) -> None:
+def fill_limits(inp: ruckig.InputParameter, limits: TrajectoryLimits, names: Sequence[str]) -> None:
+    """Write the per-joint limits of ``names`` into a Ruckig input."""
     v, a, j = limits.arrays(names)
     inp.max_velocity, inp.max_acceleration, inp.max_jerk = v.tolist(), a.tolist(), j.tolist()
 
 
-def _check(result: ruckig.Result, what: str) -> None:
+def check_result(result: ruckig.Result, what: str) -> None:
+    """Raise :class:`TrajectoryError` unless Ruckig is working or finished."""
     if result not in _OK:
         raise TrajectoryError(f"{what}: Ruckig returned {result.name}")
 
 
-def _joint_error(exc: Exception, what: str, names: Sequence[str]) -> TrajectoryError:
+def joint_error(exc: Exception, what: str, names: Sequence[str]) -> TrajectoryError:
     """Rewrite Ruckig's ``... of DoF 3 ...`` message with the joint's name."""
     msg = re.sub(r"\[ruckig\]\s*", "", str(exc)).strip()
     msg = re.sub(r"DoF (\d+)", lambda m: f"joint {names[int(m.group(1))]}", msg)
@@ -126,7 +128,7 @@ class JointTrajectory:
         self._otg = ruckig.Ruckig(self.n, dt)
         self._inp = ruckig.InputParameter(self.n)
         self._out = ruckig.OutputParameter(self.n)
-        _fill_limits(self._inp, limits, self.names)
+        fill_limits(self._inp, limits, self.names)
         self._result = ruckig.Result.Finished
         self.reset(np.zeros(self.n))
 
@@ -175,15 +177,15 @@ class JointTrajectory:
             # Time synchronisation of all joints can fail numerically for some states ("t sync"); each joint's
             # own time-optimal profile still honours every limit, so retry unsynchronised before giving up.
             if self._inp.synchronization == ruckig.Synchronization.No:
-                raise _joint_error(exc, "reference update", self.names) from None
+                raise joint_error(exc, "reference update", self.names) from None
             self._inp.synchronization = ruckig.Synchronization.No
             try:
                 result = self._otg.update(self._inp, self._out)
             except ruckig.RuckigError as exc2:
-                raise _joint_error(exc2, "reference update", self.names) from None
+                raise joint_error(exc2, "reference update", self.names) from None
             finally:
                 self._inp.synchronization = ruckig.Synchronization.Time
-        _check(result, "reference update")
+        check_result(result, "reference update")
         self._result = result
         self._t0 = self._out.time - self.dt
         self._out.pass_to_input(self._inp)
@@ -223,84 +225,3 @@ class JointTrajectory:
 
 ReferenceGenerator = JointTrajectory
 """Alias: the online reference generator."""
-
-
-class Samples(NamedTuple):
-    """A trajectory sampled at a fixed period: time [s] (k,), q [rad], qd [rad/s], qdd [rad/s²] (k, n)."""
-
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    qdd: np.ndarray
-
-
-def plan_segment(
-    q0: np.ndarray,
-    q1: np.ndarray,
-    limits: TrajectoryLimits,
-    *,
-    qd0: np.ndarray | None = None,
-    qd1: np.ndarray | None = None,
-    joint_names: Sequence[str] = JOINT_NAMES,
-) -> ruckig.Trajectory:
-    """Time-optimal state-to-state segment from ``(q0, qd0)`` to ``(q1, qd1)`` (zero accelerations).
-
-    Raises:
-        TrajectoryError: Ruckig rejected the input (naming the joint) or could not plan it.
-    """
-    n = len(joint_names)
-    inp = ruckig.InputParameter(n)
-    _fill_limits(inp, limits, joint_names)
-    inp.current_position, inp.target_position = np.asarray(q0, float).tolist(), np.asarray(q1, float).tolist()
-    inp.current_velocity = [0.0] * n if qd0 is None else np.asarray(qd0, float).tolist()
-    inp.target_velocity = [0.0] * n if qd1 is None else np.asarray(qd1, float).tolist()
-    traj = ruckig.Trajectory(n)
-    try:
-        _check(ruckig.Ruckig(n).calculate(inp, traj), "segment")
-    except ruckig.RuckigError as exc:
-        raise _joint_error(exc, "segment", joint_names) from None
-    return traj
-
-
-def chain_waypoints(
-    waypoints: Sequence[np.ndarray],
-    limits: TrajectoryLimits,
-    *,
-    dt: float,
-    velocities: Sequence[np.ndarray] | None = None,
-    joint_names: Sequence[str] = JOINT_NAMES,
-) -> Samples:
-    """Plan through ``waypoints`` (the first is the start), one segment per pair, sampled every ``dt`` [s].
-
-    Args:
-        waypoints: Joint positions [rad], at least two.
-        limits: Bounds applied on every segment.
-        dt: Sampling period [s].
-        velocities: Optional velocity [rad/s] at each waypoint (default: stop at each one).
-        joint_names: Names used in error messages.
-
-    Raises:
-        TrajectoryError: Fewer than two waypoints, or a segment could not be planned (the message
-            names the segment and joint).
-    """
-    if len(waypoints) < 2:
-        raise TrajectoryError(f"need at least two waypoints (start and goal), got {len(waypoints)}")
-    if velocities is not None and len(velocities) != len(waypoints):
-        raise TrajectoryError(f"got {len(velocities)} waypoint velocities for {len(waypoints)} waypoints")
-    segments: list[ruckig.Trajectory] = []
-    for k in range(len(waypoints) - 1):
-        vel = (None, None) if velocities is None else (velocities[k], velocities[k + 1])
-        try:
-            segments.append(
-                plan_segment(waypoints[k], waypoints[k + 1], limits, qd0=vel[0], qd1=vel[1], joint_names=joint_names)
-            )
-        except TrajectoryError as exc:
-            raise TrajectoryError(f"waypoint {k} -> {k + 1}: {exc}") from None
-    ends = np.cumsum([seg.duration for seg in segments])
-    t = np.append(np.arange(0.0, ends[-1], dt), ends[-1])
-    which = np.minimum(np.searchsorted(ends, t, side="right"), len(segments) - 1)
-    starts = np.concatenate([[0.0], ends[:-1]])
-    rows = [np.concatenate(segments[s].at_time(ti - starts[s])) for ti, s in zip(t, which, strict=True)]
-    data = np.asarray(rows)
-    n = len(joint_names)
-    return Samples(t, data[:, :n], data[:, n : 2 * n], data[:, 2 * n :])

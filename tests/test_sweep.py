@@ -12,8 +12,9 @@ import yaml
 from nextage_qp.cli import main
 from nextage_qp.errors import ConfigError
 from nextage_qp.sweep.episode import Episode
+from nextage_qp.sweep.keys import yaml_scalar
 from nextage_qp.sweep.run import plan, replay_commands, run_sweep
-from nextage_qp.sweep.spec import SweepSpec, yaml_scalar
+from nextage_qp.sweep.spec import SweepSpec
 from nextage_qp.sweep.store import SweepStore
 from nextage_qp.sweep.summary import summarize, wilson
 

@@ -12,7 +12,6 @@ import time
 from collections.abc import Sequence
 
 import mink
-import mujoco
 import numpy as np
 
 from nextage_qp.errors import UnknownNameError
@@ -22,6 +21,7 @@ from nextage_qp.ik.config import IKConfig
 from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.ik.model import Frame, ObjectPoses, chain_dofs, kinematic_model, resolve_frame, set_object_poses
 from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, RelativeTarget, worst_errors
+from nextage_qp.ik.tasks import TaskCache
 from nextage_qp.robot import Robot, per_joint
 
 
@@ -58,9 +58,7 @@ class QPIK:
             pairs.append((groups[pair.a], groups[pair.b], pair.min_distance, pair.detection_distance))
         self.collision = ActiveCollisionLimit(self.model, pairs, config.collision_gain, self.box) if pairs else None
         self._frames: dict[str, Frame] = {}
-        self._frame_tasks: dict[str, mink.FrameTask] = {}
-        self._axis_tasks: dict[str, mink.AxisAlignTask] = {}
-        self._relative_tasks: dict[tuple[str, str], mink.RelativeFrameTask] = {}
+        self.tasks = TaskCache(config.lm_damping, config.position_cost, config.orientation_cost, self.frame)
 
     def set_object_poses(self, poses: ObjectPoses) -> None:
         """Place objects (cube, dumbbell, ...) for collision avoidance: name -> (pos [m], quat wxyz)."""
@@ -72,55 +70,6 @@ class QPIK:
         if name not in self._frames:
             self._frames[name] = resolve_frame(self.robot, name)
         return self._frames[name]
-
-    def _tasks(self, targets: Sequence[FrameTarget]) -> list[mink.Task]:
-        """Mink tasks for the targets, reusing one FrameTask / AxisAlignTask per frame across ticks."""
-        cfg = self.config
-        tasks: list[mink.Task] = []
-        for target in targets:
-            frame = self.frame(target.frame)
-            task = self._frame_tasks.get(frame.name)
-            if task is None:
-                task = mink.FrameTask(frame.name, frame.kind, 1.0, 1.0, lm_damping=cfg.lm_damping)
-                self._frame_tasks[frame.name] = task
-            pos, rot = frame.pose(self.configuration.data)
-            pcost = cfg.position_cost if target.position_cost is None else target.position_cost
-            ocost = cfg.orientation_cost if target.orientation_cost is None else target.orientation_cost
-            task.cost[:3] = pcost if target.pos is not None else 0.0
-            task.cost[3:] = ocost if target.rot is not None else 0.0
-            # Without a rotation target, aim at the current rotation so the error twist is a pure translation.
-            wxyz_xyz = np.empty(7)
-            mujoco.mju_mat2Quat(wxyz_xyz[:4], (target.rot if target.rot is not None else rot).reshape(-1))
-            wxyz_xyz[4:] = target.pos if target.pos is not None else pos
-            task.transform_target_to_world = mink.SE3(wxyz_xyz=wxyz_xyz)
-            tasks.append(task)
-            if target.axis is not None:
-                axis_task = self._axis_tasks.get(frame.name)
-                if axis_task is None:
-                    axis_task = mink.AxisAlignTask(frame.name, frame.kind, lm_damping=cfg.lm_damping)
-                    self._axis_tasks[frame.name] = axis_task
-                axis_task.set_axis(target.axis)
-                axis_task.set_cost(ocost)
-                axis_task.set_target(np.asarray(target.direction))
-                tasks.append(axis_task)
-        return tasks
-
-    def _relative(self, targets: Sequence[RelativeTarget]) -> list[mink.Task]:
-        """Mink relative-frame tasks for the targets, one per (frame, root) pair, reused across ticks."""
-        tasks: list[mink.Task] = []
-        for target in targets:
-            key = (target.frame, target.root)
-            task = self._relative_tasks.get(key)
-            if task is None:
-                frame, root = self.frame(target.frame), self.frame(target.root)
-                task = mink.RelativeFrameTask(frame.name, frame.kind, root.name, root.kind,
-                                              position_cost=target.cost, orientation_cost=target.cost)
-                self._relative_tasks[key] = task
-            task.set_position_cost(target.cost)
-            task.set_orientation_cost(target.cost)
-            task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(target.rot), target.pos))
-            tasks.append(task)
-        return tasks
 
     def step(
         self,
@@ -139,11 +88,11 @@ class QPIK:
         if object_poses:
             set_object_poses(self.model, self.configuration.data, object_poses)
         self.configuration.update(np.asarray(q, dtype=float))
-        return self._step(targets, dt, self._relative(relative))
+        return self._step(targets, dt, self.tasks.relative(relative))
 
     def _step(self, targets: Sequence[FrameTarget], dt: float, extra_tasks: Sequence[mink.Task]) -> np.ndarray:
         """:meth:`step` at the configuration already loaded in :attr:`configuration`."""
-        tasks = [*self._tasks(targets), self.posture, *extra_tasks]
+        tasks = [*self.tasks.frames(targets, self.configuration.data), self.posture, *extra_tasks]
         limits = [self.collision] if self.collision is not None else []
         problem = mink.build_ik(self.configuration, tasks, dt, damping=self.config.damping, limits=limits)
         q = self.configuration.data.qpos

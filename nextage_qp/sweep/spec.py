@@ -18,20 +18,18 @@ the config rejects) is a one-line :class:`~nextage_qp.errors.ConfigError` naming
 
 from __future__ import annotations
 
-import json
 import math
-import zlib
 from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import build_robot
-from nextage_qp.yaml_file import read_yaml_mapping
+from nextage_qp.sweep.keys import key_hash, lookup, scene_default, yaml_scalar
+from nextage_qp.yaml_file import read_yaml_mapping, validate
 
 Number = Annotated[float, Field(allow_inf_nan=False)]
 Bound = Number | list[Number]
@@ -64,7 +62,7 @@ class Distribution(_Strict):
             if lo.shape != hi.shape:
                 raise ValueError(f"lo and hi must have the same length, got {list(lo)} and {list(hi)}")
             if np.any(lo > hi):
-                raise ValueError(f"lo > hi in [{_show(self.bounds[0])}, {_show(self.bounds[1])}]")
+                raise ValueError(f"lo > hi in [{self.bounds[0]}, {self.bounds[1]}]")
         for value in self.choice or ():
             if isinstance(value, float) and not math.isfinite(value):
                 raise ValueError(f"choice values must be finite, got {value}")
@@ -118,10 +116,7 @@ class SweepSpec:
         if not self.path.is_file():
             raise ConfigError(f"{self.path}: no such sweep file")
         doc = read_yaml_mapping(self.path, "a mapping with keys 'base' and 'randomize'")
-        try:
-            self.file = SweepFile.model_validate(doc)
-        except ValidationError as exc:
-            raise ConfigError(_sweep_error(str(self.path), exc)) from None
+        self.file = validate(SweepFile, doc, str(self.path))
         self.base_path = (self.path.parent / self.file.base).resolve()
         if not self.base_path.is_file():
             raise ConfigError(f"{self.path}: base: {self.file.base!r} is not a file (resolved to {self.base_path})")
@@ -148,9 +143,9 @@ class SweepSpec:
 
     def _base_value(self, key: str, robot: Any) -> Any:
         """The key's value in the base config, or the scene's own value for a scene override left unset."""
-        value = _lookup(self.base, key.split("."), lambda msg: self._fail(key, msg))
+        value = lookup(self.base, key.split("."), lambda msg: self._fail(key, msg))
         if value is None:
-            value = _scene_default(robot, key)
+            value = scene_default(robot, key)
         dist = self.distributions[key]
         if dist.kind in ("offset", "scale"):
             if value is None:
@@ -205,7 +200,7 @@ class SweepSpec:
         """
         params = {}
         for key, dist in self.distributions.items():
-            rng = np.random.default_rng([seed, index, _key_hash(key)])
+            rng = np.random.default_rng([seed, index, key_hash(key)])
             params[key] = dist.draw(rng, self.base_values[key])
         run_seed = int(np.random.SeedSequence([seed, index]).generate_state(1)[0] >> 1)
         return params, run_seed
@@ -213,93 +208,3 @@ class SweepSpec:
     def overrides(self, params: dict[str, Any], run_seed: int) -> list[str]:
         """``--set`` strings that turn the base config into the episode's config (exact round trip)."""
         return [f"{key}={yaml_scalar(value)}" for key, value in params.items()] + [f"seed={run_seed}"]
-
-
-def yaml_scalar(value: Any) -> str:
-    """A YAML flow literal that reads back as exactly ``value`` (floats keep every bit)."""
-    if isinstance(value, bool) or value is None:
-        return {True: "true", False: "false", None: "null"}[value]
-    if isinstance(value, float):
-        text = repr(value)
-        mantissa, e, exponent = text.partition("e")
-        if e and "." not in mantissa:  # PyYAML reads 1e-05 as a string; 1.0e-05 as a float
-            text = f"{mantissa}.0e{exponent}"
-        return text
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, (list, tuple)):
-        return "[" + ",".join(yaml_scalar(v) for v in value) + "]"
-    if isinstance(value, str):
-        try:
-            plain = yaml.safe_load(value) == value and "," not in value and "]" not in value
-        except yaml.YAMLError:
-            plain = False
-        return value if plain else json.dumps(value)  # a JSON string is a double-quoted YAML scalar
-    raise TypeError(f"cannot write {value!r} as a YAML scalar")
-
-
-def _key_hash(key: str) -> int:
-    return zlib.crc32(key.encode())
-
-
-def _show(bound: Bound) -> str:
-    return str(bound)
-
-
-def _lookup(node: Any, parts: list[str], fail: Any) -> Any:
-    """Walk a validated config along ``parts``; dict fields take any key (its value None when absent)."""
-    for i, part in enumerate(parts):
-        where = ".".join(parts[: i + 1])
-        if isinstance(node, BaseModel):
-            fields = type(node).model_fields
-            if part not in fields:
-                raise fail(f"{where!r} is not a key of the base config; valid here: {', '.join(sorted(fields))}")
-            node = getattr(node, part)
-        elif isinstance(node, (list, tuple)):
-            if not part.isdigit() or int(part) >= len(node):
-                raise fail(f"{where!r}: the base config's list has {len(node)} item(s); use an index below that")
-            node = node[int(part)]
-        elif isinstance(node, dict):
-            node = node.get(part)
-            if node is None:
-                return None  # e.g. scene.masses.cube when the base config sets no mass: a new dict key
-        elif node is None:
-            return None
-        else:
-            raise fail(f"{'.'.join(parts[:i])!r} is a value ({node!r}), not a mapping or list")
-    return node.model_dump() if isinstance(node, BaseModel) else node
-
-
-def _scene_default(robot: Any, key: str) -> Any:
-    """What the scene itself sets for a scene override key the config leaves unset (None if nothing)."""
-    parts = key.split(".")
-    if len(parts) < 3 or parts[0] != "scene":
-        return None
-    kind, body = parts[1], parts[2]
-    if body not in robot.body_names:
-        return None
-    model_body = robot.model.body(body)
-    if kind == "masses":
-        return float(model_body.mass[0])
-    if kind == "friction_scale":
-        return 1.0
-    if kind == "poses" and len(parts) == 4 and parts[3] == "pos":
-        return [float(v) for v in model_body.pos]
-    if kind == "poses" and len(parts) == 4 and parts[3] == "yaw":
-        w, _, _, z = model_body.quat
-        return float(2.0 * np.arctan2(z, w))
-    return None
-
-
-def _sweep_error(source: str, exc: ValidationError) -> str:
-    first = exc.errors()[0]
-    loc = ".".join(str(p) for p in first["loc"])
-    msg = first["msg"].removeprefix("Value error, ")
-    if first["type"] == "extra_forbidden":
-        parent = first["loc"][:-1]
-        valid = sorted(Distribution.model_fields) if len(parent) == 2 else sorted(SweepFile.model_fields)
-        msg = f"unknown key; valid: {', '.join(valid)}"
-    got = first.get("input")
-    shown = "" if first["type"] in ("missing", "extra_forbidden") or isinstance(got, dict) else f" (got {got!r})"
-    more = f" [+{len(exc.errors()) - 1} more]" if len(exc.errors()) > 1 else ""
-    return f"{source}: {loc}: {msg}{shown}{more}"
