@@ -159,3 +159,35 @@ def test_no_contacts_at_home_or_zero_in_robot_model(robot):
         mujoco.mj_resetDataKeyframe(m, d, m.key(key).id)
         mujoco.mj_forward(m, d)
         assert d.ncon == 0, key
+
+
+def test_trimmed_excludes_keep_the_contact_set():
+    """The adjacent-link excludes the MJCF leaves out (MuJoCo's parent filter covers them) change no contact."""
+    import mujoco
+
+    from nextage_qp.nextage import ARMS, HEAD_BODIES
+    from nextage_qp.scene import compile_scene, scene_spec
+
+    spec = scene_spec("nextage")
+    adjacent = [("CHEST_JOINT0_Link", HEAD_BODIES[0]), HEAD_BODIES]
+    for arm in ARMS:
+        adjacent += [("CHEST_JOINT0_Link", arm.links[0]), *zip(arm.links[:-1], arm.links[1:], strict=True)]
+    assert len(adjacent) == 14
+    for a, b in adjacent:
+        spec.add_exclude(bodyname1=a, bodyname2=b)
+    full, trimmed = spec.compile(), compile_scene("nextage")
+    assert trimmed.nexclude == 3 and full.nexclude == 17
+    robot = Robot(trimmed)
+    rng = np.random.default_rng(0)
+    datas = [mujoco.MjData(full), mujoco.MjData(trimmed)]
+    touched = 0
+    for _ in range(3000):
+        q = rng.uniform(robot.lower, robot.upper)
+        sets = []
+        for model, data in zip((full, trimmed), datas, strict=True):
+            data.qpos[robot.qpos_idx] = q
+            mujoco.mj_forward(model, data)
+            sets.append({tuple(sorted((int(c.geom1), int(c.geom2)))) for c in data.contact[: data.ncon]})
+        assert sets[0] == sets[1]
+        touched += bool(sets[0])
+    assert touched > 100  # the configurations do produce contacts to compare

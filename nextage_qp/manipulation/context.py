@@ -33,20 +33,33 @@ def yaw_of(rot: np.ndarray) -> float:
 
 @dataclass
 class Setpoint:
-    """A Cartesian point that walks towards a goal at a bounded speed, one control tick at a time."""
+    r"""A Cartesian point that walks towards a goal, one control tick at a time, at bounded speed and acceleration.
+
+    Its speed :math:`s` [m/s] ramps up at ``accel`` [m/s²] and comes down in time to stop on the goal,
+    :math:`s_{k+1} = \min(v_{max},\ s_k + a\,\Delta t,\ \sqrt{2 a (d - s_{k+1} \Delta t)})` with :math:`d`
+    the distance left, so the commanded motion has no velocity steps for the joint references to chase.
+    """
 
     pos: np.ndarray
+    accel: float = 1.0
+    speed: float = 0.0
 
     def advance(self, goal: np.ndarray, speed: float, dt: float) -> bool:
-        """Move at most ``speed * dt`` [m] towards ``goal``; True once on the goal."""
+        """Move towards ``goal`` at up to ``speed`` [m/s]; True once on the goal (where the speed is 0)."""
         delta = goal - self.pos
         dist = float(np.linalg.norm(delta))
-        step = speed * dt
-        if dist <= step:
-            self.pos = goal.copy()
+        a = self.accel
+        brake = a * dt * (float(np.sqrt(1.0 + 2.0 * dist / (a * dt * dt))) - 1.0)  # v = sqrt(2 a (d - v dt))
+        self.speed = min(speed, self.speed + a * dt, brake)
+        if dist <= max(self.speed * dt, 2.0 * a * dt * dt):
+            self.pos, self.speed = goal.copy(), 0.0
             return True
-        self.pos = self.pos + delta * (step / dist)
+        self.pos = self.pos + delta * (self.speed * dt / dist)
         return False
+
+    def jump(self, goal: np.ndarray) -> None:
+        """Put the point on ``goal`` at once, at rest."""
+        self.pos, self.speed = np.array(goal, dtype=float), 0.0
 
 
 @dataclass(frozen=True)
@@ -99,6 +112,9 @@ class View(Protocol):
     def settled(self) -> bool:
         """True when the reference has caught up with the commanded joints and the robot is nearly still."""
 
+    def tracking_error(self) -> float:
+        """Largest gap between the measured and the commanded joints [rad]."""
+
     def extent(self, obj: str, direction: np.ndarray) -> float:
         """Half-extent [m] of an object's collision boxes along a world direction (its pushing half-width)."""
 
@@ -147,6 +163,9 @@ class SimView:
     def settled(self) -> bool:  # noqa: D102
         ref_gap = float(np.max(np.abs(self._sim.ref.q - self._servo.q_cmd)))
         return ref_gap < 2e-3 and float(np.max(np.abs(self._sim.measured.qd))) < self.qd_tol
+
+    def tracking_error(self) -> float:  # noqa: D102
+        return float(np.max(np.abs(self._sim.measured.q - self._servo.q_cmd)))
 
     def extent(self, obj: str, direction: np.ndarray) -> float:  # noqa: D102
         boxes = self._boxes.get(obj)

@@ -23,7 +23,8 @@ class JointsSpec(Spec):
 class Joints(Phase):
     """Sends the joint goal every tick.
 
-    Done when every named joint is within ``tolerance`` and the robot has settled.
+    Done when every named joint is within ``tolerance`` of its goal, every joint within ``tolerance`` of its
+    commanded position (so the next phase starts where the robot is), and the robot has settled.
     """
 
     spec: JointsSpec
@@ -35,4 +36,6 @@ class Joints(Phase):
     def update(self, view: View) -> Command:  # noqa: D102
         err = float(np.max(np.abs(view.joint_positions(self.names) - self.goal)))
         self.info["joint_error_rad"] = err
-        return Command(joints=self.spec.positions, done=err < self.spec.tolerance and view.settled())
+        tol = self.spec.tolerance
+        done = err < tol and view.tracking_error() < tol and view.settled()
+        return Command(joints=self.spec.positions, done=done)

@@ -92,6 +92,6 @@ class Push(Phase):
                 raise PhaseError(f"phase {self.name!r} (push): {c.object} is still {err * 1e3:.1f} mm from "
                                  f"{c.target} after {c.attempts} attempts (tolerance {c.tolerance * 1e3:g} mm)")
             back = self.sp.pos - np.array([*self.info["direction"], 0.0]) * c.approach
-            self.sp.advance(back, 1.0, 1.0)  # retreat along the line before the next attempt
+            self.sp.jump(back)  # retreat along the line before the next attempt
             self._plan(view)
         return Command((FrameTarget(c.frame, pos=self.sp.pos, rot=self.rot),))
