@@ -11,7 +11,8 @@ from nextage_qp.errors import (
     UnknownJointError,
     UnknownNameError,
 )
-from nextage_qp.robot import JOINT_NAMES, Robot
+from nextage_qp.nextage import JOINT_NAMES
+from nextage_qp.robot import Robot
 from nextage_qp.scene import SceneOverrides
 
 __all__ = [

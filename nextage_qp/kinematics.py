@@ -25,7 +25,8 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import UnknownFrameError
-from nextage_qp.robot import JOINT_NAMES, Robot
+from nextage_qp.nextage import JOINT_NAMES, TOPOLOGY
+from nextage_qp.robot import Robot
 
 
 class Pose(NamedTuple):
@@ -88,33 +89,8 @@ class Kinematics:
         return np.vstack([self._jacp[:, dofs], self._jacr[:, dofs]])
 
 
-# The report's method: a topology map written from the spec's joint table (not read from the MJCF).
-# joint -> (parent joint or None for the base, origin xyz in the parent frame [m], axis).
-_ARM_TOPOLOGY = {
-    0: ("CHEST_JOINT0", (0.04, 0.135, 0.1015), (0, 0, 1)),
-    1: (0, (0.0, 0.0, 0.066), (0, 1, 0)),
-    2: (1, (0.0, 0.095, -0.25), (0, 1, 0)),
-    3: (2, (0.1805, 0.0, -0.03), (1, 0, 0)),
-    4: (3, (0.1495, 0.0, 0.0), (0, 1, 0)),
-    5: (4, (0.0, 0.0, -0.1335), (0, 0, 1)),
-}
-
-
-def _build_topology() -> dict[str, tuple[str | None, tuple[float, ...], tuple[float, ...]]]:
-    topo: dict[str, tuple[str | None, tuple[float, ...], tuple[float, ...]]] = {
-        "CHEST_JOINT0": (None, (0.0, 0.0, 0.85 + 0.267), (0, 0, 1)),
-        "HEAD_JOINT0": ("CHEST_JOINT0", (0.0, 0.0, 0.302), (0, 0, 1)),
-        "HEAD_JOINT1": ("HEAD_JOINT0", (0.0, 0.0, 0.08), (0, 1, 0)),
-    }
-    for prefix, sign in (("LARM", 1.0), ("RARM", -1.0)):
-        for i, (parent, origin, axis) in _ARM_TOPOLOGY.items():
-            parent_name = parent if isinstance(parent, str) else f"{prefix}_JOINT{parent}"
-            topo[f"{prefix}_JOINT{i}"] = (parent_name, (origin[0], sign * origin[1], origin[2]), axis)
-    return topo
-
-
-NEXTAGE_TOPOLOGY = _build_topology()
-"""joint -> (parent joint, origin [m] in the parent link frame, axis); the base is the world at (0, 0, 0.85)."""
+NEXTAGE_TOPOLOGY = TOPOLOGY
+"""joint -> (parent joint, origin [m] in the parent link frame, axis), from :mod:`nextage_qp.nextage`."""
 
 
 def axis_angle_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -140,7 +116,7 @@ def chain_fk(
 
     Args:
         link: A joint name (``LARM_JOINT5``) or its link (``LARM_JOINT5_Link``).
-        q: Joint angles [rad], as a name map or a vector in :data:`~nextage_qp.robot.JOINT_NAMES` order.
+        q: Joint angles [rad], as a name map or a vector in :data:`~nextage_qp.nextage.JOINT_NAMES` order.
         topology: joint -> (parent joint, origin, axis).
 
     Raises:

@@ -13,7 +13,7 @@ from nextage_qp.commands.common import add_scene_arg, print_json
 from nextage_qp.errors import ConfigError
 from nextage_qp.ik import QPIK, FrameTarget, IKConfig, IKResult
 from nextage_qp.ik.baselines import dls_ik, lm_ik, pinv_ik
-from nextage_qp.robot import JOINT_NAMES, Robot
+from nextage_qp.robot import Robot
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
             "time_s": result.time_s, "method": args.method,
         })  # fmt: skip
     else:
-        _print_table(result, args.method)
+        _print_table(robot, result, args.method)
     return 0 if result.converged else 1
 
 
@@ -100,12 +100,12 @@ def _config(solver: str) -> IKConfig:
         raise ConfigError(f"--solver: {exc.errors()[0]['msg'] if hasattr(exc, 'errors') else exc}") from None
 
 
-def _print_table(result: IKResult, method: str) -> None:
+def _print_table(robot: Robot, result: IKResult, method: str) -> None:
     table = Table(title=f"IK ({method}): {result.status}")
     table.add_column("joint")
     table.add_column("rad", justify="right")
     table.add_column("deg", justify="right")
-    for name, value in zip(JOINT_NAMES, result.q, strict=True):
+    for name, value in zip(robot.joint_names, result.q, strict=True):
         table.add_row(name, f"{value:+.4f}", f"{np.degrees(value):+.1f}")
     console = Console()
     console.print(table)

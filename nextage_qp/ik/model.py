@@ -2,7 +2,7 @@
 
 Objects of a task scene (cube, dumbbell) have free joints, which must not be IK variables. The kinematic
 model is compiled from the same MJCF with every free joint removed and its body made a mocap body, so
-``nq == nv == 15`` (the robot joints, in :data:`~nextage_qp.robot.JOINT_NAMES` order) and objects are
+``nq == nv == 15`` (the robot joints, in :data:`~nextage_qp.nextage.JOINT_NAMES` order) and objects are
 placed through ``data.mocap_pos`` / ``data.mocap_quat``. Geom and body ids equal those of the full model.
 """
 
@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError, UnknownNameError
-from nextage_qp.robot import JOINT_NAMES, Robot
+from nextage_qp.robot import Robot
 from nextage_qp.scene import scene_spec
 
 ObjectPoses = Mapping[str, tuple[np.ndarray, np.ndarray]]
@@ -42,8 +42,8 @@ def kinematic_model(robot: Robot) -> mujoco.MjModel:
         if model.ngeom != robot.model.ngeom or model.nbody != robot.model.nbody:
             raise ConfigError(f"{robot.scene}: kinematic model does not match the robot's model")
     names = tuple(model.joint(i).name for i in range(model.njnt))
-    if names != JOINT_NAMES or model.nv != len(JOINT_NAMES):
-        raise ConfigError(f"{robot.scene}: IK model must have exactly the joints {JOINT_NAMES}, got {names}")
+    if names != robot.joint_names or model.nv != robot.nq:
+        raise ConfigError(f"{robot.scene}: IK model must have exactly the joints {robot.joint_names}, got {names}")
     return model
 
 
