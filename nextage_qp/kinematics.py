@@ -19,28 +19,14 @@ Two independent implementations:
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import NamedTuple
 
 import mujoco
 import numpy as np
 
 from nextage_qp.errors import UnknownFrameError
+from nextage_qp.geometry import Pose
 from nextage_qp.nextage import JOINT_NAMES, TOPOLOGY
 from nextage_qp.robot import Robot
-
-
-class Pose(NamedTuple):
-    """A frame pose in the world: position [m] and rotation matrix (columns = frame axes)."""
-
-    pos: np.ndarray
-    rot: np.ndarray
-
-    @property
-    def quat(self) -> np.ndarray:
-        """Unit quaternion (w, x, y, z) of the rotation."""
-        quat = np.empty(4)
-        mujoco.mju_mat2Quat(quat, self.rot.reshape(-1))
-        return quat
 
 
 class Kinematics:

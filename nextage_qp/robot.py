@@ -134,6 +134,11 @@ class Robot:
         free = self.model.jnt_type == mujoco.mjtJoint.mjJNT_FREE
         return tuple(self.model.body(int(b)).name for b in self.model.jnt_bodyid[free])
 
+    def yaw_symmetry(self, name: str) -> float:
+        """The yaw [rad] after which an object looks the same (custom numeric ``NAME_yaw_symmetry``; 2 pi if none)."""
+        nid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_NUMERIC, f"{name}_yaw_symmetry")
+        return float(self.model.numeric_data[self.model.numeric_adr[nid]]) if nid >= 0 else 2.0 * np.pi
+
     def object_qpos_slice(self, name: str) -> slice:
         """Slice of ``data.qpos`` holding the free joint (pos, quat) of an object."""
         if name not in self.object_names:

@@ -9,16 +9,11 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import NamedTuple, Protocol
+from typing import Protocol
 
 import numpy as np
 
-
-class Pose(NamedTuple):
-    """A body's world position [m] and rotation matrix."""
-
-    pos: np.ndarray
-    rot: np.ndarray
+from nextage_qp.geometry import Pose
 
 
 @dataclass(frozen=True)

@@ -21,9 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from nextage_qp.geometry import Pose
 from nextage_qp.ik import QPIK, FrameTarget, RelativeTarget
 from nextage_qp.ik.model import ObjectPoses
-from nextage_qp.sim import Pose, Simulation
+from nextage_qp.sim import Simulation
 
 
 @dataclass(frozen=True)
@@ -34,12 +35,14 @@ class Command:
         targets: Frame targets for the IK (world poses).
         relative: Relative-pose targets between two frames (e.g. the clamp pads).
         joints: A joint goal, joint name -> angle [rad]; the IK is not stepped on such a tick.
+        allow: Collision groups the IK may let touch on this tick (e.g. the object being pushed).
         done: The phase has finished (this command still runs for the tick).
     """
 
     targets: tuple[FrameTarget, ...] = ()
     relative: tuple[RelativeTarget, ...] = ()
     joints: Mapping[str, float] | None = None
+    allow: frozenset[str] = frozenset()
     done: bool = False
 
     @property
@@ -90,7 +93,8 @@ class Servo:
             self._q[idx] = np.clip(goal, r.lower[idx], r.upper[idx])
         elif not command.holds:
             dt = self.sim.ctrl_dt
-            v = self.ik.step(self._q, command.targets, dt, relative=command.relative, object_poses=object_poses)
+            v = self.ik.step(self._q, command.targets, dt, relative=command.relative, object_poses=object_poses,
+                             allow=command.allow)
             self._q = np.clip(self._q + v * dt, r.lower, r.upper)
         self.sim.set_target(self._q)
         return self.q_cmd

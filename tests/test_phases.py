@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from nextage_qp.errors import PhaseError
+from nextage_qp.geometry import Pose, rot_z
 from nextage_qp.ik import RelativeTarget
-from nextage_qp.manipulation.context import Grip, rot_z
+from nextage_qp.manipulation.context import Grip
 from nextage_qp.manipulation.phases import REGISTRY, build
-from nextage_qp.sensors import Pose
 
 DT = 0.004
 

@@ -12,7 +12,7 @@ from nextage_qp.control import load_gains
 from nextage_qp.errors import ConfigError
 from nextage_qp.ik import QPIK, FrameTarget, IKConfig
 from nextage_qp.kinematics import Kinematics
-from nextage_qp.manipulation.config import load_config
+from nextage_qp.manipulation.config import SuccessCriteria, load_config
 from nextage_qp.manipulation.context import View
 from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, summarize
 from nextage_qp.manipulation.phases import Phase, Spec, register, unregister
@@ -162,7 +162,7 @@ def test_metrics_flag_a_drop_and_success_needs_every_criterion(dock_robot):
     sim.tick()
     records = [PhaseRecord("a", "wait", "done", 0.0, 0.004, {"x": 1})]
     out = summarize(task="t", robot=dock_robot, sim=sim, monitor=monitor, records=records, obj="dumbbell",
-                    target="dumbbell_target", success_threshold=1.0, error=None, wall_s=0.1)
+                    target="dumbbell_target", criteria=SuccessCriteria(planar_error=1.0), error=None, wall_s=0.1)
     assert out["criteria"]["object_error"]["ok"] and not out["criteria"]["not_dropped"]["ok"]
     assert out["success"] is False and out["failed_criteria"] == ["not_dropped"]
     assert out["phases"] == [{"name": "a", "kind": "wait", "status": "done", "start_s": 0.0, "duration_s": 0.004,

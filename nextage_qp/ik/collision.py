@@ -95,6 +95,8 @@ class ActiveCollisionLimit(mink.Limit):
                        self.min_distance.tolist())  # fmt: skip
         self._fromto, self._normal = np.empty(6), np.empty(3)
         self._jac1, self._jac2 = np.empty((3, model.nv)), np.empty((3, model.nv))
+        self.enabled = np.ones(len(keys), dtype=bool)
+        """Pairs watched at the next call (see :meth:`allow`)."""
         self.active: list[tuple[int, float]] = []
         """(pair index, distance [m]) of the pairs sent to the QP at the last call."""
         self.queries = 0
@@ -121,6 +123,10 @@ class ActiveCollisionLimit(mink.Limit):
                 length += float(np.linalg.norm(model.body_pos[body]))
                 body = int(model.body_parentid[body])
         return lever
+
+    def allow(self, geoms: np.ndarray) -> None:
+        """Let the given geoms touch: pairs with a geom in ``geoms`` (a boolean mask over geoms) get no row."""
+        self.enabled = ~(geoms[self.geom1] | geoms[self.geom2])
 
     @property
     def num_pairs(self) -> int:
@@ -175,6 +181,8 @@ class ActiveCollisionLimit(mink.Limit):
         bounds: list[float] = []
         self.active, self.slack = [], 0
         near, lower = self._near(data)
+        keep = self.enabled[near]
+        near, lower = near[keep], lower[keep]
         # Reach bound: how far the two geoms can approach in one step of the box; a pair whose gap bound
         # exceeds it cannot bind. Checked on the distance's lower bound first (no narrow phase), then on it.
         reach: list[float] | None = None

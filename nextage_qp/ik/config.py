@@ -94,6 +94,9 @@ class IKConfig(BaseModel):
     velocity_limit: float | dict[str, float] = Field(
         default=3.0, description="Joint speed limit [rad/s]: one value or joint -> value (others at 3.0)."
     )
+    limit_margin: float = Field(
+        default=0.0, ge=0.0, le=0.5, description="Distance the IK keeps from every joint limit [rad]."
+    )
     limit_gain: float = Field(
         default=0.95, gt=0.0, le=1.0, description="Fraction of the distance to a joint limit allowed per step."
     )

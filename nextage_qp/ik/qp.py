@@ -48,8 +48,10 @@ class QPIK:
         self.posture.set_target(q_posture)
         default = float(IKConfig.model_fields["velocity_limit"].default)
         vmax = per_joint(config.velocity_limit, default, robot.joint_names)
-        self.box = JointBoxLimit(np.array(robot.lower), np.array(robot.upper), vmax, config.limit_gain)
-        groups = robot.collision_geoms(config.group_specs())
+        margin = np.minimum(config.limit_margin, 0.45 * (robot.upper - robot.lower))
+        self.box = JointBoxLimit(robot.lower + margin, robot.upper - margin, vmax, config.limit_gain)
+        self.groups = groups = robot.collision_geoms(config.group_specs())
+        self._allow_masks: dict[frozenset[str], np.ndarray] = {}
         pairs = []
         for i, pair in enumerate(config.collision_pairs):
             for name in (pair.a, pair.b):
@@ -59,6 +61,18 @@ class QPIK:
         self.collision = ActiveCollisionLimit(self.model, pairs, config.collision_gain, self.box) if pairs else None
         self._frames: dict[str, Frame] = {}
         self.tasks = TaskCache(config.lm_damping, config.position_cost, config.orientation_cost, self.frame)
+
+    def _allowed(self, groups: frozenset[str]) -> np.ndarray:
+        """Boolean geom mask of the named collision groups (cached per set of names)."""
+        mask = self._allow_masks.get(groups)
+        if mask is None:
+            mask = np.zeros(self.model.ngeom, dtype=bool)
+            for name in groups:
+                if name not in self.groups:
+                    raise UnknownNameError("collision group (allow)", name, self.groups)
+                mask[list(self.groups[name])] = True
+            self._allow_masks[groups] = mask
+        return mask
 
     def set_object_poses(self, poses: ObjectPoses) -> None:
         """Place objects (cube, dumbbell, ...) for collision avoidance: name -> (pos [m], quat wxyz)."""
@@ -79,12 +93,19 @@ class QPIK:
         *,
         relative: Sequence[RelativeTarget] = (),
         object_poses: ObjectPoses | None = None,
+        allow: frozenset[str] = frozenset(),
     ) -> np.ndarray:
         """One IK step: the joint velocity v [rad/s] (15,) minimising the task costs for a step of ``dt`` [s].
 
+        ``allow`` names collision groups whose pairs are not avoided on this step (e.g. the object a push is
+        in contact with).
+
         Raises:
             IKInfeasibleError: The QP has no solution; the message names the active limits.
+            UnknownNameError: ``allow`` names a group the robot does not have.
         """
+        if self.collision is not None:
+            self.collision.allow(self._allowed(allow))
         if object_poses:
             set_object_poses(self.model, self.configuration.data, object_poses)
         self.configuration.update(np.asarray(q, dtype=float))

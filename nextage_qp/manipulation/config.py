@@ -49,6 +49,20 @@ class SceneConfig(_Strict):
     )
 
 
+class SuccessCriteria(_Strict):
+    """What a successful run means.
+
+    Besides these, every run must complete its phases, keep its joints inside their limits and not drop a
+    clamped object. The object's yaw is compared with the target's modulo the object's symmetry (declared in the scene).
+    """
+
+    planar_error: float = Field(default=0.005, gt=0, le=1.0, description="Largest x-y object error [m].")
+    yaw_error: float | None = Field(default=None, gt=0, le=3.2, description="Largest yaw error [rad], or unjudged.")
+    tilt: float | None = Field(default=None, gt=0, le=3.2, description="Largest tilt from upright [rad], or unjudged.")
+    resting: bool = Field(default=False, description="The object must end on the table, at rest.")
+    obstacle_contacts: int | None = Field(default=None, ge=0, description="Most physics steps touching the obstacle.")
+
+
 class RunTiming(Timing):
     """The simulation's timing plus the settling time after the last phase."""
 
@@ -63,7 +77,7 @@ class ManipulationConfig(_Strict):
     object: str = name_field("object", description="Body whose final error is reported.")
     target: str = name_field("body", description="Body marking the object's target.")
     start: Literal["home", "zero"] = Field(default="home", description="Start keyframe of the robot.")
-    success_threshold: float = Field(default=0.02, gt=0, description="3-D object error counted as success [m].")
+    success: SuccessCriteria = Field(default_factory=SuccessCriteria, description="Success criteria.")
     gains: str = Field(default="default", description="Gains file (bundled name or path).")
     ik: IKConfig = Field(default_factory=IKConfig)
     trajectory: TrajectoryLimits = Field(default_factory=TrajectoryLimits)

@@ -6,7 +6,7 @@ Phases never touch the simulation, the IK or mink: they read the view and return
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -14,21 +14,11 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import UnknownNameError
-from nextage_qp.ik import FrameTarget, RelativeTarget
+from nextage_qp.geometry import Pose, rot_z, yaw_of
+from nextage_qp.ik import QPIK, FrameTarget, RelativeTarget
 from nextage_qp.robot import Robot
 from nextage_qp.servo import Servo
-from nextage_qp.sim import Pose, Simulation
-
-
-def rot_z(yaw: float) -> np.ndarray:
-    """Rotation matrix of ``yaw`` [rad] about the world z axis."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def yaw_of(rot: np.ndarray) -> float:
-    """Heading [rad] of a rotation: the angle of its x axis projected on the world x-y plane."""
-    return float(np.arctan2(rot[1, 0], rot[0, 0]))
+from nextage_qp.sim import Simulation
 
 
 @dataclass
@@ -118,6 +108,22 @@ class View(Protocol):
     def extent(self, obj: str, direction: np.ndarray) -> float:
         """Half-extent [m] of an object's collision boxes along a world direction (its pushing half-width)."""
 
+    def joint_names(self) -> tuple[str, ...]:
+        """The robot's joints, in the order of the joint vectors :meth:`plan` returns."""
+
+    def plan(self, targets: Sequence[FrameTarget], start: np.ndarray | None = None) -> np.ndarray | None:
+        """Joints that put the frames on the targets together, or None when the arms cannot.
+
+        An offline IK solve from ``start`` (default: the commanded joints), avoiding the IK's collision pairs with
+        the objects where they are now; a target counts as reached within ``REACH_POS_TOL`` and ``REACH_ROT_TOL``.
+        """
+
+
+REACH_POS_TOL = 0.003
+"""Position error [m] within which :meth:`SimView.plan` counts a target as reached."""
+REACH_ROT_TOL = 0.05
+"""Orientation error [rad] within which :meth:`SimView.plan` counts a target as reached."""
+
 
 class SimView:
     """The :class:`View` of a running simulation (what the phases of :class:`~.runner.Runner` see).
@@ -130,6 +136,7 @@ class SimView:
         self.dt = sim.ctrl_dt
         self.grip: Grip | None = None
         self._boxes: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        self._planner: QPIK | None = None
 
     @property
     def t(self) -> float:
@@ -166,6 +173,18 @@ class SimView:
 
     def tracking_error(self) -> float:  # noqa: D102
         return float(np.max(np.abs(self._sim.measured.q - self._servo.q_cmd)))
+
+    def plan(self, targets: Sequence[FrameTarget], start: np.ndarray | None = None) -> np.ndarray | None:  # noqa: D102
+        if self._planner is None:
+            config = self._servo.ik.config.model_copy(update={"restarts": 4, "max_iters": 80})
+            self._planner = QPIK(self.robot, config)
+        poses = {name: (p.pos, p.quat) for name, p in self._sim.measured.objects.items()}
+        q0 = np.array(self._servo.q_cmd if start is None else start)
+        result = self._planner.solve(list(targets), q0, object_poses=poses)
+        return result.q if result.pos_err_m <= REACH_POS_TOL and result.rot_err_rad <= REACH_ROT_TOL else None
+
+    def joint_names(self) -> tuple[str, ...]:  # noqa: D102
+        return self.robot.joint_names
 
     def extent(self, obj: str, direction: np.ndarray) -> float:  # noqa: D102
         boxes = self._boxes.get(obj)

@@ -6,11 +6,13 @@ Metrics are measured on the simulator's truth (contacts, true poses), never on w
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
 
+from nextage_qp.geometry import wrap
+from nextage_qp.manipulation.config import SuccessCriteria
 from nextage_qp.manipulation.context import Grip
 from nextage_qp.robot import Robot
 from nextage_qp.sim import Simulation
@@ -104,6 +106,67 @@ class OutcomeMonitor:
             self.dropped = True
 
 
+class ObjectState(NamedTuple):
+    """The object at the end of a run, against its target (true state).
+
+    Attributes:
+        position, target_position: World positions [m].
+        error_m, error_xy_m: 3-D and planar distance [m].
+        yaw_error_rad: Yaw difference modulo the object's symmetry [rad].
+        tilt_rad: Angle between the object's z axis and the vertical [rad].
+        resting: On the table and at rest (speed below 1 cm/s and 0.1 rad/s).
+    """
+
+    position: np.ndarray
+    target_position: np.ndarray
+    error_m: float
+    error_xy_m: float
+    yaw_error_rad: float
+    tilt_rad: float
+    resting: bool
+
+
+def object_state(robot: Robot, sim: Simulation, obj: str, target: str) -> ObjectState:
+    """Where the object ended up, how it is turned and tilted, and whether it rests on the table."""
+    m, d = robot.model, sim.data
+    bid, tid = m.body(obj).id, m.body(target).id
+    pos, tgt = d.xpos[bid].copy(), d.xpos[tid].copy()
+    rot, trot = d.xmat[bid].reshape(3, 3), d.xmat[tid].reshape(3, 3)
+    yaw = np.arctan2(rot[1, 0], rot[0, 0]) - np.arctan2(trot[1, 0], trot[0, 0])
+    table = set(robot.collision_geoms().get("table", ()))
+    on_table = any((int(m.geom_bodyid[c.geom1]) == bid and c.geom2 in table)
+                   or (int(m.geom_bodyid[c.geom2]) == bid and c.geom1 in table) for c in d.contact[: d.ncon])
+    dof = int(m.jnt_dofadr[m.body_jntadr[bid]]) if m.body_jntnum[bid] else -1
+    lin, ang = (d.qvel[dof : dof + 3], d.qvel[dof + 3 : dof + 6]) if dof >= 0 else (np.zeros(3), np.zeros(3))
+    still = bool(np.linalg.norm(lin) < 0.01 and np.linalg.norm(ang) < 0.1)
+    return ObjectState(pos, tgt, float(np.linalg.norm(pos - tgt)), float(np.linalg.norm((pos - tgt)[:2])),
+                       abs(wrap(float(yaw), robot.yaw_symmetry(obj))), float(np.arccos(np.clip(rot[2, 2], -1, 1))),
+                       bool(on_table and still))
+
+
+def judge(criteria: SuccessCriteria, state: ObjectState, *, completed: bool, dropped: bool, limit_violations: int,
+          obstacle_contacts: int) -> dict[str, dict[str, Any]]:
+    """Every success criterion with its value, limit and verdict (``ok``)."""
+    out: dict[str, dict[str, Any]] = {
+        "completed": {"ok": completed},
+        "object_error": {"value": state.error_xy_m, "limit": criteria.planar_error,
+                         "ok": state.error_xy_m <= criteria.planar_error},
+        "not_dropped": {"ok": not dropped},
+        "joint_limits": {"value": limit_violations, "limit": 0, "ok": limit_violations == 0},
+    }
+    if criteria.yaw_error is not None:
+        out["yaw_error"] = {"value": state.yaw_error_rad, "limit": criteria.yaw_error,
+                            "ok": state.yaw_error_rad <= criteria.yaw_error}
+    if criteria.tilt is not None:
+        out["tilt"] = {"value": state.tilt_rad, "limit": criteria.tilt, "ok": state.tilt_rad <= criteria.tilt}
+    if criteria.resting:
+        out["resting"] = {"ok": state.resting}
+    if criteria.obstacle_contacts is not None:
+        out["obstacle_contacts"] = {"value": obstacle_contacts, "limit": criteria.obstacle_contacts,
+                                    "ok": obstacle_contacts <= criteria.obstacle_contacts}
+    return out
+
+
 def summarize(
     *,
     task: str,
@@ -113,43 +176,43 @@ def summarize(
     records: list[PhaseRecord],
     obj: str,
     target: str,
-    success_threshold: float,
+    criteria: SuccessCriteria,
     error: str | None,
     wall_s: float,
+    extra: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The result record printed by ``nextage-qp run --json``; ``success`` only when every criterion holds."""
-    d = sim.data
-    obj_pos = d.xpos[robot.model.body(obj).id].copy()
-    tgt_pos = d.xpos[robot.model.body(target).id].copy()
-    err = float(np.linalg.norm(obj_pos - tgt_pos))
+    state = object_state(robot, sim, obj, target)
     rec = sim.recorder.arrays()
     q = rec["q"]
     viol = int(np.count_nonzero(np.any((q < robot.lower - 1e-3) | (q > robot.upper + 1e-3), axis=1)))
     tau = np.abs(rec["tau"]).max() if len(q) else 0.0
+    contacts = monitor.obstacle_contacts if monitor.obstacle is not None else 0
+    verdict = judge(criteria, state, completed=error is None, dropped=monitor.dropped, limit_violations=viol,
+                    obstacle_contacts=contacts)
     sim_t = sim.time
-    criteria: dict[str, dict[str, Any]] = {
-        "completed": {"ok": error is None},
-        "object_error": {"value": err, "limit": success_threshold, "ok": err <= success_threshold},
-        "not_dropped": {"ok": not monitor.dropped},
-    }
     return {
         "task": task,
-        "success": all(c["ok"] for c in criteria.values()),
-        "failed_criteria": [name for name, c in criteria.items() if not c["ok"]],
-        "object_error_m": err,
-        "object_error_xy_m": float(np.linalg.norm((obj_pos - tgt_pos)[:2])),
-        "final_object_position": obj_pos.tolist(),
-        "target_position": tgt_pos.tolist(),
+        "success": all(c["ok"] for c in verdict.values()),
+        "failed_criteria": [name for name, c in verdict.items() if not c["ok"]],
+        "object_error_m": state.error_m,
+        "object_error_xy_m": state.error_xy_m,
+        "object_yaw_error_rad": state.yaw_error_rad,
+        "object_tilt_rad": state.tilt_rad,
+        "object_resting": state.resting,
+        "final_object_position": state.position.tolist(),
+        "target_position": state.target_position.tolist(),
         "sim_time_s": sim_t,
         "wall_time_s": wall_s,
         "real_time_factor": sim_t / wall_s if wall_s > 0 else None,
         "min_obstacle_clearance_m": monitor.min_clearance,
-        "obstacle_contacts": monitor.obstacle_contacts if monitor.obstacle is not None else 0,
+        "obstacle_contacts": contacts,
         "object_dropped": monitor.dropped,
         "joint_limit_violations": viol,
         "max_abs_torque_nm": float(tau),
         "torque_saturation_ticks": int(sim.pd.any_saturated_ticks),
+        **(extra or {}),
         "phases": [r.as_dict() for r in records],
-        "criteria": criteria,
+        "criteria": verdict,
         "error": error,
     }

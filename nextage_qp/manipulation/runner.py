@@ -13,9 +13,6 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-import mujoco
-import numpy as np
-
 from nextage_qp.control import load_gains
 from nextage_qp.errors import ConfigError, NextageQPError, PhaseError, UnknownNameError
 from nextage_qp.ik import QPIK
@@ -23,6 +20,7 @@ from nextage_qp.manipulation.config import ManipulationConfig
 from nextage_qp.manipulation.context import SimView
 from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, summarize
 from nextage_qp.manipulation.phases import Phase, build, names_in
+from nextage_qp.manipulation.placement import check_placement
 from nextage_qp.nextage import TOOL_SITES
 from nextage_qp.robot import Robot
 from nextage_qp.scene import BodyPose, SceneOverrides
@@ -85,6 +83,7 @@ class Runner:
         frames = [f for f in TOOL_SITES if f in self.robot.site_names]
         self.sim = Simulation(self.robot, gains, cfg.trajectory, timing=cfg.timing, frames=frames)
         q0 = self.robot.keyframe_q(cfg.start)
+        self.placement = check_placement(self.robot, cfg.object, cfg.target, q0, source)
         self.sim.reset(q0)
         self.servo = Servo(self.ik, self.sim, q0)
         self.view = SimView(self.robot, self.sim, self.servo)
@@ -97,7 +96,7 @@ class Runner:
 
     def tick(self, command: Command) -> None:
         """One control tick: the servo applies ``command``, the simulation runs, the clamp is watched."""
-        objects = {name: (pose.pos, _quat(pose.rot)) for name, pose in self.sim.measured.objects.items()}
+        objects = {name: (pose.pos, pose.quat) for name, pose in self.sim.measured.objects.items()}
         self.servo.step(command, objects)
         self.sim.tick()
         if self.view.grip is not None:
@@ -150,14 +149,8 @@ class Runner:
         """The result record printed by ``nextage-qp run --json``."""
         c = self.cfg
         return summarize(task=c.task, robot=self.robot, sim=self.sim, monitor=self.monitor, records=self.records,
-                         obj=c.object, target=c.target, success_threshold=c.success_threshold, error=self.error,
-                         wall_s=self.wall_s)
-
-
-def _quat(rot: np.ndarray) -> np.ndarray:
-    quat = np.empty(4)
-    mujoco.mju_mat2Quat(quat, np.asarray(rot).reshape(-1))
-    return quat
+                         obj=c.object, target=c.target, criteria=c.success, error=self.error, wall_s=self.wall_s,
+                         extra={"target_clearance_m": self.placement.target_clearance_m})
 
 
 def _brief(info: dict[str, Any]) -> str:

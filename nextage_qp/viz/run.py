@@ -113,7 +113,7 @@ def plot_run(runner: Runner, path: Path) -> None:
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
     ax1.semilogy(t, np.maximum(np.linalg.norm(obj - tgt, axis=1), 1e-5), label="3-D")
     ax1.semilogy(t, np.maximum(np.linalg.norm((obj - tgt)[:, :2], axis=1), 1e-5), label="x-y")
-    ax1.axhline(runner.cfg.success_threshold, color="k", ls="--", lw=0.8, label="success threshold")
+    ax1.axhline(runner.cfg.success.planar_error, color="k", ls="--", lw=0.8, label="success threshold (x-y)")
     for i, ph in enumerate(runner.records):
         if ph.status != "skipped":
             ax1.axvspan(ph.start_s, ph.start_s + ph.duration_s, color=f"C{i % 8}", alpha=0.08)

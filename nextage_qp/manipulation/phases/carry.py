@@ -9,8 +9,9 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from nextage_qp.errors import PhaseError
+from nextage_qp.geometry import rot_z, yaw_of
 from nextage_qp.ik import FrameTarget
-from nextage_qp.manipulation.context import Setpoint, View, resolve_point, rot_z, yaw_of
+from nextage_qp.manipulation.context import Setpoint, View, resolve_point
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
 from nextage_qp.servo import Command
 

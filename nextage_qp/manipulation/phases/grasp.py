@@ -7,8 +7,9 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
+from nextage_qp.geometry import rot_z, yaw_of
 from nextage_qp.ik import FrameTarget, RelativeTarget
-from nextage_qp.manipulation.context import Grip, Setpoint, View, rot_z, yaw_of
+from nextage_qp.manipulation.context import Grip, Setpoint, View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
 from nextage_qp.nextage import ARMS
 from nextage_qp.servo import Command

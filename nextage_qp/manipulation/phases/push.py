@@ -1,97 +1,329 @@
-r"""``push``: push an object to a target with one tool frame, re-planning every attempt from the live poses."""
+r"""``push``: closed-loop pushing of an object onto a target with one tool frame.
+
+The phase runs a small state machine, every step of it driven by the live object pose:
+
+* **approach** (transit): lift to ``clearance`` above the object, move over the point ``approach`` behind its
+  face on the line to the target, turn the wrist there (only once clear of the object), lower to the push
+  height. The IK avoids the object throughout (collision pairs with it in the IK config).
+* **push**: each tick the push direction :math:`\hat d` turns (at most ``turn_rate``) towards the live
+  object-to-target direction, the tool stays centred behind the object on that line, and it advances at a
+  speed that falls from ``push_speed`` to ``creep_speed`` over the last ``slow_down`` metres, never more than
+  ``preload`` into the object's face. When the object's remaining distance along :math:`\hat d` is gone, the
+  tool is commanded where it is, so the arm's compliance does not shove the object on.
+* **hold**: the object comes to rest and the error is measured: within ``tolerance`` the tool retreats and the
+  phase is done; short of the target on the same line, the push resumes (a nudge); otherwise the tool retreats,
+  lifts and approaches again from the side the residual error points to (up to ``attempts`` approaches). When
+  nothing is left to try, an error within ``accept`` ends the phase, a larger one fails it.
+"""
 
 from __future__ import annotations
 
 from typing import Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from nextage_qp.errors import PhaseError
+from nextage_qp.geometry import rot_z, yaw_of
 from nextage_qp.ik import FrameTarget
-from nextage_qp.manipulation.context import Setpoint, View, rot_z
-from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
+from nextage_qp.manipulation.context import Setpoint, View
+from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
 from nextage_qp.servo import Command
+
+PUSH_ACCEL = 0.1
+"""Acceleration of the push speed [m/s²]."""
+HEIGHT_GAIN = 5.0
+"""Integral gain of the tool-height hold while pushing [1/s]."""
+MAX_HEIGHT_BIAS = 0.01
+"""Largest correction of the commanded tool height while pushing [m]."""
+GAP_TIME = 0.5
+"""Before contact the tool closes the gap to the object in about this time [s] (slowly at the touch)."""
+REACHED = 0.005
+"""A transit waypoint counts as reached when the real tool is this close to it [m]."""
 
 
 class PushSpec(Spec):
-    """Push an object to a target with one tool frame, re-planning from the object's live pose."""
+    """Push an object onto a target with one tool frame, steering from the object's live pose."""
 
     kind: Literal["push"]
     frame: str = name_field("frame", description="Tool frame that pushes, e.g. left_tool.")
     object: str = name_field("object", description="Free body to push, e.g. cube.")
     target: str = name_field("body", description="Body marking where the object should end, e.g. cube_target.")
-    height: float = Field(default=0.0, description="Tool height relative to the object centre while pushing [m].")
-    approach: float = Field(default=0.05, gt=0, description="Gap behind the object before a push [m].")
-    clearance: float = Field(default=0.08, gt=0, description="Height above the object when moving around it [m].")
-    tolerance: float = Field(default=0.002, gt=0, description="Planar object error that ends the phase [m].")
-    attempts: int = Field(default=6, ge=1, description="Pushes before the phase gives up.")
-    speed: float = Field(default=0.12, gt=0, description="Speed of approach moves [m/s].")
-    push_speed: float = Field(default=0.05, gt=0, description="Speed while in contact [m/s].")
-    yaw: float = Field(default=0.0, description="Tool yaw relative to the push direction [rad].")
+    height: float = Field(default=0.0, ge=-0.2, le=0.2, description="Tool height over the object centre [m].")
+    approach: float = Field(default=0.04, gt=0, le=0.3, description="Gap behind the object before a push [m].")
+    clearance: float = Field(default=0.07, gt=0, le=0.5, description="Height over the object's top in transit [m].")
+    tolerance: float = Field(default=0.002, gt=0, le=0.1, description="Planar error that ends the phase [m].")
+    accept: float = Field(default=0.005, gt=0, le=0.2, description="Error accepted when no try is left [m].")
+    attempts: int = Field(default=4, ge=1, le=20, description="Approaches (the first push and re-approaches).")
+    nudges: int = Field(default=3, ge=0, le=20, description="Resumed pushes on the same line per approach.")
+    speed: float = Field(default=0.15, gt=0, le=1.0, description="Transit speed [m/s].")
+    push_speed: float = Field(default=0.05, gt=0, le=0.5, description="Top speed in contact [m/s].")
+    creep_speed: float = Field(default=0.005, gt=0, le=0.1, description="Speed at the target [m/s].")
+    slow_down: float = Field(default=0.04, gt=0, le=0.5, description="Distance over which the push slows [m].")
+    preload: float = Field(default=0.012, gt=0, le=0.05, description="Lead of the tool into the object [m].")
+    turn_rate: float = Field(default=0.5, gt=0, le=5.0, description="Turn rate of the push direction [rad/s].")
+    freeze: float = Field(default=0.04, ge=0, le=0.2, description="Distance inside which the direction is kept [m].")
+    centre_band: float = Field(default=0.01, ge=0, le=0.1,
+                               description="Offset of the object along the tool face left alone [m].")
+    max_tilt: float = Field(default=0.07, gt=0, le=1.0,
+                            description="Object tilt above which the push pauses until it is flat again [rad].")
+    settle: float = Field(default=0.3, ge=0, le=MAX_SECONDS, description="Rest before the error is judged [s].")
+    yaw: float = Field(default=0.0, ge=-np.pi, le=np.pi, description="Tool yaw relative to the push [rad].")
+    pitch: float = Field(default=0.0, ge=-0.8, le=0.8,
+                         description="Tool pitch [rad]; > 0 tilts the push face's normal down.")
+    standoff: float = Field(default=0.004, ge=0, le=0.05,
+                            description="The first push stops this short of the target; a short push aimed from "
+                                        "the side the error then points to finishes the job [m].")
+    correction_fan: float = Field(default=0.53, ge=0, le=1.6,
+                                  description="Largest deviation from the error's direction for a correction [rad].")
+    fan: tuple[float, ...] = Field(
+        default=(0.0, 0.2618, 0.5236, 0.7854, 1.0472), min_length=1,
+        description="Deviations from the line to the target tried, each way, when its approach is out of reach [rad].",
+    )
+
+    @model_validator(mode="after")
+    def _accept_covers_tolerance(self) -> PushSpec:
+        if self.accept < self.tolerance:
+            raise ValueError(f"accept ({self.accept} m) must be >= tolerance ({self.tolerance} m)")
+        if self.creep_speed > self.push_speed:
+            raise ValueError(f"creep_speed ({self.creep_speed}) must be <= push_speed ({self.push_speed})")
+        return self
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = float(np.linalg.norm(v))
+    return v / n if n > 1e-12 else np.array([1.0, 0.0])
+
+
+def _rotate(d: np.ndarray, angle: float) -> np.ndarray:
+    """Planar vector ``d`` rotated by ``angle`` [rad]."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([c * d[0] - s * d[1], s * d[0] + c * d[1]])
+
+
+def _turn(d: np.ndarray, goal: np.ndarray, max_angle: float) -> np.ndarray:
+    """``d`` turned towards ``goal`` (planar unit vectors) by at most ``max_angle`` [rad]."""
+    angle = float(np.arctan2(d[0] * goal[1] - d[1] * goal[0], d @ goal))
+    return _rotate(d, float(np.clip(angle, -max_angle, max_angle)))
 
 
 class Push(Phase):
-    r"""Approach behind the object on its line to the target, push, re-check; up to ``attempts`` times.
-
-    Each attempt re-plans from the live poses: direction :math:`\hat d = (p_t - p_o)_{xy} / \|\cdot\|`,
-    approach point :math:`p_o - \hat d (h + a)`, and the push ends where the tool face puts the object's
-    centre on the target, :math:`p_t - \hat d h` (:math:`h` = the object's half-extent along
-    :math:`\hat d`, :math:`a` = approach gap [m]).
-    """
+    """See the module docstring."""
 
     spec: PushSpec
 
     def start(self, view: View) -> None:  # noqa: D102
-        self.attempt = 0
-        self.sp = Setpoint(view.commanded_pose(self.spec.frame).pos)
-        self._plan(view)
+        pos, rot = view.commanded_pose(self.spec.frame)
+        self.sp = Setpoint(pos)
+        self.tool_yaw = yaw_of(rot)
+        self.approaches = 0
+        self.info.update(attempts=0, nudges=0)
+        self._approach(view, self._to_target(view))
+        if self.plan_failed:
+            raise PhaseError(f"phase {self.name!r} (push): no approach to {self.spec.object} within "
+                             f"{np.degrees(max(self.spec.fan)):.0f} deg of its line to {self.spec.target} is reachable")
 
-    def _plan(self, view: View) -> None:
+    def _planar(self, view: View) -> tuple[np.ndarray, np.ndarray, float]:
+        obj, tgt = view.body_pose(self.spec.object).pos, view.body_pose(self.spec.target).pos
+        return obj, tgt, float(np.linalg.norm((tgt - obj)[:2]))
+
+    def _to_target(self, view: View) -> np.ndarray:
+        obj, tgt, _ = self._planar(view)
+        return _unit((tgt - obj)[:2])
+
+    def _routes(self, view: View, d: np.ndarray) -> list[list[np.ndarray]]:
+        """Transit routes to the point behind the object for direction ``d``.
+
+        Lift, then down beside the object (on the side the tool is on) and in behind it; or over it and straight
+        down behind it.
+        """
         c = self.spec
         obj = view.body_pose(c.object).pos
-        tgt = view.body_pose(c.target).pos
-        delta = (tgt - obj)[:2]
-        d = np.array([*delta / max(np.linalg.norm(delta), 1e-9), 0.0])
-        half = view.extent(c.object, d)
-        z = obj[2] + c.height
-        behind = obj - d * (half + c.approach)
-        behind[2] = z
-        finish = tgt - d * half
-        finish[2] = z
-        start = self.sp.pos
-        lift_z = max(start[2], obj[2] + half + c.clearance)
-        self.rot = rot_z(float(np.arctan2(d[1], d[0])) + c.yaw)
-        self.legs = [
-            (np.array([start[0], start[1], lift_z]), c.speed),
-            (np.array([behind[0], behind[1], lift_z]), c.speed),
-            (behind, c.speed),
-            (finish, c.push_speed),
-        ]
-        self.leg = 0
-        self.wait_from: float | None = None
-        self.attempt += 1
-        self.info.update(attempts=self.attempt, direction=d[:2].round(4).tolist())
+        d3, n3 = np.array([*d, 0.0]), np.array([-d[1], d[0], 0.0])
+        behind = obj - d3 * (view.extent(c.object, d3) + c.approach)
+        behind[2] = obj[2] + c.height
+        top = obj[2] + view.extent(c.object, np.array([0.0, 0.0, 1.0]))
+        lift = max(self.sp.pos[2], top + c.clearance)
+        side = 1.0 if float((self.sp.pos - obj) @ n3) >= 0 else -1.0
+        beside = behind + side * n3 * (view.extent(c.object, side * n3) + c.approach)
+        up = np.array([0.0, 0.0, lift - behind[2]])
+        start = np.array([*self.sp.pos[:2], lift])
+        return [[start, beside + up, beside, behind], [start, behind + up, behind]]
+
+    def _approach(self, view: View, d_goal: np.ndarray) -> None:
+        """Plan the next approach: the direction closest to ``d_goal`` with a route the arm can reach.
+
+        Every waypoint after the lift gets joints from the planner, each solved from the previous one's, so the
+        transit moves through neighbouring configurations (no local minimum of the streaming IK to get stuck in).
+        """
+        c = self.spec
+        self.approaches += 1
+        self.nudges = 0
+        tried, plan = 0, None
+        fan = c.fan if self.approaches == 1 else tuple(a for a in c.fan if a <= c.correction_fan)
+        for deviation in (s * a for a in fan for s in ((1.0,) if a == 0 else (1.0, -1.0))):
+            d = _rotate(d_goal, deviation)
+            yaw = float(np.arctan2(d[1], d[0])) + c.yaw
+            tried += 1
+            for route in self._routes(view, d):
+                joints = self._plan_route(view, route, yaw)
+                if joints is not None:
+                    plan = (d, route, yaw, joints)
+                    break
+            if plan is not None:
+                break
+        self.info.update(attempts=self.approaches, directions_tried=tried)
+        if plan is None:
+            self.plan_failed = True
+            return
+        self.d, self.route, self.goal_yaw, self.route_q = plan
+        self.info["direction"] = self.d.round(4).tolist()
+        self.stage, self.leg, self.plan_failed = "transit", 0, False
+
+    def _plan_route(self, view: View, route: list[np.ndarray], yaw: float) -> list[np.ndarray] | None:
+        joints: list[np.ndarray] = []
+        start = None
+        for point in route[1:]:
+            q = view.plan([FrameTarget(self.spec.frame, pos=point, rot=self._rot(yaw))], start)
+            if q is None:
+                return None
+            joints.append(q)
+            start = q
+        return joints
+
+    def _command(self, allow: bool, done: bool = False) -> Command:
+        target = FrameTarget(self.spec.frame, pos=self.sp.pos.copy(), rot=self._rot(self.tool_yaw))
+        return Command((target,), allow=frozenset({self.spec.object}) if allow else frozenset(), done=done)
+
+    def _rot(self, yaw: float) -> np.ndarray:
+        c, s = np.cos(self.spec.pitch), np.sin(self.spec.pitch)
+        return rot_z(yaw) @ np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+    def _turn_tool(self, view: View) -> bool:
+        """Turn the commanded tool yaw towards the goal at the turn rate; True once there."""
+        err = float(np.angle(np.exp(1j * (self.goal_yaw - self.tool_yaw))))
+        step = self.spec.turn_rate * view.dt
+        self.tool_yaw += float(np.clip(err, -step, step))
+        return abs(err) <= step
 
     def update(self, view: View) -> Command:  # noqa: D102
+        if self.stage == "transit":
+            return self._transit(view)
+        if self.stage == "push":
+            return self._push(view)
+        if self.stage == "hold":
+            return self._hold(view)
+        return self._retreat(view)
+
+    def _transit(self, view: View) -> Command:
+        """Lift straight up, then move through the planned joints of each waypoint."""
         c = self.spec
-        if self.leg < len(self.legs):
-            goal, speed = self.legs[self.leg]
-            if self.sp.advance(goal, speed, view.dt) and (self.leg < len(self.legs) - 1 or view.settled()):
-                self.leg += 1
-        elif self.wait_from is None:
-            self.wait_from = view.t
-        elif view.t - self.wait_from > 0.2:
-            obj = view.body_pose(c.object).pos
-            tgt = view.body_pose(c.target).pos
-            err = float(np.linalg.norm((obj - tgt)[:2]))
-            self.info["object_error_xy_m"] = err
-            if err <= c.tolerance:
-                return Command((FrameTarget(c.frame, pos=self.sp.pos, rot=self.rot),), done=True)
-            if self.attempt >= c.attempts:
-                raise PhaseError(f"phase {self.name!r} (push): {c.object} is still {err * 1e3:.1f} mm from "
-                                 f"{c.target} after {c.attempts} attempts (tolerance {c.tolerance * 1e3:g} mm)")
-            back = self.sp.pos - np.array([*self.info["direction"], 0.0]) * c.approach
-            self.sp.jump(back)  # retreat along the line before the next attempt
-            self._plan(view)
-        return Command((FrameTarget(c.frame, pos=self.sp.pos, rot=self.rot),))
+        goal = self.route[self.leg]
+        if self.leg == 0:
+            if self.sp.advance(goal, c.speed, view.dt):
+                self.leg = 1
+            return self._command(allow=False)
+        near = float(np.linalg.norm(view.frame_pose(c.frame).pos - goal)) < REACHED
+        command = Command(joints=dict(zip(view.joint_names(), self.route_q[self.leg - 1], strict=True)))
+        if near and view.settled():
+            self.leg += 1
+            if self.leg == len(self.route):
+                pos, rot = view.commanded_pose(c.frame)
+                self.sp.jump(pos)
+                self.tool_yaw = yaw_of(rot)
+                self.push_z, self.z_bias = float(self.route[-1][2]), 0.0
+                self._begin_push(touched=False)
+        return command
+
+    def _begin_push(self, touched: bool) -> None:
+        self.stage, self.v, self.touched = "push", 0.0, touched
+
+    def _push(self, view: View) -> Command:
+        c = self.spec
+        obj_pose = view.body_pose(c.object)
+        obj, tgt = obj_pose.pos, view.body_pose(c.target).pos
+        dist = float(np.linalg.norm((tgt - obj)[:2]))
+        if dist > c.freeze and self.touched:  # turn only once in contact: the approach side was chosen to reach
+            self.d = _turn(self.d, _unit((tgt - obj)[:2]), c.turn_rate * view.dt)
+            self.goal_yaw = float(np.arctan2(self.d[1], self.d[0])) + c.yaw
+        self._turn_tool(view)
+        d, n = self.d, np.array([-self.d[1], self.d[0]])
+        remaining = float((tgt - obj)[:2] @ d)
+        if remaining <= (c.standoff if self.approaches == 1 and self.nudges == 0 else 0.2 * c.tolerance):
+            self.sp.jump(np.array([*view.frame_pose(c.frame).pos[:2], self.sp.pos[2]]))  # stop pushing, no shove
+            self.stage, self.hold_from, self.v = "hold", view.t, 0.0
+            return self._command(allow=True)
+        half = view.extent(c.object, np.array([*d, 0.0]))
+        rel = self.sp.pos[:2] - obj[:2]
+        along, lateral = float(rel @ d), float(rel @ n)
+        gap = max(-half - along, 0.0)  # the setpoint's distance to the object's face before contact
+        wanted = float(np.clip(c.push_speed * (remaining + gap) / c.slow_down, c.creep_speed, c.push_speed))
+        self.touched = self.touched or gap < 1e-3
+        if not self.touched:
+            wanted = min(wanted, max(c.creep_speed, gap / GAP_TIME))  # touch the object slowly
+        self.v = min(wanted, self.v + PUSH_ACCEL * view.dt)
+        tilted = float(np.arccos(np.clip(obj_pose.rot[2, 2], -1.0, 1.0))) > c.max_tilt
+        lead = 0.0 if tilted else c.preload  # a tipping object gets no push until it is flat again
+        self.info["tilt_pauses"] = self.info.get("tilt_pauses", 0) + int(tilted)
+        along = min(along + self.v * view.dt, -half + lead)
+        if self.touched:  # in contact, recentre only near the face's edge (sliding along it drags the object)
+            excess = lateral - float(np.clip(lateral, -c.centre_band, c.centre_band))
+            lateral -= float(np.clip(excess, -c.creep_speed * view.dt, c.creep_speed * view.dt))
+        else:
+            lateral -= float(np.clip(lateral, -c.push_speed * view.dt, c.push_speed * view.dt))
+        # Hold the real tool at the push height: contact forces lift a compliant arm, and a hand sliding up the
+        # object's face drags it onto the table (more friction, more force, more lift).
+        rise = view.frame_pose(c.frame).pos[2] - self.push_z
+        self.z_bias = float(np.clip(self.z_bias - HEIGHT_GAIN * rise * view.dt, -MAX_HEIGHT_BIAS, MAX_HEIGHT_BIAS))
+        self.sp.pos = np.array([*(obj[:2] + along * d + lateral * n), self.push_z + self.z_bias])
+        return self._command(allow=True)
+
+    def _hold(self, view: View) -> Command:
+        c = self.spec
+        if view.t - self.hold_from < c.settle:
+            return self._command(allow=True)
+        obj, tgt, err = self._planar(view)
+        self.info["object_error_xy_m"] = err
+        e = (tgt - obj)[:2]
+        if err <= c.tolerance:
+            return self._start_retreat(final=True)
+        short = float(e @ self.d) > 0 and abs(float(e @ np.array([-self.d[1], self.d[0]]))) <= c.tolerance
+        if short and self.nudges < c.nudges:
+            self.nudges += 1
+            self.info["nudges"] += 1
+            self._begin_push(touched=True)
+            return self._command(allow=True)
+        if self.approaches < c.attempts:
+            self.next_d = _unit(e)
+            return self._start_retreat(final=False)
+        return self._finish(err)
+
+    def _finish(self, err: float) -> Command:
+        """Nothing left to try: accept the error within ``accept`` (retreat and end) or fail."""
+        c = self.spec
+        if err <= c.accept:
+            return self._start_retreat(final=True)
+        raise PhaseError(f"phase {self.name!r} (push): {c.object} is still {err * 1e3:.1f} mm from {c.target} "
+                         f"after {self.approaches} approaches (tolerance {c.tolerance * 1e3:g} mm, accepted "
+                         f"{c.accept * 1e3:g} mm)")
+
+    def _start_retreat(self, final: bool) -> Command:
+        c = self.spec
+        back = self.sp.pos - np.array([*self.d, 0.0]) * c.approach
+        self.route = [back, back + np.array([0.0, 0.0, c.clearance])]
+        self.stage, self.leg, self.final = "retreat", 0, final
+        return self._command(allow=True)
+
+    def _retreat(self, view: View) -> Command:
+        if self.leg < len(self.route) and self.sp.advance(self.route[self.leg], self.spec.speed, view.dt):
+            self.leg += 1
+        if self.leg < len(self.route):
+            return self._command(allow=self.leg == 0)
+        if self.final:
+            return self._command(allow=False, done=view.settled())
+        self._approach(view, self.next_d)
+        if self.plan_failed:  # no reachable side to correct from
+            self.info["unreachable_corrections"] = self.info.get("unreachable_corrections", 0) + 1
+            _, _, err = self._planar(view)
+            return self._finish(err)
+        return self._command(allow=False)

@@ -1,0 +1,122 @@
+"""Refuse what cannot be done before moving.
+
+An object whose target rest pose overlaps an obstacle or is not over the table, or whose start pose intersects
+something, is refused. The target rest pose is the target's x, y and yaw with the object standing on the table
+top (its lowest point on the top face). The object is placed there in a scratch copy of the scene and its
+distance to every obstacle geom is measured: an overlap is a :class:`~nextage_qp.errors.ConfigError` (exit 2)
+naming the obstacle and the depth; otherwise the smallest distance is the target's clearance, reported with the
+result.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+
+from nextage_qp.errors import ConfigError
+from nextage_qp.robot import Robot
+
+OVERLAP_TOLERANCE = 1e-4
+"""Penetration [m] below which two geoms count as touching, not overlapping."""
+
+
+class Placement(NamedTuple):
+    """The checked placement.
+
+    Attributes:
+        rest_pos: The object's origin when resting at the target [m].
+        target_clearance_m: Smallest distance from the object at rest on the target to an obstacle [m] (None when
+            the scene has no obstacle).
+    """
+
+    rest_pos: np.ndarray
+    target_clearance_m: float | None
+
+
+def _geom_corners(m: mujoco.MjModel, g: int) -> np.ndarray:
+    """The 8 corners of a geom's local bounding box, in its body's frame."""
+    centre, half = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float)
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, m.geom_quat[g])
+    return m.geom_pos[g] + (centre + signs * half) @ rot.reshape(3, 3).T
+
+
+def table_top(robot: Robot, data: mujoco.MjData) -> tuple[float, list[int]]:
+    """Height of the table's top face [m] and the table's geoms (ConfigError when the scene has no table)."""
+    geoms = list(robot.collision_geoms().get("table", ()))
+    if not geoms:
+        raise ConfigError(f"{robot.scene}: the scene has no table to place objects on")
+    m = robot.model
+    tops = [float(data.geom_xpos[g, 2] + np.abs(data.geom_xmat[g].reshape(3, 3)[2]) @ m.geom_size[g]) for g in geoms]
+    return max(tops), geoms
+
+
+def _over_table(robot: Robot, data: mujoco.MjData, geoms: list[int], xy: np.ndarray) -> bool:
+    m = robot.model
+    for g in geoms:
+        if m.geom_type[g] != mujoco.mjtGeom.mjGEOM_BOX:
+            continue
+        local = data.geom_xmat[g].reshape(3, 3).T @ (np.array([*xy, data.geom_xpos[g, 2]]) - data.geom_xpos[g])
+        if np.all(np.abs(local[:2]) <= m.geom_size[g][:2]):
+            return True
+    return False
+
+
+def _closest(robot: Robot, data: mujoco.MjData, obj_geoms: list[int], others: list[int]) -> tuple[float, int]:
+    """Smallest signed distance [m] between two geom sets (capped at 0.1 m) and the other geom involved."""
+    best, which = 0.1, -1
+    for a in obj_geoms:
+        for b in others:
+            dist = float(mujoco.mj_geomDistance(robot.model, data, a, b, 0.1, None))
+            if dist < best:
+                best, which = dist, b
+    return best, which
+
+
+def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, source: str) -> Placement:
+    """Check the object's start pose and its rest pose at the target (see the module docstring).
+
+    Raises:
+        ConfigError: The target rest pose overlaps an obstacle or is not over the table, or the start pose
+            overlaps the robot, an obstacle or the table (one line with the word "overlaps" and the depth).
+    """
+    m = robot.model
+    data = mujoco.MjData(m)
+    robot.set_q(data, start_q)
+    mujoco.mj_forward(m, data)
+    tid = m.body(target).id
+    groups = robot.collision_geoms()
+    obj_geoms = list(groups.get(obj, ()))
+    obstacles = list(groups.get("obstacle", ()))
+    top, table = table_top(robot, data)
+    others = [g for g in range(m.ngeom) if (m.geom_contype[g] or m.geom_conaffinity[g]) and g not in obj_geoms]
+    dist, geom = _closest(robot, data, obj_geoms, others)
+    if dist < -1e-3:  # resting contact allows a little penetration
+        raise ConfigError(f"{source}: scene.poses.{obj}: the start pose of {obj} overlaps "
+                          f"{_name(m, geom)} by {-dist * 1e3:.1f} mm")
+    lowest = min(_geom_corners(m, g)[:, 2].min() for g in obj_geoms)
+    rest = data.xpos[tid].copy()
+    rest[2] = top - lowest
+    tyaw = float(np.arctan2(data.xmat[tid][3], data.xmat[tid][0]))
+    if not _over_table(robot, data, table, rest[:2]):
+        raise ConfigError(f"{source}: target: {obj} at the target ({rest[0]:.3f}, {rest[1]:.3f}) is not over the "
+                          "table; move the target onto the table top")
+    adr = robot.object_qpos_slice(obj)
+    data.qpos[adr] = [*rest, np.cos(tyaw / 2), 0.0, 0.0, np.sin(tyaw / 2)]
+    mujoco.mj_forward(m, data)
+    clearance = None
+    if obstacles:
+        clearance, geom = _closest(robot, data, obj_geoms, obstacles)
+        if clearance < -OVERLAP_TOLERANCE:
+            raise ConfigError(f"{source}: target: {obj} resting at the target ({rest[0]:.3f}, {rest[1]:.3f}, yaw "
+                              f"{np.degrees(tyaw):.1f} deg) overlaps {_name(m, geom)} by {-clearance * 1e3:.1f} mm; "
+                              "no placement there is possible")
+    return Placement(rest, clearance)
+
+
+def _name(m: mujoco.MjModel, geom: int) -> str:
+    body = m.body(int(m.geom_bodyid[geom])).name
+    return body if not m.geom(geom).name or m.geom(geom).name == body else f"{body} ({m.geom(geom).name})"
