@@ -16,6 +16,10 @@ class ConfigError(NextageQPError):
     """A configuration file or value is invalid."""
 
 
+class InfeasibleError(ConfigError):
+    """The config is valid, but its scene asks for what cannot be done (e.g. a target overlapping an obstacle)."""
+
+
 class UnknownNameError(NextageQPError, KeyError):
     """A name (joint, frame, object, geom group, ...) is not in the model.
 

@@ -9,24 +9,72 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
+import mujoco
 import numpy as np
 
 from nextage_qp.geometry import Pose
+
+
+class Wrench(NamedTuple):
+    """A contact wrench in the world frame: force [N] and torque about the sensor's site [N m]."""
+
+    force: np.ndarray
+    torque: np.ndarray
+
+
+class WrenchSensor:
+    """A force/torque pair on a site: the wrench the world exerts on the site's body through contacts.
+
+    MuJoCo's sensors give the force and torque between the body and its parent. At rest, the parent carries the
+    body's weight and every contact on it, so the contact wrench is ``F = -F_sensor - m g`` and
+    ``T = -T_sensor - (c - p) x m g`` (``c`` the body's centre of mass, ``p`` the site); motion adds the body's
+    inertial force ``m a``, small in slow manipulation.
+    """
+
+    def __init__(self, model: mujoco.MjModel, force_sensor: int, torque_sensor: int) -> None:
+        self.site = int(model.sensor_objid[force_sensor])
+        self.name = model.site(self.site).name
+        self.body = int(model.site_bodyid[self.site])
+        self.mass = float(model.body_mass[self.body])
+        self.force_adr, self.torque_adr = int(model.sensor_adr[force_sensor]), int(model.sensor_adr[torque_sensor])
+        self.gravity = np.array(model.opt.gravity)
+
+    def read(self, data: mujoco.MjData) -> Wrench:
+        """The contact wrench now, in the world frame."""
+        rot = data.site_xmat[self.site].reshape(3, 3)
+        weight = self.mass * self.gravity
+        force = -rot @ data.sensordata[self.force_adr : self.force_adr + 3] - weight
+        lever = data.xipos[self.body] - data.site_xpos[self.site]
+        torque = -rot @ data.sensordata[self.torque_adr : self.torque_adr + 3] - np.cross(lever, weight)
+        return Wrench(force, torque)
+
+    @staticmethod
+    def of_model(model: mujoco.MjModel) -> list[WrenchSensor]:
+        """Every site that carries both a force and a torque sensor."""
+        by_site: dict[int, dict[int, int]] = {}
+        for s in range(model.nsensor):
+            if model.sensor_objtype[s] == mujoco.mjtObj.mjOBJ_SITE:
+                by_site.setdefault(int(model.sensor_objid[s]), {})[int(model.sensor_type[s])] = s
+        force, torque = int(mujoco.mjtSensor.mjSENS_FORCE), int(mujoco.mjtSensor.mjSENS_TORQUE)
+        return [WrenchSensor(model, kinds[force], kinds[torque]) for kinds in by_site.values()
+                if force in kinds and torque in kinds]
 
 
 @dataclass(frozen=True)
 class Measurement:
     """What the controller knows after a tick.
 
-    Time [s], joint positions [rad] and velocities [rad/s], and the pose of every free object.
+    Time [s], joint positions [rad] and velocities [rad/s], the pose of every free object, and the contact
+    wrench at every force/torque site.
     """
 
     t: float
     q: np.ndarray
     qd: np.ndarray
     objects: Mapping[str, Pose] = field(default_factory=dict)
+    wrenches: Mapping[str, Wrench] = field(default_factory=dict)
 
 
 class Sensors(Protocol):
@@ -38,6 +86,9 @@ class Sensors(Protocol):
     def objects(self, t: float, true: Mapping[str, Pose]) -> Mapping[str, Pose]:
         """Measured object poses at time ``t`` [s] (every control tick)."""
 
+    def wrenches(self, t: float, true: Mapping[str, Wrench]) -> Mapping[str, Wrench]:
+        """Measured contact wrenches at time ``t`` [s] (every control tick)."""
+
 
 class PerfectSensors:
     """Sensors that report the simulator's state exactly."""
@@ -46,4 +97,7 @@ class PerfectSensors:
         return q, qd
 
     def objects(self, t: float, true: Mapping[str, Pose]) -> Mapping[str, Pose]:  # noqa: D102
+        return true
+
+    def wrenches(self, t: float, true: Mapping[str, Wrench]) -> Mapping[str, Wrench]:  # noqa: D102
         return true

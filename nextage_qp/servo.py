@@ -36,6 +36,7 @@ class Command:
         relative: Relative-pose targets between two frames (e.g. the clamp pads).
         joints: A joint goal, joint name -> angle [rad]; the IK is not stepped on such a tick.
         allow: Collision groups the IK may let touch on this tick (e.g. the object being pushed).
+        posture: Joints [rad] the IK's redundancy heads for on this tick (default: the configured posture).
         done: The phase has finished (this command still runs for the tick).
     """
 
@@ -43,6 +44,7 @@ class Command:
     relative: tuple[RelativeTarget, ...] = ()
     joints: Mapping[str, float] | None = None
     allow: frozenset[str] = frozenset()
+    posture: np.ndarray | None = None
     done: bool = False
 
     @property
@@ -94,7 +96,7 @@ class Servo:
         elif not command.holds:
             dt = self.sim.ctrl_dt
             v = self.ik.step(self._q, command.targets, dt, relative=command.relative, object_poses=object_poses,
-                             allow=command.allow)
+                             allow=command.allow, posture=command.posture)
             self._q = np.clip(self._q + v * dt, r.lower, r.upper)
         self.sim.set_target(self._q)
         return self.q_cmd

@@ -27,7 +27,7 @@ from nextage_qp.control import Gains, PDController
 from nextage_qp.errors import SimulationError
 from nextage_qp.recorder import Recorder, StageTimer
 from nextage_qp.robot import Robot
-from nextage_qp.sensors import Measurement, PerfectSensors, Pose, Sensors
+from nextage_qp.sensors import Measurement, PerfectSensors, Pose, Sensors, WrenchSensor
 from nextage_qp.trajectory import JointTrajectory, RefState, TrajectoryLimits
 
 Hook = Callable[["Simulation"], None]
@@ -105,6 +105,7 @@ class Simulation:
         self.sensors: Sensors = sensors or PerfectSensors()
         self._perfect = sensors is None or isinstance(sensors, PerfectSensors)
         self.frames = tuple(robot.frame(f) for f in frames)
+        self.wrench_sensors = WrenchSensor.of_model(self.model)
         self.objects = tuple((name, robot.object_qpos_slice(name), robot.model.body(name).id)
                              for name in robot.object_names)
         self.recorder = Recorder(robot.joint_names, tuple(frames), tuple(n for n, _, _ in self.objects),
@@ -142,8 +143,10 @@ class Simulation:
         return {name: Pose(d.xpos[b].copy(), d.xmat[b].reshape(3, 3).copy()) for name, _, b in self.objects}
 
     def _measure(self) -> None:
-        q, qd = self.sensors.joints(self.time, self.q, self.qd)
-        self.measured = Measurement(self.time, q, qd, self.sensors.objects(self.time, self.object_poses()))
+        t, sensors = self.time, self.sensors
+        q, qd = sensors.joints(t, self.q, self.qd)
+        wrenches = {w.name: w.read(self.data) for w in self.wrench_sensors}
+        self.measured = Measurement(t, q, qd, sensors.objects(t, self.object_poses()), sensors.wrenches(t, wrenches))
 
     def reset(self, q0: np.ndarray) -> None:
         """Robot at rest at ``q0`` [rad], objects at their scene start poses, empty log, reference = ``q0``."""

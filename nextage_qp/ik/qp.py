@@ -46,6 +46,7 @@ class QPIK:
             q_posture = robot.q_from_names(config.posture_target, base=robot.keyframe_q("home"))
         self.posture = mink.PostureTask(self.model, cost=config.posture_cost)
         self.posture.set_target(q_posture)
+        self.default_posture = q_posture
         default = float(IKConfig.model_fields["velocity_limit"].default)
         vmax = per_joint(config.velocity_limit, default, robot.joint_names)
         margin = np.minimum(config.limit_margin, 0.45 * (robot.upper - robot.lower))
@@ -94,11 +95,13 @@ class QPIK:
         relative: Sequence[RelativeTarget] = (),
         object_poses: ObjectPoses | None = None,
         allow: frozenset[str] = frozenset(),
+        posture: np.ndarray | None = None,
     ) -> np.ndarray:
         """One IK step: the joint velocity v [rad/s] (15,) minimising the task costs for a step of ``dt`` [s].
 
         ``allow`` names collision groups whose pairs are not avoided on this step (e.g. the object a push is
-        in contact with).
+        in contact with); ``posture`` replaces the configured posture target on this step (e.g. a configuration a
+        planner found for where the motion is going, so the redundancy heads there).
 
         Raises:
             IKInfeasibleError: The QP has no solution; the message names the active limits.
@@ -106,6 +109,7 @@ class QPIK:
         """
         if self.collision is not None:
             self.collision.allow(self._allowed(allow))
+        self.posture.set_target(self.default_posture if posture is None else posture)
         if object_poses:
             set_object_poses(self.model, self.configuration.data, object_poses)
         self.configuration.update(np.asarray(q, dtype=float))

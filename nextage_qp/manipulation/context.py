@@ -7,7 +7,7 @@ Phases never touch the simulation, the IK or mink: they read the view and return
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import mujoco
@@ -16,7 +16,10 @@ import numpy as np
 from nextage_qp.errors import UnknownNameError
 from nextage_qp.geometry import Pose, rot_z, yaw_of
 from nextage_qp.ik import QPIK, FrameTarget, RelativeTarget
+from nextage_qp.kinematics import Kinematics
+from nextage_qp.manipulation.placement import obstacle_top, rest_height, table_top
 from nextage_qp.robot import Robot
+from nextage_qp.sensors import Wrench
 from nextage_qp.servo import Servo
 from nextage_qp.sim import Simulation
 
@@ -62,6 +65,9 @@ class Grip:
         offsets: Pad frame -> its clamp point in the object's frame [m].
         rotations: Pad frame -> its rotation in the object's frame.
         relative: The first pad's commanded pose in the second pad's frame when the clamp closed.
+        lateral: The clamp axis (from the second pad to the first) in the object's frame.
+        force: Squeeze force [N] the pads keep (0: no force loop, the offsets stay as they are).
+        force_gain: Gain of the force loop [m/s per N].
     """
 
     object: str
@@ -69,6 +75,59 @@ class Grip:
     offsets: Mapping[str, np.ndarray]
     rotations: Mapping[str, np.ndarray]
     relative: RelativeTarget
+    lateral: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
+    force: float = 0.0
+    force_gain: float = 0.0
+
+
+FORCE_WINDOW = 0.1
+"""Time constant of the squeeze-force filter of the clamp's force loop [s]."""
+MAX_EASE = 0.0
+"""Most the force loop may open a pad from where the grasp left it [m]."""
+MAX_DEEPEN = 0.01
+"""Most the force loop may push a pad further in than the grasp left it [m]."""
+
+
+class Clamp:
+    r"""The pads of a :class:`Grip` around an object setpoint, squeezing at the grip's force.
+
+    Each pad's target is the setpoint plus its grip offset turned by the setpoint yaw, moved in along the clamp
+    axis by a depth that follows the measured squeeze force, :math:`\dot\delta = k_F (F^* - F)`.
+    """
+
+    SIDES = (1.0, -1.0)
+
+    def __init__(self, grip: Grip, relative_cost: float) -> None:
+        self.grip, self.relative_cost = grip, relative_cost
+        self.depth = [0.0 for _ in grip.frames]
+        self.felt = [grip.force for _ in grip.frames]
+
+    def targets(self, view: View, pos: np.ndarray, yaw: float) -> tuple[tuple[FrameTarget, ...], RelativeTarget]:
+        """Pad targets for the object setpoint ``(pos, yaw)`` and the relative target that ties them.
+
+        The squeeze depths follow the measured force first (low-passed over ``FORCE_WINDOW``), and never back off
+        more than ``MAX_EASE`` from where the grasp left them: the loop may ease a squeeze, never open the clamp.
+        """
+        g = self.grip
+        lateral = rot_z(yaw) @ g.lateral
+        if g.force > 0:
+            alpha = min(1.0, view.dt / FORCE_WINDOW)
+            for i, (frame, side) in enumerate(zip(g.frames, self.SIDES, strict=False)):
+                felt = float(side * (view.wrench(frame).force @ lateral))
+                self.felt[i] += alpha * (felt - self.felt[i])
+                step = float(np.clip(g.force_gain * (g.force - self.felt[i]), -0.01, 0.01)) * view.dt
+                self.depth[i] = float(np.clip(self.depth[i] + step, -MAX_EASE, MAX_DEEPEN))
+        return self.pads(pos, yaw)
+
+    def pads(self, pos: np.ndarray, yaw: float) -> tuple[tuple[FrameTarget, ...], RelativeTarget]:
+        """Pad targets for the object setpoint ``(pos, yaw)`` at the current squeeze depths, and their tie."""
+        g, rz = self.grip, rot_z(yaw)
+        lateral = rz @ g.lateral
+        points = [pos + rz @ g.offsets[f] - side * depth * lateral
+                  for f, side, depth in zip(g.frames, self.SIDES, self.depth, strict=False)]
+        targets = tuple(FrameTarget(f, pos=p, rot=rz @ g.rotations[f]) for f, p in zip(g.frames, points, strict=False))
+        poses = {t.frame: (np.asarray(t.pos), np.asarray(t.rot)) for t in targets}
+        return targets, RelativeTarget.between(g.frames[0], g.frames[1], poses, cost=self.relative_cost)
 
 
 class View(Protocol):
@@ -111,6 +170,24 @@ class View(Protocol):
     def joint_names(self) -> tuple[str, ...]:
         """The robot's joints, in the order of the joint vectors :meth:`plan` returns."""
 
+    def pose_at(self, frame: str, q: np.ndarray) -> Pose:
+        """World pose of a frame at joints ``q`` (e.g. a planned configuration)."""
+
+    def wrench(self, site: str) -> Wrench:
+        """Measured contact wrench on a site's body, world frame: force [N] and torque about the site [N m]."""
+
+    def rest_height(self, obj: str) -> float:
+        """Height of an object's origin when it stands on the table [m]."""
+
+    def table_top(self) -> float:
+        """Height of the table's top face [m]."""
+
+    def obstacle_top(self) -> float:
+        """Height of the highest obstacle's top [m] (the table top when there is none)."""
+
+    def yaw_symmetry(self, obj: str) -> float:
+        """Yaw [rad] after which an object looks the same (2 pi for none)."""
+
     def plan(self, targets: Sequence[FrameTarget], start: np.ndarray | None = None) -> np.ndarray | None:
         """Joints that put the frames on the targets together, or None when the arms cannot.
 
@@ -137,6 +214,7 @@ class SimView:
         self.grip: Grip | None = None
         self._boxes: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
         self._planner: QPIK | None = None
+        self._kinematics: Kinematics | None = None
 
     @property
     def t(self) -> float:
@@ -185,6 +263,36 @@ class SimView:
 
     def joint_names(self) -> tuple[str, ...]:  # noqa: D102
         return self.robot.joint_names
+
+    def pose_at(self, frame: str, q: np.ndarray) -> Pose:  # noqa: D102
+        if self._kinematics is None:
+            self._kinematics = Kinematics(self.robot)
+        return self._kinematics.fk(frame, q)
+
+    def wrench(self, site: str) -> Wrench:  # noqa: D102
+        m, d = self.robot.model, self._sim.data
+        kind, fid = self.robot.frame(site)
+        body = fid if kind == "body" else int(m.site_bodyid[fid])
+        for sensor in self._sim.wrench_sensors:
+            if sensor.body == body:
+                w = self._sim.measured.wrenches[sensor.name]
+                here = d.xpos[fid] if kind == "body" else d.site_xpos[fid]
+                return Wrench(w.force, w.torque + np.cross(d.site_xpos[sensor.site] - here, w.force))
+        with_sensor = [n for n in self.robot.site_names if int(m.site_bodyid[m.site(n).id]) in
+                       {s.body for s in self._sim.wrench_sensors}]
+        raise UnknownNameError("site on a body with a force/torque sensor", site, with_sensor)
+
+    def rest_height(self, obj: str) -> float:  # noqa: D102
+        return rest_height(self.robot, self._sim.data, obj)
+
+    def table_top(self) -> float:  # noqa: D102
+        return table_top(self.robot, self._sim.data)[0]
+
+    def obstacle_top(self) -> float:  # noqa: D102
+        return obstacle_top(self.robot, self._sim.data)
+
+    def yaw_symmetry(self, obj: str) -> float:  # noqa: D102
+        return self.robot.yaw_symmetry(obj)
 
     def extent(self, obj: str, direction: np.ndarray) -> float:  # noqa: D102
         boxes = self._boxes.get(obj)

@@ -3,7 +3,7 @@
 An object whose target rest pose overlaps an obstacle or is not over the table, or whose start pose intersects
 something, is refused. The target rest pose is the target's x, y and yaw with the object standing on the table
 top (its lowest point on the top face). The object is placed there in a scratch copy of the scene and its
-distance to every obstacle geom is measured: an overlap is a :class:`~nextage_qp.errors.ConfigError` (exit 2)
+distance to every obstacle geom is measured: an overlap is an :class:`~nextage_qp.errors.InfeasibleError` (exit 2)
 naming the obstacle and the depth; otherwise the smallest distance is the target's clearance, reported with the
 result.
 """
@@ -15,7 +15,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from nextage_qp.errors import ConfigError
+from nextage_qp.errors import ConfigError, InfeasibleError
 from nextage_qp.robot import Robot
 
 OVERLAP_TOLERANCE = 1e-4
@@ -54,6 +54,23 @@ def table_top(robot: Robot, data: mujoco.MjData) -> tuple[float, list[int]]:
     return max(tops), geoms
 
 
+def obstacle_top(robot: Robot, data: mujoco.MjData) -> float:
+    """Height [m] of the highest point of the obstacle geoms (the table top when the scene has none)."""
+    geoms = list(robot.collision_geoms().get("obstacle", ()))
+    if not geoms:
+        return table_top(robot, data)[0]
+    m = robot.model
+    return max(float(data.geom_xpos[g, 2] + np.abs(data.geom_xmat[g].reshape(3, 3)[2]) @ m.geom_size[g])
+               for g in geoms)
+
+
+def rest_height(robot: Robot, data: mujoco.MjData, obj: str) -> float:
+    """Height [m] of an object's origin when it stands upright on the table top (its lowest point on the top)."""
+    top, _ = table_top(robot, data)
+    geoms = list(robot.collision_geoms().get(obj, ()))
+    return top - min(_geom_corners(robot.model, g)[:, 2].min() for g in geoms)
+
+
 def _over_table(robot: Robot, data: mujoco.MjData, geoms: list[int], xy: np.ndarray) -> bool:
     m = robot.model
     for g in geoms:
@@ -80,7 +97,7 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
     """Check the object's start pose and its rest pose at the target (see the module docstring).
 
     Raises:
-        ConfigError: The target rest pose overlaps an obstacle or is not over the table, or the start pose
+        InfeasibleError: The target rest pose overlaps an obstacle or is not over the table, or the start pose
             overlaps the robot, an obstacle or the table (one line with the word "overlaps" and the depth).
     """
     m = robot.model
@@ -91,18 +108,17 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
     groups = robot.collision_geoms()
     obj_geoms = list(groups.get(obj, ()))
     obstacles = list(groups.get("obstacle", ()))
-    top, table = table_top(robot, data)
+    _, table = table_top(robot, data)
     others = [g for g in range(m.ngeom) if (m.geom_contype[g] or m.geom_conaffinity[g]) and g not in obj_geoms]
     dist, geom = _closest(robot, data, obj_geoms, others)
     if dist < -1e-3:  # resting contact allows a little penetration
-        raise ConfigError(f"{source}: scene.poses.{obj}: the start pose of {obj} overlaps "
+        raise InfeasibleError(f"{source}: scene.poses.{obj}: the start pose of {obj} overlaps "
                           f"{_name(m, geom)} by {-dist * 1e3:.1f} mm")
-    lowest = min(_geom_corners(m, g)[:, 2].min() for g in obj_geoms)
     rest = data.xpos[tid].copy()
-    rest[2] = top - lowest
+    rest[2] = rest_height(robot, data, obj)
     tyaw = float(np.arctan2(data.xmat[tid][3], data.xmat[tid][0]))
     if not _over_table(robot, data, table, rest[:2]):
-        raise ConfigError(f"{source}: target: {obj} at the target ({rest[0]:.3f}, {rest[1]:.3f}) is not over the "
+        raise InfeasibleError(f"{source}: target: {obj} at the target ({rest[0]:.3f}, {rest[1]:.3f}) is not over the "
                           "table; move the target onto the table top")
     adr = robot.object_qpos_slice(obj)
     data.qpos[adr] = [*rest, np.cos(tyaw / 2), 0.0, 0.0, np.sin(tyaw / 2)]
@@ -111,7 +127,7 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
     if obstacles:
         clearance, geom = _closest(robot, data, obj_geoms, obstacles)
         if clearance < -OVERLAP_TOLERANCE:
-            raise ConfigError(f"{source}: target: {obj} resting at the target ({rest[0]:.3f}, {rest[1]:.3f}, yaw "
+            raise InfeasibleError(f"{source}: target: {obj} resting at the target ({rest[0]:.3f}, {rest[1]:.3f}, yaw "
                               f"{np.degrees(tyaw):.1f} deg) overlaps {_name(m, geom)} by {-clearance * 1e3:.1f} mm; "
                               "no placement there is possible")
     return Placement(rest, clearance)

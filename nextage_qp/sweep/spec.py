@@ -25,7 +25,7 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from nextage_qp.errors import ConfigError
+from nextage_qp.errors import ConfigError, InfeasibleError
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import build_robot
 from nextage_qp.sweep.keys import key_hash, lookup, scene_default, yaml_scalar
@@ -165,22 +165,29 @@ class SweepSpec:
         Building the run (scene, names, gains, IK, simulation) catches what the schema cannot: an unknown body,
         a gains file that does not exist. Problems a scene shows only at run time are the episode's own.
         """
-        from nextage_qp.manipulation.runner import Runner
-
         for key, dist in self.distributions.items():
             values = dist.choice if dist.choice is not None else [self.value_at(key, b) for b in dist.bounds or ()]
             for value in values:
                 try:
                     cfg = load_config(self.base_path, [f"{key}={yaml_scalar(value)}"])
                     if dist.choice is not None:
-                        Runner(cfg, str(self.base_path))
+                        self._build(cfg)
                 except ConfigError as exc:
                     raise self._fail(key, f"value {yaml_scalar(value)}: {exc}") from None
         params, run_seed = self.draw(0, 0)
         try:
-            Runner(load_config(self.base_path, self.overrides(params, run_seed)), str(self.base_path))
+            self._build(load_config(self.base_path, self.overrides(params, run_seed)))
         except ConfigError as exc:
             raise ConfigError(f"{self.path}: randomize: {exc}") from None
+
+    def _build(self, cfg: Any) -> None:
+        """Build a run of ``cfg`` (scene, names, gains, IK); a scene it cannot do is an episode's own outcome."""
+        from nextage_qp.manipulation.runner import Runner
+
+        try:
+            Runner(cfg, str(self.base_path))
+        except InfeasibleError:
+            pass
 
     def value_at(self, key: str, bound: Bound) -> Any:
         """The value of ``key`` at one bound of its distribution (base value applied for offset and scale)."""

@@ -14,6 +14,7 @@ from nextage_qp.manipulation.phases.carry import Carry, CarrySpec
 from nextage_qp.manipulation.phases.grasp import Grasp, GraspSpec
 from nextage_qp.manipulation.phases.joints import Joints, JointsSpec
 from nextage_qp.manipulation.phases.move import Move, MoveSpec
+from nextage_qp.manipulation.phases.place import Place, PlaceSpec
 from nextage_qp.manipulation.phases.push import Push, PushSpec
 from nextage_qp.manipulation.phases.release import Release, ReleaseSpec
 from nextage_qp.manipulation.phases.wait import Wait, WaitSpec
@@ -42,6 +43,7 @@ register(MoveSpec, Move)
 register(PushSpec, Push)
 register(GraspSpec, Grasp)
 register(CarrySpec, Carry)
+register(PlaceSpec, Place)
 register(ReleaseSpec, Release)
 register(JointsSpec, Joints)
 register(WaitSpec, Wait)

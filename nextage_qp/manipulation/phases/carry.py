@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from nextage_qp.errors import PhaseError
-from nextage_qp.geometry import rot_z, yaw_of
-from nextage_qp.ik import FrameTarget
-from nextage_qp.manipulation.context import Setpoint, View, resolve_point
+from nextage_qp.geometry import yaw_of
+from nextage_qp.manipulation.context import Clamp, Setpoint, View, resolve_point
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
 from nextage_qp.servo import Command
 
@@ -60,8 +58,7 @@ class Carry(Phase):
         grip = view.grip
         if grip is None or grip.object != c.object:
             raise PhaseError(f"phase {self.name!r}: carry needs {c.object!r} clamped by a grasp phase first")
-        self.held = grip
-        self.relative = dataclasses.replace(grip.relative, cost=c.relative_cost)
+        self.clamp = Clamp(grip, c.relative_cost)
         obj, rot = view.body_pose(c.object)
         self.sp, yaw0 = Setpoint(obj), yaw_of(rot)
         self.goals = [resolve_point(view, w) for w in c.waypoints]
@@ -80,10 +77,8 @@ class Carry(Phase):
             span = float(np.linalg.norm(goal - start))
             frac = 1.0 if span < 1e-9 else 1.0 - float(np.linalg.norm(goal - self.sp.pos)) / span
             self.yaw = start_yaw + frac * (goal_yaw - start_yaw)
-        rz = rot_z(self.yaw)
-        targets = tuple(FrameTarget(f, pos=self.sp.pos + rz @ self.held.offsets[f], rot=rz @ self.held.rotations[f])
-                        for f in self.held.frames)
-        return Command(targets, (self.relative,), done=self.leg == len(self.goals) and view.settled())
+        targets, relative = self.clamp.targets(view, self.sp.pos, self.yaw)
+        return Command(targets, (relative,), done=self.leg == len(self.goals) and view.settled())
 
     def _leg_finished(self, view: View) -> bool:
         """At a waypoint marked ``correct``: once settled, shift it and the rest by the object's planar error."""

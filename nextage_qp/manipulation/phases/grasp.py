@@ -1,4 +1,17 @@
-"""``grasp``: clamp an object between two pads: open approach, close past the surface, hold."""
+r"""``grasp``: clamp an object between two pads and squeeze it to a measured force.
+
+1. **Heading.** The pads close along the object's lateral axis at heading :math:`\psi`; of the headings the
+   object's symmetry makes equivalent, the one nearest the robot's own (pads along world y) is taken.
+2. **Approach.** Both pads go ``clearance`` above the object's top, then straight down to ``gap`` outside its
+   faces, through planned joints (:class:`~nextage_qp.manipulation.route.PlannedRoute`), so nothing touches the
+   object before the pads close. Each pad's roll about the clamp axis is the one the planner found reachable
+   (a palm is a disc); from then on it is held, so the object cannot pivot about that axis.
+3. **Close.** The pads move in at ``close_speed`` until the wrist force/torque sensors read ``force`` [N] along
+   the pad axis on both sides (or fail past ``max_squeeze`` inside the surface: nothing there).
+4. **Hold.** Each pad's inward offset follows the force error, :math:`\dot\delta = k_F (F^* - F)`, for
+   ``hold`` seconds; the phase leaves a :class:`~nextage_qp.manipulation.context.Grip` that carries the offsets
+   and the force loop on.
+"""
 
 from __future__ import annotations
 
@@ -7,72 +20,128 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from nextage_qp.geometry import rot_z, yaw_of
+from nextage_qp.errors import PhaseError
+from nextage_qp.geometry import rot_z, wrap, yaw_of
 from nextage_qp.ik import FrameTarget, RelativeTarget
-from nextage_qp.manipulation.context import Grip, Setpoint, View
+from nextage_qp.manipulation.context import Grip, View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
+from nextage_qp.manipulation.route import PlannedRoute
 from nextage_qp.nextage import ARMS
 from nextage_qp.servo import Command
 
 PADS = tuple(arm.pad_site for arm in ARMS)
+SIDES = (1.0, -1.0)
+"""The first pad sits on the +y side of the object's heading, the second on the -y side."""
 
 
 class GraspSpec(Spec):
-    """Clamp an object between two pad frames by squeezing along the object's lateral (y) axis."""
+    """Clamp an object between two pad frames and squeeze it to a measured force."""
 
     kind: Literal["grasp"]
     object: str = name_field("object")
     frames: tuple[str, str] = name_field("frame", default=PADS, description="Pads on the +y and -y side.")
-    half_width: float = Field(gt=0, description="Half the object's width between the pads [m].")
-    height: float = Field(default=0.0, description="Pad height relative to the object origin [m].")
-    gap: float = Field(default=0.04, gt=0, description="Pad distance from the surface before closing [m].")
-    squeeze: float = Field(default=0.01, ge=0, description="How far the pad targets go inside the surface [m].")
-    hold: float = Field(default=0.3, ge=0, le=MAX_SECONDS, description="Time the squeeze is held [s].")
-    speed: float = Field(default=0.1, gt=0, description="Approach speed [m/s].")
+    half_width: float = Field(gt=0, le=0.5, description="Half the object's width between the pads [m].")
+    height: float = Field(default=0.0, ge=-0.5, le=0.5, description="Pad height relative to the object origin [m].")
+    gap: float = Field(default=0.03, gt=0, le=0.2, description="Pad distance from the surface before closing [m].")
+    clearance: float = Field(default=0.04, gt=0, le=0.3,
+                             description="Pad height over the object's top before going down beside it [m].")
+    force: float = Field(default=10.0, gt=0, le=100.0, description="Squeeze force per pad [N].")
+    force_gain: float = Field(default=0.0005, gt=0, le=0.05, description="Force loop gain [m/s per N].")
+    close_speed: float = Field(default=0.02, gt=0, le=0.2, description="Closing speed [m/s].")
+    max_squeeze: float = Field(default=0.02, gt=0, le=0.1,
+                               description="Deepest pad target inside the surface before the grasp fails [m].")
+    hold: float = Field(default=0.5, ge=0, le=MAX_SECONDS, description="Time the force is held [s].")
+
+
+def squeeze_force(view: View, frame: str, side: float, lateral: np.ndarray) -> float:
+    """Force [N] with which the object pushes a pad outwards along the clamp axis (``lateral`` = +y of the grip)."""
+    return float(side * (view.wrench(frame).force @ lateral))
 
 
 class Grasp(Phase):
-    """Clamp between the pads, leaving a :class:`~nextage_qp.manipulation.context.Grip`.
-
-    The pads approach ``gap`` outside the object's sides, close to ``squeeze`` inside them at half speed and
-    hold for ``hold``.
-    """
+    """See the module docstring."""
 
     spec: GraspSpec
 
     def start(self, view: View) -> None:  # noqa: D102
         c = self.spec
         obj, rot = view.body_pose(c.object)
-        self.rz = rot_z(yaw_of(rot))
-
-        def at(dy: float) -> list[np.ndarray]:
-            return [obj + self.rz @ np.array([0.0, s * dy, c.height]) for s in (1.0, -1.0)]
-
-        self.stages = [(at(c.half_width + c.gap), c.speed), (at(c.half_width - c.squeeze), c.speed / 2)]
-        self.stage = 0
-        self.hold_from: float | None = None
-        self.points = [Setpoint(view.commanded_pose(f).pos) for f in c.frames]
+        sym = view.yaw_symmetry(c.object)
+        self.yaw = wrap(yaw_of(rot), sym)  # the equivalent heading nearest the robot's own
+        self.rz = rot_z(self.yaw)
+        self.lateral = self.rz[:, 1]
+        top = obj[2] + view.extent(c.object, np.array([0.0, 0.0, 1.0]))
+        self.rots: list[np.ndarray] | None = None
+        for gap in (c.gap, 0.6 * c.gap, 0.35 * c.gap):  # nearer the faces when the arms cannot spread so far
+            outside = [obj + self.rz @ np.array([0.0, s * (c.half_width + gap), c.height]) for s in SIDES]
+            above = [p + np.array([0.0, 0.0, max(top + c.clearance - p[2], 0.0)]) for p in outside]
+            self.route = PlannedRoute([self._targets(above), self._targets(outside)])
+            if self.route.plan(view):
+                break
+        else:
+            raise PhaseError(f"phase {self.name!r} (grasp): the pads cannot reach both sides of {c.object} at "
+                             f"heading {np.degrees(self.yaw):.1f} deg")
+        self.rots = [view.pose_at(f, self.route.joints[-1]).rot for f in c.frames]
+        self.depth = [-gap, -gap]  # pad target depth inside the surface, per pad [m]
+        self.info["approach_gap_m"] = round(gap, 4)
+        self.stage, self.hold_from = "approach", 0.0
         self.made: Grip | None = None
+        self.info.update(heading_rad=round(self.yaw, 4))
+
+    def _targets(self, points: list[np.ndarray]) -> tuple[FrameTarget, ...]:
+        """Pad targets at ``points``.
+
+        Full poses once the approach has fixed each pad's roll about the clamp axis; before that only the pad's y
+        axis along the clamp axis, so the planner picks the roll the arm reaches.
+        """
+        frames = self.spec.frames
+        if self.rots is None:
+            return tuple(FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=self.lateral)
+                         for f, p in zip(frames, points, strict=True))
+        return tuple(FrameTarget(f, pos=p, rot=r) for f, p, r in zip(frames, points, self.rots, strict=True))
+
+    def _pads(self, view: View) -> tuple[FrameTarget, ...]:
+        c = self.spec
+        obj = view.body_pose(c.object).pos
+        points = [obj + self.rz @ np.array([0.0, s * (c.half_width - d), c.height])
+                  for s, d in zip(SIDES, self.depth, strict=True)]
+        return self._targets(points)
+
+    def forces(self, view: View) -> list[float]:
+        """Measured squeeze force on each pad [N]."""
+        return [squeeze_force(view, f, s, self.lateral) for f, s in zip(self.spec.frames, SIDES, strict=True)]
 
     def update(self, view: View) -> Command:  # noqa: D102
         c = self.spec
-        if self.stage < len(self.stages):
-            goals, speed = self.stages[self.stage]
-            reached = all([sp.advance(g, speed, view.dt) for sp, g in zip(self.points, goals, strict=True)])
-            if reached and (self.stage > 0 or view.settled()):
-                self.stage += 1
-                self.hold_from = view.t
-        targets = tuple(FrameTarget(f, pos=sp.pos, rot=self.rz) for f, sp in zip(c.frames, self.points, strict=True))
-        done = self.hold_from is not None and self.stage == len(self.stages) and view.t - self.hold_from >= c.hold
+        if self.stage == "approach":
+            command = self.route.step(view)
+            if self.route.done:
+                self.stage = "close"
+            return command
+        forces = self.forces(view)
+        self.info["squeeze_n"] = [round(f, 2) for f in forces]
+        if self.stage == "close":
+            self.depth = [d if f >= c.force else d + c.close_speed * view.dt for d, f in zip(self.depth, forces,
+                                                                                              strict=True)]
+            if max(self.depth) > c.max_squeeze:
+                raise PhaseError(f"phase {self.name!r} (grasp): the pads closed {c.max_squeeze * 1e3:g} mm inside "
+                                 f"{c.object}'s surface without feeling {c.force:g} N (felt {min(forces):.1f} N)")
+            if min(forces) >= c.force:
+                self.stage, self.hold_from = "hold", view.t
+        else:
+            self.depth = [d + float(np.clip(c.force_gain * (c.force - f), -0.02, 0.02)) * view.dt
+                          for d, f in zip(self.depth, forces, strict=True)]
+        done = self.stage == "hold" and view.t - self.hold_from >= c.hold
+        targets = self._pads(view)
         if done:
             obj, rot = view.body_pose(c.object)
             poses = {f: view.commanded_pose(f) for f in c.frames}
             self.made = Grip(
-                object=c.object,
-                frames=tuple(c.frames),
-                offsets={f: rot.T @ (sp.pos - obj) for f, sp in zip(c.frames, self.points, strict=True)},
-                rotations={f: rot.T @ self.rz for f in c.frames},
+                object=c.object, frames=tuple(c.frames),
+                offsets={t.frame: rot.T @ (np.asarray(t.pos) - obj) for t in targets},
+                rotations={t.frame: rot.T @ np.asarray(t.rot) for t in targets},
                 relative=RelativeTarget.between(c.frames[0], c.frames[1], poses, cost=1.0),
+                lateral=rot.T @ self.lateral, force=c.force, force_gain=c.force_gain,
             )
         return Command(targets, done=done)
 

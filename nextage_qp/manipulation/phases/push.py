@@ -28,18 +28,25 @@ from nextage_qp.geometry import rot_z, yaw_of
 from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.context import Setpoint, View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
+from nextage_qp.manipulation.route import PlannedRoute
 from nextage_qp.servo import Command
 
 PUSH_ACCEL = 0.1
 """Acceleration of the push speed [m/s²]."""
+STEER_GAIN = 0.5
+"""Integral gain of the push's heading bias per radian of object-motion error [1/s]."""
+MAX_BIAS = 0.35
+"""Largest heading bias between the push and the object's bearing to the target [rad]."""
+MIN_STEER_SPEED = 0.005
+"""Object speed above which its motion direction is trusted for steering [m/s]."""
+VELOCITY_WINDOW = 0.2
+"""Time constant of the object's velocity estimate [s]."""
 HEIGHT_GAIN = 5.0
 """Integral gain of the tool-height hold while pushing [1/s]."""
 MAX_HEIGHT_BIAS = 0.01
 """Largest correction of the commanded tool height while pushing [m]."""
 GAP_TIME = 0.5
 """Before contact the tool closes the gap to the object in about this time [s] (slowly at the touch)."""
-REACHED = 0.005
-"""A transit waypoint counts as reached when the real tool is this close to it [m]."""
 
 
 class PushSpec(Spec):
@@ -166,9 +173,9 @@ class Push(Phase):
             yaw = float(np.arctan2(d[1], d[0])) + c.yaw
             tried += 1
             for route in self._routes(view, d):
-                joints = self._plan_route(view, route, yaw)
-                if joints is not None:
-                    plan = (d, route, yaw, joints)
+                planned = PlannedRoute([(FrameTarget(c.frame, pos=p, rot=self._rot(yaw)),) for p in route[1:]])
+                if planned.plan(view):
+                    plan = (d, route[0], yaw, planned, float(route[-1][2]))
                     break
             if plan is not None:
                 break
@@ -176,20 +183,9 @@ class Push(Phase):
         if plan is None:
             self.plan_failed = True
             return
-        self.d, self.route, self.goal_yaw, self.route_q = plan
+        self.d, self.lift, self.goal_yaw, self.planned, self.push_z = plan
         self.info["direction"] = self.d.round(4).tolist()
-        self.stage, self.leg, self.plan_failed = "transit", 0, False
-
-    def _plan_route(self, view: View, route: list[np.ndarray], yaw: float) -> list[np.ndarray] | None:
-        joints: list[np.ndarray] = []
-        start = None
-        for point in route[1:]:
-            q = view.plan([FrameTarget(self.spec.frame, pos=point, rot=self._rot(yaw))], start)
-            if q is None:
-                return None
-            joints.append(q)
-            start = q
-        return joints
+        self.stage, self.lifting, self.plan_failed = "transit", True, False
 
     def _command(self, allow: bool, done: bool = False) -> Command:
         target = FrameTarget(self.spec.frame, pos=self.sp.pos.copy(), rot=self._rot(self.tool_yaw))
@@ -216,35 +212,46 @@ class Push(Phase):
         return self._retreat(view)
 
     def _transit(self, view: View) -> Command:
-        """Lift straight up, then move through the planned joints of each waypoint."""
+        """Lift straight up, then move through the planned joints of the route (the wrist turns once lifted)."""
         c = self.spec
-        goal = self.route[self.leg]
-        if self.leg == 0:
-            if self.sp.advance(goal, c.speed, view.dt):
-                self.leg = 1
+        if self.lifting:
+            self.lifting = not self.sp.advance(self.lift, c.speed, view.dt)
             return self._command(allow=False)
-        near = float(np.linalg.norm(view.frame_pose(c.frame).pos - goal)) < REACHED
-        command = Command(joints=dict(zip(view.joint_names(), self.route_q[self.leg - 1], strict=True)))
-        if near and view.settled():
-            self.leg += 1
-            if self.leg == len(self.route):
-                pos, rot = view.commanded_pose(c.frame)
-                self.sp.jump(pos)
-                self.tool_yaw = yaw_of(rot)
-                self.push_z, self.z_bias = float(self.route[-1][2]), 0.0
-                self._begin_push(touched=False)
+        command = self.planned.step(view)
+        if self.planned.done:
+            pos, rot = view.commanded_pose(c.frame)
+            self.sp.jump(pos)
+            self.tool_yaw = yaw_of(rot)
+            self.z_bias = 0.0
+            self._begin_push(touched=False)
         return command
 
     def _begin_push(self, touched: bool) -> None:
-        self.stage, self.v, self.touched = "push", 0.0, touched
+        self.stage, self.v, self.touched, self.bias = "push", 0.0, touched, 0.0
+        self.last_obj: np.ndarray | None = None
+        self.obj_v = np.zeros(2)
+
+    def _track(self, view: View, obj: np.ndarray) -> None:
+        """Low-pass estimate of the object's planar velocity [m/s]."""
+        if self.last_obj is not None:
+            alpha = view.dt / VELOCITY_WINDOW
+            self.obj_v = (1.0 - alpha) * self.obj_v + alpha * (obj - self.last_obj) / view.dt
+        self.last_obj = obj.copy()
 
     def _push(self, view: View) -> Command:
         c = self.spec
         obj_pose = view.body_pose(c.object)
         obj, tgt = obj_pose.pos, view.body_pose(c.target).pos
         dist = float(np.linalg.norm((tgt - obj)[:2]))
+        self._track(view, obj[:2])
         if dist > c.freeze and self.touched:  # turn only once in contact: the approach side was chosen to reach
-            self.d = _turn(self.d, _unit((tgt - obj)[:2]), c.turn_rate * view.dt)
+            bearing = _unit((tgt - obj)[:2])
+            speed = float(np.linalg.norm(self.obj_v))
+            if speed > MIN_STEER_SPEED:  # integral steering: aim the push so the object moves at the target
+                moving = self.obj_v / speed
+                error = float(np.arctan2(moving[0] * bearing[1] - moving[1] * bearing[0], moving @ bearing))
+                self.bias = float(np.clip(self.bias + STEER_GAIN * error * view.dt, -MAX_BIAS, MAX_BIAS))
+            self.d = _turn(self.d, _rotate(bearing, self.bias), c.turn_rate * view.dt)
             self.goal_yaw = float(np.arctan2(self.d[1], self.d[0])) + c.yaw
         self._turn_tool(view)
         d, n = self.d, np.array([-self.d[1], self.d[0]])

@@ -1,0 +1,143 @@
+r"""``place``: carry a clamped object over the obstacles and set it down on its target pose.
+
+The object's setpoint :math:`(p, \psi)` goes
+
+1. straight up to the carry height: the obstacles' top plus ``clearance`` plus the object's own depth below its
+   origin (computed from the scene's geometry, not a fixed offset);
+2. across to above the target, turning to the target's yaw (the equivalent yaw, modulo the object's symmetry,
+   nearest the one it has);
+3. down to ``hover`` above its resting height, where it waits for the sway to settle and corrects its planar
+   position and yaw from the live pose (the average over ``settle`` seconds, so the correction does not chase
+   the swing), up to ``corrections`` times;
+4. slowly down until the object stands on the table (its height within 1 mm of its resting height).
+
+The pads follow the setpoint through the grip's offsets and keep squeezing at the grip's force
+(:class:`~nextage_qp.manipulation.context.Clamp`).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+
+from nextage_qp.errors import PhaseError
+from nextage_qp.geometry import wrap, yaw_of
+from nextage_qp.manipulation.context import Clamp, Setpoint, View
+from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
+from nextage_qp.servo import Command
+
+CONTACT = 0.001
+"""The object counts as set down when its height is this close to its resting height [m]."""
+
+
+class PlaceSpec(Spec):
+    """Carry a clamped object over the obstacles and set it down on a target body's pose."""
+
+    kind: Literal["place"]
+    object: str = name_field("object")
+    target: str = name_field("body", description="Body whose x, y and yaw the object should take.")
+    clearance: float = Field(default=0.03, gt=0, le=0.3, description="Object's bottom over the obstacles [m].")
+    lift: float = Field(default=0.03, ge=0, le=0.5, description="Least rise before moving sideways [m].")
+    hover: float = Field(default=0.02, gt=0, le=0.2, description="Height over rest where it corrects [m].")
+    speed: float = Field(default=0.1, gt=0, le=0.5, description="Setpoint speed in transit [m/s].")
+    descend_speed: float = Field(default=0.01, gt=0, le=0.1, description="Speed of the final descent [m/s].")
+    turn_rate: float = Field(default=0.5, gt=0, le=3.0, description="Yaw rate of the setpoint [rad/s].")
+    tolerance: float = Field(default=0.0015, gt=0, le=0.05, description="Planar error accepted at the hover [m].")
+    yaw_tolerance: float = Field(default=0.01, gt=0, le=0.5, description="Yaw error accepted at the hover [rad].")
+    corrections: int = Field(default=4, ge=0, le=20, description="Corrections allowed at the hover.")
+    settle: float = Field(default=0.4, gt=0, le=MAX_SECONDS, description="Time the live pose is averaged [s].")
+    relative_cost: float = Field(default=10.0, ge=0, le=1e4, description="Weight of the pads' relative pose.")
+
+
+class Place(Phase):
+    """See the module docstring."""
+
+    spec: PlaceSpec
+
+    def start(self, view: View) -> None:  # noqa: D102
+        c = self.spec
+        grip = view.grip
+        if grip is None or grip.object != c.object:
+            raise PhaseError(f"phase {self.name!r}: place needs {c.object!r} clamped by a grasp phase first")
+        self.clamp = Clamp(grip, c.relative_cost)
+        obj, rot = view.body_pose(c.object)
+        tgt, trot = view.body_pose(c.target)
+        self.rest = view.rest_height(c.object)
+        depth = self.rest - view.table_top()
+        carry = max(obj[2] + c.lift, view.obstacle_top() + c.clearance + depth)
+        self.sp, self.yaw = Setpoint(obj.copy()), yaw_of(rot)
+        self.goal = np.array([tgt[0], tgt[1], self.rest + c.hover])
+        self.goal_yaw, self.posture = self._reachable_yaw(view, yaw_of(trot), carry)
+        self.legs = [np.array([obj[0], obj[1], carry]), np.array([tgt[0], tgt[1], carry]), self.goal]
+        self.leg, self.stage = 0, "transit"
+        self.samples: list[tuple[np.ndarray, float]] = []
+        self.corrections = 0
+        self.info.update(carry_height_m=round(carry, 4), corrections=0)
+
+    def _reachable_yaw(self, view: View, target_yaw: float, carry: float) -> tuple[float, np.ndarray]:
+        """The equivalent target yaw nearest the object's own that the clamp can reach, and its hover joints.
+
+        A yaw counts when the planner reaches the clamp both at the carry height above the target and at the hover.
+        """
+        c = self.spec
+        sym = view.yaw_symmetry(c.object)
+        nearest = self.yaw + wrap(target_yaw - self.yaw, sym)
+        count = max(1, round(2 * np.pi / sym))
+        for yaw in sorted((nearest + k * sym for k in range(-(count // 2), count - count // 2)),
+                          key=lambda y: abs(y - self.yaw)):
+            high = view.plan(self.clamp.pads(np.array([*self.goal[:2], carry]), yaw)[0])
+            low = view.plan(self.clamp.pads(self.goal, yaw)[0], high) if high is not None else None
+            if low is not None:
+                self.info["place_yaw_rad"] = round(yaw, 4)
+                return yaw, low
+        raise PhaseError(f"phase {self.name!r} (place): the clamp cannot reach {c.target}'s pose with "
+                         f"{c.object} at any of its {count} equivalent yaws")
+
+    def update(self, view: View) -> Command:  # noqa: D102
+        c = self.spec
+        done = False
+        if self.stage == "transit":
+            goal = self.legs[self.leg]
+            arrived = self.sp.advance(goal, c.speed, view.dt)
+            if self.leg >= 1:  # turn once lifted
+                self.yaw += float(np.clip(self.goal_yaw - self.yaw, -c.turn_rate * view.dt, c.turn_rate * view.dt))
+            if arrived and (self.leg < 1 or abs(self.goal_yaw - self.yaw) < 1e-9):
+                self.leg += 1
+                if self.leg == len(self.legs):
+                    self.stage, self.wait_from, self.samples = "hover", view.t, []
+        elif self.stage == "hover":
+            self._hover(view)
+        elif self.stage == "descend":
+            self.sp.advance(np.array([*self.sp.pos[:2], self.rest - 0.005]), c.descend_speed, view.dt)
+            down = view.body_pose(c.object).pos[2] <= self.rest + CONTACT
+            done = down and view.settled()
+            if down:
+                self.sp.jump(np.array([*self.sp.pos[:2], max(self.sp.pos[2], self.rest)]))
+        targets, relative = self.clamp.targets(view, self.sp.pos, self.yaw)
+        return Command(targets, (relative,), posture=self.posture, done=done)
+
+    def _hover(self, view: View) -> None:
+        """Wait for the sway to settle, then correct the setpoint by the averaged planar and yaw error."""
+        c = self.spec
+        if not view.settled():
+            self.samples = []
+            return
+        obj, rot = view.body_pose(c.object)
+        tgt, trot = view.body_pose(c.target)
+        self.samples.append((obj[:2] - tgt[:2], wrap(yaw_of(rot) - yaw_of(trot), view.yaw_symmetry(c.object))))
+        if len(self.samples) * view.dt < c.settle:
+            return
+        err = np.mean([s[0] for s in self.samples], axis=0)
+        yaw_err = float(np.mean([s[1] for s in self.samples]))
+        self.samples = []
+        self.info.update(hover_error_xy_m=round(float(np.linalg.norm(err)), 5), hover_yaw_error_rad=round(yaw_err, 4))
+        within = np.linalg.norm(err) <= c.tolerance and abs(yaw_err) <= c.yaw_tolerance
+        if within or self.corrections >= c.corrections:
+            self.stage = "descend"
+            return
+        self.corrections += 1
+        self.info["corrections"] = self.corrections
+        self.sp.jump(self.sp.pos - np.array([*err, 0.0]))
+        self.yaw -= yaw_err

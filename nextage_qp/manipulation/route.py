@@ -1,0 +1,63 @@
+"""Transit through free space on planned joints.
+
+Waypoints for one or more frames are each solved by the offline IK from the previous waypoint's solution, and
+driven as joint goals. Streaming Cartesian setpoints through the differential IK can stall in a local minimum
+against a collision constraint (a hand folded near the torso, a forearm over an object). Planning each waypoint
+with the multi-start IK first tells whether the route is reachable at all, and driving the joints there (Ruckig
+shapes the motion) cannot stall on the way. Consecutive waypoints are solved from one another, so the joints
+move between neighbouring configurations.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from nextage_qp.ik import FrameTarget
+from nextage_qp.manipulation.context import View
+from nextage_qp.servo import Command
+
+REACHED = 0.005
+"""A waypoint counts as reached when every real frame is this close to its target [m] and the robot has settled."""
+
+
+class PlannedRoute:
+    """Waypoints (each a tuple of frame targets reached together) driven through planned joints.
+
+    Args:
+        waypoints: The route; the frames of each waypoint are solved together.
+    """
+
+    def __init__(self, waypoints: Sequence[Sequence[FrameTarget]]) -> None:
+        self.waypoints = [tuple(w) for w in waypoints]
+        self.joints: list[np.ndarray] = []
+        self.leg = 0
+
+    def plan(self, view: View) -> bool:
+        """Solve every waypoint, each from the previous solution; False when one is out of reach."""
+        self.joints, start = [], None
+        for targets in self.waypoints:
+            q = view.plan(targets, start)
+            if q is None:
+                return False
+            self.joints.append(q)
+            start = q
+        self.leg = 0
+        return True
+
+    @property
+    def done(self) -> bool:
+        """True once the last waypoint has been reached."""
+        return self.leg >= len(self.waypoints)
+
+    def step(self, view: View) -> Command:
+        """The joint goal of the current waypoint; moves on once its frames are there and the robot has settled."""
+        q = self.joints[min(self.leg, len(self.joints) - 1)]
+        if not self.done:
+            targets = self.waypoints[self.leg]
+            near = all(t.pos is None or float(np.linalg.norm(view.frame_pose(t.frame).pos - t.pos)) < REACHED
+                       for t in targets)
+            if near and view.settled():
+                self.leg += 1
+        return Command(joints=dict(zip(view.joint_names(), q, strict=True)))
