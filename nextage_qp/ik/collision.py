@@ -134,10 +134,10 @@ class ActiveCollisionLimit(mink.Limit):
         return len(self.geom1)
 
     def candidates(self, data: mujoco.MjData) -> np.ndarray:
-        """Indices of the pairs whose bounding spheres are within detection distance (broadphase only)."""
+        """Indices of the watched pairs whose bounding spheres are within detection distance (broadphase only)."""
         delta = data.geom_xpos[self.geom1] - data.geom_xpos[self.geom2]
         reach = self._rsum + self.detection_distance
-        return np.flatnonzero(np.einsum("ij,ij->i", delta, delta) < reach**2)
+        return np.flatnonzero((np.einsum("ij,ij->i", delta, delta) < reach**2) & self.enabled)
 
     def distances(self, data: mujoco.MjData, indices: Sequence[int] | np.ndarray) -> np.ndarray:
         """Signed distances [m] of the given pairs, capped at their detection distance."""

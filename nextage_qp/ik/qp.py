@@ -144,6 +144,7 @@ class QPIK:
         max_iters: int | None = None,
         extra_tasks: Sequence[mink.Task] = (),
         object_poses: ObjectPoses | None = None,
+        allow: frozenset[str] = frozenset(),
     ) -> IKResult:
         """Iterate IK steps of ``config.dt`` from ``q0`` until every target is within tolerance.
 
@@ -159,12 +160,15 @@ class QPIK:
             max_iters: Iteration cap per descent (default ``config.max_iters``).
             extra_tasks: Further mink tasks added to every step.
             object_poses: Object name -> (pos, quat wxyz) for collision avoidance.
+            allow: Collision groups whose pairs are not avoided (e.g. an object the frames hold).
 
         Raises:
             IKInfeasibleError: A step's QP is infeasible (e.g. ``q0`` far outside the joint limits).
         """
         start = time.perf_counter()
         cfg = self.config
+        if self.collision is not None:
+            self.collision.allow(self._allowed(allow))
         if object_poses:
             set_object_poses(self.model, self.configuration.data, object_poses)
         frames = [self.frame(t.frame) for t in targets]

@@ -188,11 +188,13 @@ class View(Protocol):
     def yaw_symmetry(self, obj: str) -> float:
         """Yaw [rad] after which an object looks the same (2 pi for none)."""
 
-    def plan(self, targets: Sequence[FrameTarget], start: np.ndarray | None = None) -> np.ndarray | None:
+    def plan(self, targets: Sequence[FrameTarget], start: np.ndarray | None = None,
+             allow: frozenset[str] = frozenset()) -> np.ndarray | None:
         """Joints that put the frames on the targets together, or None when the arms cannot.
 
         An offline IK solve from ``start`` (default: the commanded joints), avoiding the IK's collision pairs with
-        the objects where they are now; a target counts as reached within ``REACH_POS_TOL`` and ``REACH_ROT_TOL``.
+        the objects where they are now (but for the ``allow`` groups, e.g. an object the frames hold); a target
+        counts as reached within ``REACH_POS_TOL`` and ``REACH_ROT_TOL``.
         """
 
 
@@ -252,13 +254,14 @@ class SimView:
     def tracking_error(self) -> float:  # noqa: D102
         return float(np.max(np.abs(self._sim.measured.q - self._servo.q_cmd)))
 
-    def plan(self, targets: Sequence[FrameTarget], start: np.ndarray | None = None) -> np.ndarray | None:  # noqa: D102
+    def plan(self, targets: Sequence[FrameTarget], start: np.ndarray | None = None,  # noqa: D102
+             allow: frozenset[str] = frozenset()) -> np.ndarray | None:
         if self._planner is None:
             config = self._servo.ik.config.model_copy(update={"restarts": 4, "max_iters": 80})
             self._planner = QPIK(self.robot, config)
         poses = {name: (p.pos, p.quat) for name, p in self._sim.measured.objects.items()}
         q0 = np.array(self._servo.q_cmd if start is None else start)
-        result = self._planner.solve(list(targets), q0, object_poses=poses)
+        result = self._planner.solve(list(targets), q0, object_poses=poses, allow=allow)
         return result.q if result.pos_err_m <= REACH_POS_TOL and result.rot_err_rad <= REACH_ROT_TOL else None
 
     def joint_names(self) -> tuple[str, ...]:  # noqa: D102

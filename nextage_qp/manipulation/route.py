@@ -10,12 +10,13 @@ move between neighbouring configurations.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
 
 from nextage_qp.ik import FrameTarget
-from nextage_qp.manipulation.context import View
+from nextage_qp.manipulation.context import Setpoint, View
 from nextage_qp.servo import Command
 
 REACHED = 0.005
@@ -27,13 +28,20 @@ class PlannedRoute:
 
     Args:
         waypoints: The route; the frames of each waypoint are solved together.
+        straight: Per waypoint, whether the leg to it is a straight Cartesian line (frames' setpoints streamed
+            through the IK, with its collision avoidance, and the planned joints as the posture to head for)
+            instead of a joint-space move; for short legs near objects, such as going down beside one.
+        speed: Cartesian speed of straight legs [m/s].
     """
 
-    def __init__(self, waypoints: Sequence[Sequence[FrameTarget]]) -> None:
+    def __init__(self, waypoints: Sequence[Sequence[FrameTarget]], straight: Sequence[bool] | None = None,
+                 speed: float = 0.05) -> None:
         self.waypoints = [tuple(w) for w in waypoints]
+        self.straight = list(straight) if straight is not None else [False] * len(self.waypoints)
+        self.speed = speed
         self.joints: list[np.ndarray] = []
         self.leg = 0
-
+        self._points: list[Setpoint] | None = None
     def plan(self, view: View) -> bool:
         """Solve every waypoint, each from the previous solution; False when one is out of reach."""
         self.joints, start = [], None
@@ -52,12 +60,22 @@ class PlannedRoute:
         return self.leg >= len(self.waypoints)
 
     def step(self, view: View) -> Command:
-        """The joint goal of the current waypoint; moves on once its frames are there and the robot has settled."""
-        q = self.joints[min(self.leg, len(self.joints) - 1)]
+        """This tick's command towards the current waypoint; moves on once its frames are there and settled."""
+        leg = min(self.leg, len(self.joints) - 1)
+        q, targets = self.joints[leg], self.waypoints[leg]
+        if self.straight[leg]:
+            if self._points is None:
+                self._points = [Setpoint(view.commanded_pose(t.frame).pos) for t in targets]
+            for point, t in zip(self._points, targets, strict=True):
+                point.advance(np.asarray(t.pos), self.speed, view.dt)
+            command = Command(tuple(dataclasses.replace(t, pos=p.pos) for t, p in zip(targets, self._points,
+                                                                                        strict=True)), posture=q)
+        else:
+            command = Command(joints=dict(zip(view.joint_names(), q, strict=True)))
         if not self.done:
-            targets = self.waypoints[self.leg]
             near = all(t.pos is None or float(np.linalg.norm(view.frame_pose(t.frame).pos - t.pos)) < REACHED
                        for t in targets)
             if near and view.settled():
                 self.leg += 1
-        return Command(joints=dict(zip(view.joint_names(), q, strict=True)))
+                self._points = None
+        return command

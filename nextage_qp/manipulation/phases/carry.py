@@ -78,7 +78,8 @@ class Carry(Phase):
             frac = 1.0 if span < 1e-9 else 1.0 - float(np.linalg.norm(goal - self.sp.pos)) / span
             self.yaw = start_yaw + frac * (goal_yaw - start_yaw)
         targets, relative = self.clamp.targets(view, self.sp.pos, self.yaw)
-        return Command(targets, (relative,), done=self.leg == len(self.goals) and view.settled())
+        done = self.leg == len(self.goals) and view.settled()
+        return Command(targets, (relative,), allow=frozenset({c.object}), done=done)
 
     def _leg_finished(self, view: View) -> bool:
         """At a waypoint marked ``correct``: once settled, shift it and the rest by the object's planar error."""

@@ -31,6 +31,8 @@ from nextage_qp.servo import Command
 
 PADS = tuple(arm.pad_site for arm in ARMS)
 SIDES = (1.0, -1.0)
+PLACE_HOVER = 0.02
+"""Height over the resting pose at which the clamp must reach ``place_at`` [m]."""
 """The first pad sits on the +y side of the object's heading, the second on the -y side."""
 
 
@@ -51,6 +53,9 @@ class GraspSpec(Spec):
     max_squeeze: float = Field(default=0.02, gt=0, le=0.1,
                                description="Deepest pad target inside the surface before the grasp fails [m].")
     hold: float = Field(default=0.5, ge=0, le=MAX_SECONDS, description="Time the force is held [s].")
+    place_at: str | None = name_field("body", default=None,
+                                      description="Body where the object will be set down: the pads take rolls "
+                                                  "that reach there too.")
 
 
 def squeeze_force(view: View, frame: str, side: float, lateral: np.ndarray) -> float:
@@ -72,21 +77,51 @@ class Grasp(Phase):
         self.lateral = self.rz[:, 1]
         top = obj[2] + view.extent(c.object, np.array([0.0, 0.0, 1.0]))
         self.rots: list[np.ndarray] | None = None
-        for gap in (c.gap, 0.6 * c.gap, 0.35 * c.gap):  # nearer the faces when the arms cannot spread so far
-            outside = [obj + self.rz @ np.array([0.0, s * (c.half_width + gap), c.height]) for s in SIDES]
-            above = [p + np.array([0.0, 0.0, max(top + c.clearance - p[2], 0.0)]) for p in outside]
-            self.route = PlannedRoute([self._targets(above), self._targets(outside)])
-            if self.route.plan(view):
+        found = None
+        for rolls in [*self._placement_rolls(view), None]:  # rolls that also reach the placement come first
+            self.rots = None if rolls is None else [self.rz @ r for r in rolls]
+            for gap in (c.gap, 0.6 * c.gap, 0.35 * c.gap):  # nearer the faces when the arms cannot spread so far
+                outside = [obj + self.rz @ np.array([0.0, s * (c.half_width + gap), c.height]) for s in SIDES]
+                above = [p + np.array([0.0, 0.0, max(top + c.clearance - p[2], 0.0)]) for p in outside]
+                down = [[a + f * (o - a) for a, o in zip(above, outside, strict=True)] for f in (0.0, 0.5, 1.0)]
+                self.route = PlannedRoute([self._targets(points) for points in down])
+                if self.route.plan(view):
+                    found = (gap, rolls is not None)
+                    break
+            if found:
                 break
-        else:
+        if found is None:
             raise PhaseError(f"phase {self.name!r} (grasp): the pads cannot reach both sides of {c.object} at "
                              f"heading {np.degrees(self.yaw):.1f} deg")
+        gap = found[0]
+        self.info["rolls_fit_placement"] = found[1]
         self.rots = [view.pose_at(f, self.route.joints[-1]).rot for f in c.frames]
         self.depth = [-gap, -gap]  # pad target depth inside the surface, per pad [m]
         self.info["approach_gap_m"] = round(gap, 4)
         self.stage, self.hold_from = "approach", 0.0
         self.made: Grip | None = None
         self.info.update(heading_rad=round(self.yaw, 4))
+
+    def _placement_rolls(self, view: View) -> list[list[np.ndarray]]:
+        """Pad rotations, relative to the clamp frame, with which the clamp also reaches ``place_at``.
+
+        One set per equivalent yaw of the object there that the planner reaches; empty without ``place_at``.
+        """
+        c = self.spec
+        if c.place_at is None:
+            return []
+        tgt, trot = view.body_pose(c.place_at)
+        sym = view.yaw_symmetry(c.object)
+        centre = np.array([tgt[0], tgt[1], view.rest_height(c.object) + c.height + PLACE_HOVER])
+        out = []
+        for k in range(max(1, round(2 * np.pi / sym))):
+            rz = rot_z(yaw_of(trot) + k * sym)
+            points = [centre + s * c.half_width * rz[:, 1] for s in SIDES]
+            q = view.plan([FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=rz[:, 1])
+                           for f, p in zip(c.frames, points, strict=True)], allow=frozenset({c.object}))
+            if q is not None:
+                out.append([rz.T @ view.pose_at(f, q).rot for f in c.frames])
+        return out
 
     def _targets(self, points: list[np.ndarray]) -> tuple[FrameTarget, ...]:
         """Pad targets at ``points``.
@@ -143,7 +178,7 @@ class Grasp(Phase):
                 relative=RelativeTarget.between(c.frames[0], c.frames[1], poses, cost=1.0),
                 lateral=rot.T @ self.lateral, force=c.force, force_gain=c.force_gain,
             )
-        return Command(targets, done=done)
+        return Command(targets, allow=frozenset({c.object}), done=done)
 
     def grip(self, current: Grip | None) -> Grip | None:  # noqa: D102
         return self.made if self.made is not None else current

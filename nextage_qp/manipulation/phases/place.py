@@ -69,17 +69,17 @@ class Place(Phase):
         carry = max(obj[2] + c.lift, view.obstacle_top() + c.clearance + depth)
         self.sp, self.yaw = Setpoint(obj.copy()), yaw_of(rot)
         self.goal = np.array([tgt[0], tgt[1], self.rest + c.hover])
-        self.goal_yaw, self.posture = self._reachable_yaw(view, yaw_of(trot), carry)
+        self.goal_yaw, self.posture = self._reachable_yaw(view, yaw_of(trot))
         self.legs = [np.array([obj[0], obj[1], carry]), np.array([tgt[0], tgt[1], carry]), self.goal]
         self.leg, self.stage = 0, "transit"
         self.samples: list[tuple[np.ndarray, float]] = []
         self.corrections = 0
         self.info.update(carry_height_m=round(carry, 4), corrections=0)
 
-    def _reachable_yaw(self, view: View, target_yaw: float, carry: float) -> tuple[float, np.ndarray]:
+    def _reachable_yaw(self, view: View, target_yaw: float) -> tuple[float, np.ndarray]:
         """The equivalent target yaw nearest the object's own that the clamp can reach, and its hover joints.
 
-        A yaw counts when the planner reaches the clamp both at the carry height above the target and at the hover.
+        A yaw counts when the planner reaches the clamp at the hover over the target.
         """
         c = self.spec
         sym = view.yaw_symmetry(c.object)
@@ -87,8 +87,7 @@ class Place(Phase):
         count = max(1, round(2 * np.pi / sym))
         for yaw in sorted((nearest + k * sym for k in range(-(count // 2), count - count // 2)),
                           key=lambda y: abs(y - self.yaw)):
-            high = view.plan(self.clamp.pads(np.array([*self.goal[:2], carry]), yaw)[0])
-            low = view.plan(self.clamp.pads(self.goal, yaw)[0], high) if high is not None else None
+            low = view.plan(self.clamp.pads(self.goal, yaw)[0], allow=frozenset({c.object}))
             if low is not None:
                 self.info["place_yaw_rad"] = round(yaw, 4)
                 return yaw, low
@@ -116,7 +115,7 @@ class Place(Phase):
             if down:
                 self.sp.jump(np.array([*self.sp.pos[:2], max(self.sp.pos[2], self.rest)]))
         targets, relative = self.clamp.targets(view, self.sp.pos, self.yaw)
-        return Command(targets, (relative,), posture=self.posture, done=done)
+        return Command(targets, (relative,), allow=frozenset({c.object}), posture=self.posture, done=done)
 
     def _hover(self, view: View) -> None:
         """Wait for the sway to settle, then correct the setpoint by the averaged planar and yaw error."""

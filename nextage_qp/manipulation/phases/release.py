@@ -52,7 +52,8 @@ class Release(Phase):
                 self.stage += 1
         targets = tuple(FrameTarget(f, pos=sp.pos, rot=r) for f, sp, r in zip(self.frames, self.points, self.rots,
                                                                                strict=True))
-        return Command(targets, done=self.stage == len(self.stages) and view.settled())
+        allow = frozenset({self.spec.object}) if self.stage == 0 else frozenset()  # touching it while opening
+        return Command(targets, allow=allow, done=self.stage == len(self.stages) and view.settled())
 
     def grip(self, current: Grip | None) -> Grip | None:  # noqa: D102
         return None  # the clamp ends as the pads start to open
