@@ -1,22 +1,38 @@
 """Every phase kind against a scripted view: no simulation, only the contract start(view) -> update(view) -> Command."""
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
 
 from nextage_qp.errors import PhaseError
-from nextage_qp.geometry import Pose, rot_z
+from nextage_qp.geometry import Pose, rot_z, yaw_of
 from nextage_qp.ik import RelativeTarget
 from nextage_qp.manipulation.context import Grip
 from nextage_qp.manipulation.phases import REGISTRY, build
+from nextage_qp.sensors import Wrench
 
 DT = 0.004
 
 
+def rot_of(target):
+    """A target's rotation; for an axis target, the yaw turn that puts the frame's y axis on the direction."""
+    if target.rot is not None:
+        return np.asarray(target.rot)
+    if target.axis is not None:
+        d = np.asarray(target.direction)
+        return rot_z(float(np.arctan2(-d[0], d[1])))
+    return np.eye(3)
+
+
 @dataclass
 class ScriptedView:
-    """A View whose every answer the test sets."""
+    """A View whose every answer the test sets; :meth:`act` plays an ideal robot (frames go where commanded).
+
+    The planner reaches every target unless ``reach(targets)`` says no; a plan's joint vector is its index, and
+    :meth:`pose_at` gives back the targets it was planned for.
+    """
 
     t: float = 0.0
     dt: float = DT
@@ -28,6 +44,13 @@ class ScriptedView:
     is_settled: bool = True
     tracking: float = 0.0
     half: float = 0.035
+    reach: Callable | None = None
+    plans: list = field(default_factory=list)
+    forces: dict = field(default_factory=dict)
+    symmetry: float = np.pi
+    rest: float = 0.91
+    table: float = 0.875
+    obstacle: float = 0.875
 
     def body_pose(self, name):
         return self.bodies[name]
@@ -50,6 +73,42 @@ class ScriptedView:
     def extent(self, obj, direction):
         return self.half
 
+    def joint_names(self):
+        return ("plan",)
+
+    def plan(self, targets, start=None, allow=frozenset()):
+        if self.reach is not None and not self.reach(tuple(targets)):
+            return None
+        self.plans.append(tuple(targets))
+        return np.array([len(self.plans) - 1.0])
+
+    def pose_at(self, frame, q):
+        target = next(t for t in self.plans[int(q[0])] if t.frame == frame)
+        return Pose(np.asarray(target.pos, dtype=float), rot_of(target))
+
+    def wrench(self, site):
+        return Wrench(np.asarray(self.forces.get(site, np.zeros(3)), dtype=float), np.zeros(3))
+
+    def rest_height(self, obj):
+        return self.rest
+
+    def table_top(self):
+        return self.table
+
+    def obstacle_top(self):
+        return self.obstacle
+
+    def yaw_symmetry(self, obj):
+        return self.symmetry
+
+    def act(self, cmd):
+        """An ideal robot: the frames (commanded and real) take the planned joints' or the targets' poses."""
+        if cmd.joints is not None:
+            for target in self.plans[int(cmd.joints["plan"])]:
+                self.commanded[target.frame] = self.frames[target.frame] = Pose(np.asarray(target.pos), rot_of(target))
+        for target in cmd.targets:
+            self.commanded[target.frame] = self.frames[target.frame] = Pose(np.asarray(target.pos), rot_of(target))
+
 
 def pose(x, y, z, yaw=0.0):
     return Pose(np.array([x, y, z], dtype=float), rot_z(yaw))
@@ -63,6 +122,7 @@ def make(kind, **fields):
 def run_until_done(phase, view, ticks=20000, each=None):
     for _ in range(ticks):
         cmd = phase.update(view)
+        view.act(cmd)
         view.t += DT
         if each:
             each(cmd)
@@ -72,7 +132,7 @@ def run_until_done(phase, view, ticks=20000, each=None):
 
 
 def test_registry_lists_every_kind():
-    assert list(REGISTRY) == ["move", "push", "grasp", "carry", "release", "joints", "wait"]
+    assert list(REGISTRY) == ["move", "push", "grasp", "carry", "place", "release", "joints", "wait"]
 
 
 def test_move_walks_at_its_speed_and_waits_for_the_real_frame():
@@ -93,65 +153,139 @@ def test_move_walks_at_its_speed_and_waits_for_the_real_frame():
     assert phase.update(view).done
 
 
-def test_push_lifts_goes_behind_lowers_and_pushes_to_the_finish_point():
-    view = ScriptedView(bodies={"cube": pose(0.33, 0.0, 0.91), "cube_target": pose(0.70, 0.0, 0.91)},
-                        commanded={"left_tool": pose(0.5, 0.23, 0.98)})
-    phase = make("push", frame="left_tool", object="cube", target="cube_target", approach=0.04, clearance=0.07,
-                 height=0.015, attempts=2, tolerance=0.002)
+def push_view(**kw):
+    return ScriptedView(bodies={"cube": pose(0.33, 0.0, 0.91), "cube_target": pose(0.70, 0.0, 0.91)},
+                        commanded={"left_tool": pose(0.5, 0.23, 1.03)}, frames={"left_tool": pose(0.5, 0.23, 1.03)},
+                        **kw)
+
+
+def pushed_along_the_tool_face(view):
+    """A kinematic cube: a tool below the cube's top that reaches into its face carries it along the face normal."""
+
+    def push(_cmd):
+        tool, cube = view.frames["left_tool"], view.bodies["cube"]
+        normal = tool.rot[:, 0]
+        depth = float((tool.pos - cube.pos) @ normal) + view.half
+        if tool.pos[2] < cube.pos[2] + view.half and depth > 0:
+            view.bodies["cube"] = Pose(cube.pos + depth * normal, cube.rot)
+
+    return push
+
+
+def test_push_plans_a_lifted_approach_then_pushes_the_object_onto_the_target():
+    view = push_view()
+    phase = make("push", frame="left_tool", object="cube", target="cube_target", height=0.008, clearance=0.05)
     phase.start(view)
-    points = []
-    for _ in range(5000):
-        cmd = phase.update(view)
-        view.t += DT
-        points.append(cmd.targets[0].pos.copy())
-        if phase.wait_from is not None:
-            break
-    points = np.array(points)
-    top = 0.91 + 0.035 + 0.07
-    assert points[:, 2].max() == pytest.approx(top)
-    assert np.allclose(points[-1], [0.70 - 0.035, 0.0, 0.925])  # the face puts the cube centre on the target
-    low = points[:, 2] < top - 1e-9
-    assert np.all(points[low & (np.arange(len(points)) > 10), 0] >= 0.33 - 0.035 - 0.04 - 1e-9)
-    assert np.allclose(cmd.targets[0].rot, np.eye(3))  # facing +x, the push direction
-    # the cube did not move: after the check a second attempt is planned, then the phase gives up
-    with pytest.raises(PhaseError, match=r"still 370\.0 mm from cube_target after 2 attempts"):
-        run_until_done(phase, view)
-    assert phase.info["attempts"] == 2
+    assert phase.info["direction"] == [1.0, 0.0] and phase.info["directions_tried"] == 1
+    heights = []
+    push = pushed_along_the_tool_face(view)
+    cmd = run_until_done(phase, view, each=lambda c: (push(c), heights.append(view.frames["left_tool"].pos[2])))
+    assert cmd.done and phase.info["attempts"] == 1
+    assert max(heights) >= 0.91 + 0.035 + 0.05 - 1e-9  # transit over the cube's top plus the clearance
+    cube = view.bodies["cube"].pos
+    assert np.linalg.norm(cube[:2] - [0.70, 0.0]) <= 0.002 and phase.info["object_error_xy_m"] <= 0.002
+    assert view.frames["left_tool"].pos[2] > 0.945  # retreated and lifted off the cube
 
 
-def test_push_ends_when_the_object_is_on_target():
-    view = ScriptedView(bodies={"cube": pose(0.33, 0.0, 0.91), "cube_target": pose(0.70, 0.0, 0.91)},
-                        commanded={"left_tool": pose(0.5, 0.23, 1.03)})
-    phase = make("push", frame="left_tool", object="cube", target="cube_target", tolerance=0.002)
+def test_push_fans_out_to_the_nearest_reachable_direction_and_refuses_when_there_is_none():
+    view = push_view(reach=lambda targets: abs(yaw_of(targets[0].rot)) > 0.1)  # the straight line is out of reach
+    phase = make("push", frame="left_tool", object="cube", target="cube_target")
     phase.start(view)
+    assert phase.info["directions_tried"] == 2
+    assert phase.info["direction"] == pytest.approx([np.cos(0.2618), np.sin(0.2618)], abs=1e-4)
+    view = push_view(reach=lambda targets: False)
+    with pytest.raises(PhaseError, match=r"no approach to cube within 60 deg of its line to cube_target"):
+        make("push", frame="left_tool", object="cube", target="cube_target").start(view)
 
-    def follow(cmd):  # the cube sits in front of the tool face once the push leg starts
-        if phase.leg == 3:
-            view.bodies["cube"] = pose(cmd.targets[0].pos[0] + 0.035, 0.0, 0.91)
 
-    cmd = run_until_done(phase, view, each=follow)
-    assert phase.info["attempts"] == 1 and phase.info["object_error_xy_m"] < 0.002 and cmd.done
+def knocked_aside_after_the_first_push(view, phase, dy=0.006):
+    push, knocked = pushed_along_the_tool_face(view), []
+
+    def each(cmd):
+        push(cmd)
+        if phase.stage == "hold" and not knocked:
+            knocked.append(True)
+            cube = view.bodies["cube"]
+            view.bodies["cube"] = Pose(cube.pos + np.array([0.0, dy, 0.0]), cube.rot)
+
+    return each
+
+
+def test_push_corrects_a_sideways_error_from_the_side_it_points_to():
+    view = push_view()
+    phase = make("push", frame="left_tool", object="cube", target="cube_target", attempts=2)
+    phase.start(view)
+    run_until_done(phase, view, each=knocked_aside_after_the_first_push(view, phase))
+    assert phase.info["attempts"] == 2 and phase.info["object_error_xy_m"] <= 0.002
+    assert phase.info["direction"][1] < -0.7  # the correction pushes back towards -y
+
+
+def test_push_fails_with_the_error_when_no_attempt_is_left():
+    view = push_view()
+    phase = make("push", frame="left_tool", object="cube", target="cube_target", attempts=1)
+    phase.start(view)
+    with pytest.raises(PhaseError, match=r"cube is still 7\.\d mm from cube_target after 1 approaches"):
+        run_until_done(phase, view, each=knocked_aside_after_the_first_push(view, phase))
 
 
 def grasp_view():
-    return ScriptedView(bodies={"dumbbell": pose(0.5, 0.0, 1.015)},
-                        commanded={"left_pad": pose(0.5, 0.25, 1.05), "right_pad": pose(0.5, -0.25, 1.05, yaw=0.0)})
+    pads = {"left_pad": pose(0.5, 0.25, 1.05), "right_pad": pose(0.5, -0.25, 1.05)}
+    return ScriptedView(bodies={"dumbbell": pose(0.5, 0.0, 1.015)}, commanded=dict(pads), frames=dict(pads))
 
 
-def test_grasp_closes_past_the_surface_holds_and_leaves_a_grip():
+def squeezed_by_the_pads(view, half_width=0.084, stiffness=1000.0):
+    """A rigid object of ``half_width`` along y: a pad inside its face feels ``stiffness`` x depth outwards."""
+
+    def squeeze(_cmd):
+        obj = view.bodies["dumbbell"].pos
+        for frame, side in (("left_pad", 1.0), ("right_pad", -1.0)):
+            depth = half_width - side * float(view.frames[frame].pos[1] - obj[1])
+            view.forces[frame] = np.array([0.0, side * stiffness * max(depth, 0.0), 0.0])
+
+    return squeeze
+
+
+def make_grasp(**kw):
+    return make("grasp", object="dumbbell", frames=["left_pad", "right_pad"], half_width=0.084, height=0.105,
+                gap=0.04, hold=0.3, **kw)
+
+
+def test_grasp_goes_down_beside_the_object_closes_to_the_force_and_leaves_a_grip():
     view = grasp_view()
-    phase = make("grasp", object="dumbbell", half_width=0.084, height=0.105, gap=0.04, squeeze=0.012, hold=0.3)
+    view.half = 0.1  # the object's top is 0.1 m over its origin
+    phase = make_grasp()
     phase.start(view)
-    assert phase.grip(None) is None
-    first = phase.update(view)
-    assert not first.done and len(first.targets) == 2
-    last = run_until_done(phase, view)
+    assert phase.grip(None) is None and phase.info["approach_gap_m"] == 0.04
+    tops = [t.pos for t in view.plans[0]]  # first waypoint: above the faces, rolls left to the planner
+    assert tops[0] == pytest.approx([0.5, 0.124, 1.015 + 0.1 + 0.04]) and view.plans[0][0].axis is not None
+    assert view.plans[2][0].pos == pytest.approx([0.5, 0.124, 1.12])  # then straight down
+    last = run_until_done(phase, view, each=squeezed_by_the_pads(view))
     left, right = (t.pos for t in last.targets)
-    assert left == pytest.approx([0.5, 0.084 - 0.012, 1.12]) and right == pytest.approx([0.5, -0.072, 1.12])
+    assert left[1] == pytest.approx(0.084 - 0.01, abs=2e-4) and right[1] == pytest.approx(-0.074, abs=2e-4)
+    assert phase.info["squeeze_n"] == pytest.approx([10.0, 10.0], abs=0.3)
     grip = phase.grip(None)
-    assert grip.object == "dumbbell" and grip.frames == ("left_pad", "right_pad")
-    assert grip.offsets["left_pad"] == pytest.approx([0.0, 0.072, 0.105])
+    assert grip.object == "dumbbell" and grip.frames == ("left_pad", "right_pad") and grip.force == 10.0
+    assert grip.offsets["left_pad"] == pytest.approx([0.0, 0.074, 0.105], abs=2e-4)
     assert grip.relative.frame == "left_pad" and grip.relative.root == "right_pad"
+
+
+def test_grasp_comes_in_closer_when_the_arms_cannot_spread_and_refuses_when_they_cannot_reach():
+    view = grasp_view()
+    view.reach = lambda targets: all(abs(t.pos[1]) < 0.084 + 0.6 * 0.04 - 1e-6 for t in targets)
+    phase = make_grasp()
+    phase.start(view)
+    assert phase.info["approach_gap_m"] == pytest.approx(0.35 * 0.04)
+    view.reach = lambda targets: False
+    with pytest.raises(PhaseError, match=r"cannot reach both sides of dumbbell at heading 0\.0 deg"):
+        make_grasp().start(view)
+
+
+def test_grasp_fails_when_the_pads_close_on_nothing():
+    view = grasp_view()
+    phase = make_grasp()
+    phase.start(view)
+    with pytest.raises(PhaseError, match=r"closed 20 mm inside dumbbell's surface without feeling 10 N"):
+        run_until_done(phase, view)  # no force ever: the object is not there
 
 
 def held_grip():
@@ -177,6 +311,50 @@ def test_carry_needs_a_grip_and_drives_both_pads_with_the_relative_target():
     assert left[2] == pytest.approx(1.015 + 0.105 + 1.0 * DT**2)
     done = run_until_done(phase, view)
     assert done.targets[0].pos[2] == pytest.approx(1.015 + 0.105 + 0.1)
+
+
+def place_view():
+    view = grasp_view()
+    view.grip, view.rest, view.obstacle = held_grip(), 1.015, 1.0
+    view.bodies["dumbbell_target"] = pose(0.35, 0.38, 1.0, yaw=0.785398 + np.pi)  # equivalent to 45 deg (pi-symmetric)
+    return view
+
+
+def carried_by_the_clamp(view, phase, heights):
+    """A kinematic object: it follows the place setpoint and stands on the table at its resting height."""
+
+    def follow(_cmd):
+        pos = np.array([*phase.sp.pos[:2], max(phase.sp.pos[2], view.rest)])
+        view.bodies["dumbbell"] = Pose(pos, rot_z(phase.yaw))
+        heights.append(pos[2])
+
+    return follow
+
+
+def test_place_lifts_over_the_obstacles_turns_to_the_nearest_equivalent_yaw_and_sets_down():
+    view = place_view()
+    phase = make("place", object="dumbbell", target="dumbbell_target", clearance=0.03)
+    with pytest.raises(PhaseError, match="place needs 'dumbbell' clamped"):
+        phase.start(ScriptedView(bodies=view.bodies))
+    phase.start(view)
+    carry = 1.0 + 0.03 + (1.015 - 0.875)  # obstacle top + clearance + the object's depth below its origin
+    assert phase.info["carry_height_m"] == pytest.approx(carry)
+    assert phase.info["place_yaw_rad"] == pytest.approx(0.785398, abs=1e-4)  # not 225 deg: the nearer equivalent yaw
+    heights = []
+    cmd = run_until_done(phase, view, each=carried_by_the_clamp(view, phase, heights))
+    assert cmd.done and max(heights) == pytest.approx(carry)
+    obj = view.bodies["dumbbell"]
+    assert obj.pos[:2] == pytest.approx([0.35, 0.38]) and yaw_of(obj.rot) == pytest.approx(0.785398, abs=1e-4)
+    assert obj.pos[2] <= 1.015 + 0.001  # set down: within 1 mm of its resting height
+    left, right = (t.pos for t in cmd.targets)
+    assert np.linalg.norm(left - right) == pytest.approx(0.144)  # the pads keep the grip's spread
+
+
+def test_place_refuses_a_target_pose_the_clamp_cannot_reach():
+    view = place_view()
+    view.reach = lambda targets: False
+    with pytest.raises(PhaseError, match="cannot reach dumbbell_target's pose with dumbbell at any of its 2"):
+        make("place", object="dumbbell", target="dumbbell_target").start(view)
 
 
 def test_release_opens_lifts_and_ends_the_grip():

@@ -8,6 +8,8 @@ import pytest
 from nextage_qp.cli import main
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import Runner
+from nextage_qp.sweep.run import plan, run_sweep
+from nextage_qp.sweep.spec import SweepSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 PUSH = ROOT / "configs" / "push_cube.yaml"
@@ -20,18 +22,18 @@ PUSH_VARIANTS = [
     ["scene.poses.cube.pos=[0.33,0.03,0.91]", "scene.poses.cube_target.pos=[0.70,-0.03,0.91]",
      "scene.poses.cube_target.yaw=2.88"],
     ["scene.poses.cube.pos=[0.35,-0.02,0.91]", "scene.poses.cube.yaw=0.15", "scene.poses.cube_target.pos=[0.69,0.03,0.91]"],
+    # a cube yawed by -15 deg that must travel towards +y (the flat face turns it away; the steering brings it back)
+    ["scene.poses.cube.pos=[0.31,-0.03,0.91]", "scene.poses.cube.yaw=-0.26", "scene.poses.cube_target.pos=[0.72,0.03,0.91]"],
 ]
-# Known limitation: a cube yawed by -15 deg that must travel towards +y is turned away by the flat push face and
-# the re-pushes do not recover it. Kept as a strict xfail so a fix shows up.
-PUSH_KNOWN_FAILURE = ["scene.poses.cube.pos=[0.31,-0.03,0.91]", "scene.poses.cube.yaw=-0.26",
-                      "scene.poses.cube_target.pos=[0.72,0.03,0.91]"]
 DOCK_VARIANTS = [
     ["scene.poses.dumbbell.pos=[0.53,0.02,1.015]", "scene.poses.dumbbell.yaw=0.26"],
     ["scene.poses.dumbbell.pos=[0.48,-0.03,1.015]", "scene.poses.dumbbell_target.pos=[0.37,0.40,1.0]",
      "scene.poses.dumbbell_target.yaw=0.52"],
-    ["scene.poses.dumbbell.pos=[0.50,0.03,1.015]", "scene.poses.dumbbell.yaw=-0.26",
-     "scene.poses.dumbbell_target.pos=[0.33,0.36,1.0]"],
 ]
+# Known limitation: after the hover corrections the set-down stalls with the dumbbell tilted in the pads about 40 mm
+# over the target, and the place phase times out. Kept as a strict xfail so a fix shows up.
+DOCK_KNOWN_FAILURE = ["scene.poses.dumbbell.pos=[0.50,0.03,1.015]", "scene.poses.dumbbell.yaw=-0.26",
+                      "scene.poses.dumbbell_target.pos=[0.33,0.36,1.0]"]
 
 
 def run(path: Path, overrides=()):
@@ -67,28 +69,51 @@ def test_dock_dumbbell_default_within_20mm_no_contact_no_drop():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("overrides", PUSH_VARIANTS, ids=["shift+yaw", "shift-yaw", "target-yaw", "cross+yaw"])
-def test_push_cube_shifted_variants_within_20mm(overrides):
+@pytest.mark.parametrize("overrides", PUSH_VARIANTS,
+                         ids=["shift+yaw", "shift-yaw", "target-yaw", "cross+yaw", "yawed-towards-left"])
+def test_push_cube_shifted_variants_meet_the_success_criteria(overrides):
     result = run(PUSH, overrides)
     assert_clean(result)
-    assert result["object_error_m"] <= 0.020
+    assert result["object_error_xy_m"] <= 0.005 and result["success"]
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="yawed cube pushed towards +y turns away from the push face")
-def test_push_cube_known_failure_yawed_cube_towards_left():
-    result = run(PUSH, PUSH_KNOWN_FAILURE)
-    assert result["error"] is None and result["object_error_m"] <= 0.020
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("overrides", DOCK_VARIANTS, ids=["object-shift+yaw", "target-shift+yaw", "both-shift"])
-def test_dock_dumbbell_shifted_variants_within_20mm(overrides):
+@pytest.mark.parametrize("overrides", DOCK_VARIANTS, ids=["object-shift+yaw", "target-shift+yaw"])
+def test_dock_dumbbell_shifted_variants_meet_the_success_criteria(overrides):
     result = run(DOCK, overrides)
     assert_clean(result)
-    assert result["object_error_m"] <= 0.020
+    assert result["object_error_xy_m"] <= 0.005 and result["success"]
     assert result["obstacle_contacts"] == 0
     assert not result["object_dropped"]
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="set-down stalls with the dumbbell tilted in the pads; place times out")
+def test_dock_dumbbell_known_failure_both_shifted():
+    result = run(DOCK, DOCK_KNOWN_FAILURE)
+    assert result["success"]
+
+
+@pytest.mark.slow
+def test_push_sweep_episodes_all_succeed():
+    """The first episodes of the push envelope (seed 0): each meets every success criterion."""
+    spec = SweepSpec(ROOT / "configs" / "sweeps" / "push_cube.yaml")
+    episodes = run_sweep(plan(spec, 0, range(6)), store=None, workers=2)
+    assert [(e.index, e.status, e.reason) for e in episodes if e.status != "success"] == []
+
+
+@pytest.mark.slow
+def test_dock_sweep_episodes_end_honestly():
+    """Dock episodes of the envelope: a success meets every criterion; anything else names its phase or criterion."""
+    spec = SweepSpec(ROOT / "configs" / "sweeps" / "dock_dumbbell.yaml")
+    for e in run_sweep(plan(spec, 0, range(4)), store=None, workers=2):
+        assert e.status in ("success", "failed", "refused"), (e.index, e.reason)
+        if e.status == "success":
+            assert e.result["success"] and not e.result["failed_criteria"] and e.result["error"] is None
+        elif e.status == "failed":
+            assert e.reason and (e.failed_phase or e.failed_criteria)
+        else:
+            assert "dumbbell_target" in e.reason and e.result is None
 
 
 @pytest.mark.slow

@@ -142,7 +142,7 @@ def test_a_phase_kind_added_from_a_test_module_runs_from_yaml(tmp_path, nudge_ki
         Runner(load_config(path), str(path))
     doc["phases"][0]["kind"] = "nudg"
     path.write_text(yaml.safe_dump(doc))
-    with pytest.raises(ConfigError, match="unknown kind; valid: move, push, grasp, carry, release, joints, wait, nudge"):
+    with pytest.raises(ConfigError, match="unknown kind; valid: move, push, grasp, carry, place, release, joints, wait, nudge"):
         load_config(path)
 
 

@@ -2,7 +2,7 @@ r"""Execute a manipulation config.
 
 The runner only sequences phases; the servo, the simulation and the metrics do the rest.
 
-Each control tick the current phase reads the :class:`~.context.SimView` and returns a command; the
+Each control tick the current phase reads the :class:`~.sim_view.SimView` and returns a command; the
 :class:`~nextage_qp.servo.Servo` turns it into commanded joints for Ruckig; the simulation runs one control
 period of PD-controlled physics; the outcome monitor watches contacts and the clamp.
 """
@@ -17,10 +17,10 @@ from nextage_qp.control import load_gains
 from nextage_qp.errors import ConfigError, NextageQPError, PhaseError, UnknownNameError
 from nextage_qp.ik import QPIK
 from nextage_qp.manipulation.config import ManipulationConfig
-from nextage_qp.manipulation.context import SimView
 from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, summarize
 from nextage_qp.manipulation.phases import Phase, build, names_in
 from nextage_qp.manipulation.placement import check_placement
+from nextage_qp.manipulation.sim_view import SimView
 from nextage_qp.nextage import TOOL_SITES
 from nextage_qp.robot import Robot
 from nextage_qp.scene import BodyPose, SceneOverrides

@@ -1,19 +1,18 @@
 r"""``push``: closed-loop pushing of an object onto a target with one tool frame.
 
-The phase runs a small state machine, every step of it driven by the live object pose:
+A small state machine, every step driven by the live object pose:
 
-* **approach** (transit): lift to ``clearance`` above the object, move over the point ``approach`` behind its
-  face on the line to the target, turn the wrist there (only once clear of the object), lower to the push
-  height. The IK avoids the object throughout (collision pairs with it in the IK config).
-* **push**: each tick the push direction :math:`\hat d` turns (at most ``turn_rate``) towards the live
-  object-to-target direction, the tool stays centred behind the object on that line, and it advances at a
-  speed that falls from ``push_speed`` to ``creep_speed`` over the last ``slow_down`` metres, never more than
-  ``preload`` into the object's face. When the object's remaining distance along :math:`\hat d` is gone, the
-  tool is commanded where it is, so the arm's compliance does not shove the object on.
-* **hold**: the object comes to rest and the error is measured: within ``tolerance`` the tool retreats and the
-  phase is done; short of the target on the same line, the push resumes (a nudge); otherwise the tool retreats,
-  lifts and approaches again from the side the residual error points to (up to ``attempts`` approaches). When
-  nothing is left to try, an error within ``accept`` ends the phase, a larger one fails it.
+* **transit**: lift to ``clearance`` over the object, then through planned joints to ``approach`` behind its
+  face, for the reachable direction nearest the line to the target (:mod:`~nextage_qp.manipulation.push_approach`).
+* **push**: the tool closes the gap slowly, then advances at a speed that falls from ``push_speed`` to
+  ``creep_speed`` over the last ``slow_down``, never more than ``preload`` into the face, at a fixed height. Once
+  in contact the direction :math:`\hat d` turns (at most ``turn_rate``) towards the object's bearing to the
+  target plus an integral bias that makes the object's own motion point at the target; inside ``freeze`` it is
+  kept. A tilting object gets no push until it is flat. The first push stops ``standoff`` short.
+* **hold**: the object comes to rest and the error is judged: within ``tolerance`` the tool retreats and the phase
+  is done; short on the same line, the push resumes (up to ``nudges``); otherwise the tool retreats and approaches
+  again along the error (within ``correction_fan``), up to ``attempts`` approaches. When nothing is left to try,
+  an error within ``accept`` ends the phase, a larger one fails it.
 """
 
 from __future__ import annotations
@@ -24,11 +23,11 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from nextage_qp.errors import PhaseError
-from nextage_qp.geometry import rot_z, yaw_of
+from nextage_qp.geometry import rot_z, rotate2, turn2, unit2, yaw_of
 from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.context import Setpoint, View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
-from nextage_qp.manipulation.route import PlannedRoute
+from nextage_qp.manipulation.push_approach import plan_approach
 from nextage_qp.servo import Command
 
 PUSH_ACCEL = 0.1
@@ -97,23 +96,6 @@ class PushSpec(Spec):
         return self
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    n = float(np.linalg.norm(v))
-    return v / n if n > 1e-12 else np.array([1.0, 0.0])
-
-
-def _rotate(d: np.ndarray, angle: float) -> np.ndarray:
-    """Planar vector ``d`` rotated by ``angle`` [rad]."""
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([c * d[0] - s * d[1], s * d[0] + c * d[1]])
-
-
-def _turn(d: np.ndarray, goal: np.ndarray, max_angle: float) -> np.ndarray:
-    """``d`` turned towards ``goal`` (planar unit vectors) by at most ``max_angle`` [rad]."""
-    angle = float(np.arctan2(d[0] * goal[1] - d[1] * goal[0], d @ goal))
-    return _rotate(d, float(np.clip(angle, -max_angle, max_angle)))
-
-
 class Push(Phase):
     """See the module docstring."""
 
@@ -125,7 +107,8 @@ class Push(Phase):
         self.tool_yaw = yaw_of(rot)
         self.approaches = 0
         self.info.update(attempts=0, nudges=0)
-        self._approach(view, self._to_target(view))
+        obj, tgt, _ = self._planar(view)
+        self._approach(view, unit2((tgt - obj)[:2]))
         if self.plan_failed:
             raise PhaseError(f"phase {self.name!r} (push): no approach to {self.spec.object} within "
                              f"{np.degrees(max(self.spec.fan)):.0f} deg of its line to {self.spec.target} is reachable")
@@ -134,58 +117,21 @@ class Push(Phase):
         obj, tgt = view.body_pose(self.spec.object).pos, view.body_pose(self.spec.target).pos
         return obj, tgt, float(np.linalg.norm((tgt - obj)[:2]))
 
-    def _to_target(self, view: View) -> np.ndarray:
-        obj, tgt, _ = self._planar(view)
-        return _unit((tgt - obj)[:2])
-
-    def _routes(self, view: View, d: np.ndarray) -> list[list[np.ndarray]]:
-        """Transit routes to the point behind the object for direction ``d``.
-
-        Lift, then down beside the object (on the side the tool is on) and in behind it; or over it and straight
-        down behind it.
-        """
-        c = self.spec
-        obj = view.body_pose(c.object).pos
-        d3, n3 = np.array([*d, 0.0]), np.array([-d[1], d[0], 0.0])
-        behind = obj - d3 * (view.extent(c.object, d3) + c.approach)
-        behind[2] = obj[2] + c.height
-        top = obj[2] + view.extent(c.object, np.array([0.0, 0.0, 1.0]))
-        lift = max(self.sp.pos[2], top + c.clearance)
-        side = 1.0 if float((self.sp.pos - obj) @ n3) >= 0 else -1.0
-        beside = behind + side * n3 * (view.extent(c.object, side * n3) + c.approach)
-        up = np.array([0.0, 0.0, lift - behind[2]])
-        start = np.array([*self.sp.pos[:2], lift])
-        return [[start, beside + up, beside, behind], [start, behind + up, behind]]
-
     def _approach(self, view: View, d_goal: np.ndarray) -> None:
-        """Plan the next approach: the direction closest to ``d_goal`` with a route the arm can reach.
-
-        Every waypoint after the lift gets joints from the planner, each solved from the previous one's, so the
-        transit moves through neighbouring configurations (no local minimum of the streaming IK to get stuck in).
-        """
+        """Plan the next approach: the direction closest to ``d_goal`` with a route the arm can reach."""
         c = self.spec
         self.approaches += 1
         self.nudges = 0
-        tried, plan = 0, None
         fan = c.fan if self.approaches == 1 else tuple(a for a in c.fan if a <= c.correction_fan)
-        for deviation in (s * a for a in fan for s in ((1.0,) if a == 0 else (1.0, -1.0))):
-            d = _rotate(d_goal, deviation)
-            yaw = float(np.arctan2(d[1], d[0])) + c.yaw
-            tried += 1
-            for route in self._routes(view, d):
-                planned = PlannedRoute([(FrameTarget(c.frame, pos=p, rot=self._rot(yaw)),) for p in route[1:]])
-                if planned.plan(view):
-                    plan = (d, route[0], yaw, planned, float(route[-1][2]))
-                    break
-            if plan is not None:
-                break
+        plan = plan_approach(view, c, self.sp.pos, d_goal, fan, self._rot)
+        tried = plan.tried if plan else sum(1 + (a != 0) for a in fan)
         self.info.update(attempts=self.approaches, directions_tried=tried)
+        self.plan_failed = plan is None
         if plan is None:
-            self.plan_failed = True
             return
-        self.d, self.lift, self.goal_yaw, self.planned, self.push_z = plan
+        self.d, self.lift, self.goal_yaw, self.planned, self.push_z = plan[:5]
         self.info["direction"] = self.d.round(4).tolist()
-        self.stage, self.lifting, self.plan_failed = "transit", True, False
+        self.stage, self.lifting = "transit", True
 
     def _command(self, allow: bool, done: bool = False) -> Command:
         target = FrameTarget(self.spec.frame, pos=self.sp.pos.copy(), rot=self._rot(self.tool_yaw))
@@ -195,21 +141,13 @@ class Push(Phase):
         c, s = np.cos(self.spec.pitch), np.sin(self.spec.pitch)
         return rot_z(yaw) @ np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
-    def _turn_tool(self, view: View) -> bool:
-        """Turn the commanded tool yaw towards the goal at the turn rate; True once there."""
-        err = float(np.angle(np.exp(1j * (self.goal_yaw - self.tool_yaw))))
+    def _turn_tool(self, view: View) -> None:
+        """Turn the commanded tool yaw towards the goal at the turn rate."""
         step = self.spec.turn_rate * view.dt
-        self.tool_yaw += float(np.clip(err, -step, step))
-        return abs(err) <= step
+        self.tool_yaw += float(np.clip(np.angle(np.exp(1j * (self.goal_yaw - self.tool_yaw))), -step, step))
 
     def update(self, view: View) -> Command:  # noqa: D102
-        if self.stage == "transit":
-            return self._transit(view)
-        if self.stage == "push":
-            return self._push(view)
-        if self.stage == "hold":
-            return self._hold(view)
-        return self._retreat(view)
+        return getattr(self, f"_{self.stage}")(view)  # _transit, _push, _hold or _retreat
 
     def _transit(self, view: View) -> Command:
         """Lift straight up, then move through the planned joints of the route (the wrist turns once lifted)."""
@@ -245,13 +183,13 @@ class Push(Phase):
         dist = float(np.linalg.norm((tgt - obj)[:2]))
         self._track(view, obj[:2])
         if dist > c.freeze and self.touched:  # turn only once in contact: the approach side was chosen to reach
-            bearing = _unit((tgt - obj)[:2])
+            bearing = unit2((tgt - obj)[:2])
             speed = float(np.linalg.norm(self.obj_v))
             if speed > MIN_STEER_SPEED:  # integral steering: aim the push so the object moves at the target
                 moving = self.obj_v / speed
                 error = float(np.arctan2(moving[0] * bearing[1] - moving[1] * bearing[0], moving @ bearing))
                 self.bias = float(np.clip(self.bias + STEER_GAIN * error * view.dt, -MAX_BIAS, MAX_BIAS))
-            self.d = _turn(self.d, _rotate(bearing, self.bias), c.turn_rate * view.dt)
+            self.d = turn2(self.d, rotate2(bearing, self.bias), c.turn_rate * view.dt)
             self.goal_yaw = float(np.arctan2(self.d[1], self.d[0])) + c.yaw
         self._turn_tool(view)
         d, n = self.d, np.array([-self.d[1], self.d[0]])
@@ -301,7 +239,7 @@ class Push(Phase):
             self._begin_push(touched=True)
             return self._command(allow=True)
         if self.approaches < c.attempts:
-            self.next_d = _unit(e)
+            self.next_d = unit2(e)
             return self._start_retreat(final=False)
         return self._finish(err)
 

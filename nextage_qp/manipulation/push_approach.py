@@ -1,0 +1,73 @@
+"""Where a push starts from: the reachable approach direction nearest the one wanted, and its planned route.
+
+Directions are tried from the wanted one outwards through a fan of deviations, each way. For each, two transit
+routes to the point ``approach`` behind the object's face: lift, then down beside the object (on the side the
+tool is on) and in behind it; or over it and straight down behind it. The first route whose every waypoint the
+planner reaches (each solved from the previous, see :class:`~nextage_qp.manipulation.route.PlannedRoute`) wins.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import NamedTuple
+
+import numpy as np
+
+from nextage_qp.geometry import rotate2
+from nextage_qp.ik import FrameTarget
+from nextage_qp.manipulation.context import View
+from nextage_qp.manipulation.route import PlannedRoute
+
+
+class Approach(NamedTuple):
+    """A planned approach.
+
+    Attributes:
+        direction: Planar unit push direction.
+        lift: Point straight above the tool where the transit starts [m].
+        yaw: Tool yaw for the push [rad].
+        route: The planned transit.
+        push_z: Tool height while pushing [m].
+        tried: Directions tried to find it.
+    """
+
+    direction: np.ndarray
+    lift: np.ndarray
+    yaw: float
+    route: PlannedRoute
+    push_z: float
+    tried: int
+
+
+def routes(view: View, spec, tool: np.ndarray, d: np.ndarray) -> list[list[np.ndarray]]:
+    """Transit routes (lift point first) from ``tool`` to behind ``spec.object`` for push direction ``d``."""
+    obj = view.body_pose(spec.object).pos
+    d3, n3 = np.array([*d, 0.0]), np.array([-d[1], d[0], 0.0])
+    behind = obj - d3 * (view.extent(spec.object, d3) + spec.approach)
+    behind[2] = obj[2] + spec.height
+    top = obj[2] + view.extent(spec.object, np.array([0.0, 0.0, 1.0]))
+    lift = max(tool[2], top + spec.clearance)
+    side = 1.0 if float((tool - obj) @ n3) >= 0 else -1.0
+    beside = behind + side * n3 * (view.extent(spec.object, side * n3) + spec.approach)
+    up = np.array([0.0, 0.0, lift - behind[2]])
+    start = np.array([*tool[:2], lift])
+    return [[start, beside + up, beside, behind], [start, behind + up, behind]]
+
+
+def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: Sequence[float],
+                  rot: Callable[[float], np.ndarray]) -> Approach | None:
+    """The approach closest to the planar direction ``wanted`` within ``fan`` [rad] that the arm reaches, or None.
+
+    ``spec`` is the push's spec (frame, object, approach, height, clearance, yaw); ``rot(yaw)`` the tool
+    rotation for a push at ``yaw``.
+    """
+    tried = 0
+    for deviation in (s * a for a in fan for s in ((1.0,) if a == 0 else (1.0, -1.0))):
+        d = rotate2(wanted, deviation)
+        yaw = float(np.arctan2(d[1], d[0])) + spec.yaw
+        tried += 1
+        for route in routes(view, spec, tool, d):
+            planned = PlannedRoute([(FrameTarget(spec.frame, pos=p, rot=rot(yaw)),) for p in route[1:]])
+            if planned.plan(view):
+                return Approach(d, route[0], yaw, planned, float(route[-1][2]), tried)
+    return None

@@ -1,0 +1,138 @@
+"""The :class:`~.context.View` of a running simulation: measured object poses, the model's geometry, the planner."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from nextage_qp.errors import UnknownNameError
+from nextage_qp.geometry import Pose
+from nextage_qp.ik import QPIK, FrameTarget
+from nextage_qp.kinematics import Kinematics
+from nextage_qp.manipulation.context import Grip
+from nextage_qp.manipulation.placement import obstacle_top, rest_height, table_top
+from nextage_qp.robot import Robot
+from nextage_qp.sensors import Wrench
+from nextage_qp.servo import Servo
+from nextage_qp.sim import Simulation
+
+REACH_POS_TOL = 0.003
+"""Position error [m] within which :meth:`SimView.plan` counts a target as reached."""
+REACH_ROT_TOL = 0.05
+"""Orientation error [rad] within which :meth:`SimView.plan` counts a target as reached."""
+
+
+class SimView:
+    """The :class:`View` of a running simulation (what the phases of :class:`~.runner.Runner` see).
+
+    Object poses come from the simulation's measurement seam; everything else from the model and the servo.
+    """
+
+    def __init__(self, robot: Robot, sim: Simulation, servo: Servo, *, qd_tol: float = 0.05) -> None:
+        self.robot, self._sim, self._servo, self.qd_tol = robot, sim, servo, qd_tol
+        self.dt = sim.ctrl_dt
+        self.grip: Grip | None = None
+        self._boxes: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        self._planner: QPIK | None = None
+        self._kinematics: Kinematics | None = None
+
+    @property
+    def t(self) -> float:
+        """Simulated time [s]."""
+        return self._sim.time
+
+    def body_pose(self, name: str) -> Pose:  # noqa: D102
+        measured = self._sim.measured.objects.get(name)
+        if measured is not None:
+            return Pose(measured.pos.copy(), measured.rot.copy())
+        bid = mujoco.mj_name2id(self.robot.model, mujoco.mjtObj.mjOBJ_BODY, name)
+        if bid < 0:
+            raise UnknownNameError("body", name, self.robot.body_names)
+        d = self._sim.data
+        return Pose(d.xpos[bid].copy(), d.xmat[bid].reshape(3, 3).copy())
+
+    def frame_pose(self, name: str) -> Pose:  # noqa: D102
+        kind, fid = self.robot.frame(name)
+        d = self._sim.data
+        if kind == "site":
+            return Pose(d.site_xpos[fid].copy(), d.site_xmat[fid].reshape(3, 3).copy())
+        return Pose(d.xpos[fid].copy(), d.xmat[fid].reshape(3, 3).copy())
+
+    def commanded_pose(self, name: str) -> Pose:  # noqa: D102
+        return self._servo.commanded_pose(name)
+
+    def joint_positions(self, names: tuple[str, ...]) -> np.ndarray:  # noqa: D102
+        idx = [self.robot.joint_index(n) for n in names]
+        return self._sim.measured.q[idx].copy()
+
+    def settled(self) -> bool:  # noqa: D102
+        ref_gap = float(np.max(np.abs(self._sim.ref.q - self._servo.q_cmd)))
+        return ref_gap < 2e-3 and float(np.max(np.abs(self._sim.measured.qd))) < self.qd_tol
+
+    def tracking_error(self) -> float:  # noqa: D102
+        return float(np.max(np.abs(self._sim.measured.q - self._servo.q_cmd)))
+
+    def plan(self, targets: Sequence[FrameTarget], start: np.ndarray | None = None,  # noqa: D102
+             allow: frozenset[str] = frozenset()) -> np.ndarray | None:
+        if self._planner is None:
+            config = self._servo.ik.config.model_copy(update={"restarts": 4, "max_iters": 80})
+            self._planner = QPIK(self.robot, config)
+        poses = {name: (p.pos, p.quat) for name, p in self._sim.measured.objects.items()}
+        q0 = np.array(self._servo.q_cmd if start is None else start)
+        result = self._planner.solve(list(targets), q0, object_poses=poses, allow=allow)
+        return result.q if result.pos_err_m <= REACH_POS_TOL and result.rot_err_rad <= REACH_ROT_TOL else None
+
+    def joint_names(self) -> tuple[str, ...]:  # noqa: D102
+        return self.robot.joint_names
+
+    def pose_at(self, frame: str, q: np.ndarray) -> Pose:  # noqa: D102
+        if self._kinematics is None:
+            self._kinematics = Kinematics(self.robot)
+        return self._kinematics.fk(frame, q)
+
+    def wrench(self, site: str) -> Wrench:  # noqa: D102
+        m, d = self.robot.model, self._sim.data
+        kind, fid = self.robot.frame(site)
+        body = fid if kind == "body" else int(m.site_bodyid[fid])
+        for sensor in self._sim.wrench_sensors:
+            if sensor.body == body:
+                w = self._sim.measured.wrenches[sensor.name]
+                here = d.xpos[fid] if kind == "body" else d.site_xpos[fid]
+                return Wrench(w.force, w.torque + np.cross(d.site_xpos[sensor.site] - here, w.force))
+        with_sensor = [n for n in self.robot.site_names if int(m.site_bodyid[m.site(n).id]) in
+                       {s.body for s in self._sim.wrench_sensors}]
+        raise UnknownNameError("site on a body with a force/torque sensor", site, with_sensor)
+
+    def rest_height(self, obj: str) -> float:  # noqa: D102
+        return rest_height(self.robot, self._sim.data, obj)
+
+    def table_top(self) -> float:  # noqa: D102
+        return table_top(self.robot, self._sim.data)[0]
+
+    def obstacle_top(self) -> float:  # noqa: D102
+        return obstacle_top(self.robot, self._sim.data)
+
+    def yaw_symmetry(self, obj: str) -> float:  # noqa: D102
+        return self.robot.yaw_symmetry(obj)
+
+    def extent(self, obj: str, direction: np.ndarray) -> float:  # noqa: D102
+        boxes = self._boxes.get(obj)
+        if boxes is None:
+            boxes = self._boxes[obj] = _boxes_of(self.robot.model, obj)
+        rot = self.body_pose(obj).rot
+        local = rot.T @ direction
+        return max((float(c @ local) + float(np.abs(r.T @ local) @ size) for c, r, size in boxes), default=0.0)
+
+
+def _boxes_of(model: mujoco.MjModel, obj: str) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """(centre, rotation, half-sizes) of every box geom of a body, in the body's frame."""
+    body = model.body(obj).id
+    out = []
+    for g in range(model.ngeom):
+        if model.geom_bodyid[g] == body and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
+            rot = np.empty(9)
+            mujoco.mju_quat2Mat(rot, model.geom_quat[g])
+            out.append((model.geom_pos[g].copy(), rot.reshape(3, 3), model.geom_size[g].copy()))
+    return out
