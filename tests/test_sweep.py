@@ -16,7 +16,7 @@ from nextage_qp.sweep.keys import yaml_scalar
 from nextage_qp.sweep.run import plan, replay_commands, run_sweep
 from nextage_qp.sweep.spec import SweepSpec
 from nextage_qp.sweep.store import SweepStore
-from nextage_qp.sweep.summary import summarize, wilson
+from nextage_qp.sweep.summary import by_target_clearance, summarize, wilson
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "tests" / "data" / "quick_push.yaml"
@@ -142,6 +142,19 @@ def test_out_dir_with_episodes_needs_resume(tmp_path, capsys):
 
 
 # --- statistics --------------------------------------------------------------------------------------------------
+
+
+def test_success_is_split_by_target_clearance():
+    def ep(i, status, clearance):
+        result = None if status == "refused" else {"target_clearance_m": clearance}
+        return Episode(i, i, {}, [], status, result=result)
+
+    eps = [ep(0, "success", 0.03), ep(1, "failed", 0.012), ep(2, "success", 0.004), ep(3, "failed", 0.002),
+           ep(4, "failed", 0.001), ep(5, "refused", None)]
+    clear, tight = by_target_clearance(eps)
+    assert (clear["episodes"], clear["successes"], tight["episodes"], tight["successes"]) == (2, 1, 3, 1)
+    assert tight["success_rate_ci95"] == pytest.approx(list(wilson(1, 3)))
+    assert by_target_clearance([ep(0, "success", None)]) == []  # no obstacle in the scene: no split
 
 
 def test_wilson_interval_known_values():

@@ -190,6 +190,11 @@ def _print_summary(s: dict[str, Any], console: Console, *, only: bool, episodes:
         q = s[key]
         table.add_row(label, _mm(q["median"]), _mm(q["p90"]), _mm(q["p99"]), _mm(q["max"]))
     console.print(table)
+    for row in s["by_target_clearance"]:
+        lo, hi = row["success_rate_ci95"]
+        rate = "-" if row["success_rate"] is None else f"{100 * row['success_rate']:.1f} %"
+        console.print(f"targets {row['targets']}: {row['successes']}/{row['episodes']} succeed = {rate} "
+                      f"(95 % CI {100 * lo:.1f}-{100 * hi:.1f} %)", markup=False)
     if s["failures_by_phase"]:
         console.print("failures by phase: " + ", ".join(f"{k}: {v}" for k, v in s["failures_by_phase"].items()),
                       markup=False)

@@ -106,6 +106,27 @@ def by_parameter(spec: SweepSpec, episodes: Sequence[Episode]) -> list[dict[str,
     return rows
 
 
+TIGHT_CLEARANCE = 0.010
+"""Target clearance [m] (object at rest on its target to the nearest obstacle) below which a target counts as tight."""
+
+
+def by_target_clearance(episodes: Sequence[Episode]) -> list[dict[str, Any]]:
+    """Success of the episodes that ran, split by their target's clearance to the obstacles (empty without one)."""
+    ran = [(e, (e.result or {}).get("target_clearance_m")) for e in episodes if e.status != "refused"]
+    if not any(c is not None for _, c in ran):
+        return []
+    rows = []
+    for label, members in ((f"clear (>= {TIGHT_CLEARANCE * 1e3:g} mm)", [e for e, c in ran if c is not None
+                                                                          and c >= TIGHT_CLEARANCE]),
+                           (f"tight (< {TIGHT_CLEARANCE * 1e3:g} mm)", [e for e, c in ran if c is not None
+                                                                         and c < TIGHT_CLEARANCE])):
+        k = sum(e.status == "success" for e in members)
+        rows.append({"targets": label, "episodes": len(members), "successes": k,
+                     "success_rate": k / len(members) if members else None,
+                     "success_rate_ci95": list(wilson(k, len(members)))})
+    return rows
+
+
 def summarize(spec: SweepSpec, seed: int, episodes: Sequence[Episode], *, session_episodes: int,
               session_wall_s: float) -> dict[str, Any]:
     """The sweep summary printed on the terminal and written by ``--json`` (see ``docs/sweep.md``)."""
@@ -138,6 +159,7 @@ def summarize(spec: SweepSpec, seed: int, episodes: Sequence[Episode], *, sessio
         "failures_by_phase": dict(by_phase.most_common()),
         "failures_by_criterion": dict(by_criterion.most_common()),
         "by_parameter": by_parameter(spec, episodes),
+        "by_target_clearance": by_target_clearance(episodes),
         "episodes_per_minute": 60.0 * session_episodes / session_wall_s if session_wall_s > 0 else None,
         "session": {"episodes_run": session_episodes, "wall_time_s": session_wall_s},
         "failed": listed,
