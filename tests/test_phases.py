@@ -404,3 +404,19 @@ def test_setpoint_ramps_up_cruises_and_stops_on_the_goal():
     steps = np.diff([0.0, *speeds])
     assert max(speeds) == pytest.approx(0.1) and np.all(np.abs(steps) <= 1.0 * DT + 1e-12)
     assert len(speeds) * DT == pytest.approx(0.1 / 0.1 + 0.1 / 1.0, abs=0.02)  # cruise time + one ramp
+
+
+def test_place_fails_when_the_object_does_not_come_down():
+    view = place_view()
+    phase = make("place", object="dumbbell", target="dumbbell_target")
+    phase.start(view)
+    heights = []
+    follow = carried_by_the_clamp(view, phase, heights)
+
+    def stuck(cmd):  # something under the object holds it 40 mm up
+        follow(cmd)
+        obj = view.bodies["dumbbell"]
+        view.bodies["dumbbell"] = Pose(np.array([*obj.pos[:2], max(obj.pos[2], 1.055)]), obj.rot)
+
+    with pytest.raises(PhaseError, match=r"set-down stalled: dumbbell is still 40 mm over its resting height"):
+        run_until_done(phase, view, each=stuck)

@@ -30,8 +30,8 @@ DOCK_VARIANTS = [
     ["scene.poses.dumbbell.pos=[0.48,-0.03,1.015]", "scene.poses.dumbbell_target.pos=[0.37,0.40,1.0]",
      "scene.poses.dumbbell_target.yaw=0.52"],
 ]
-# Known limitation: after the hover corrections the set-down stalls with the dumbbell tilted in the pads about 40 mm
-# over the target, and the place phase times out. Kept as a strict xfail so a fix shows up.
+# Known limitation: after the hover corrections the set-down stalls: the pads reach their targets but the dumbbell
+# stays 45 mm over its resting height; the place phase fails with that. Kept as a strict xfail so a fix shows up.
 DOCK_KNOWN_FAILURE = ["scene.poses.dumbbell.pos=[0.50,0.03,1.015]", "scene.poses.dumbbell.yaw=-0.26",
                       "scene.poses.dumbbell_target.pos=[0.33,0.36,1.0]"]
 
@@ -88,7 +88,7 @@ def test_dock_dumbbell_shifted_variants_meet_the_success_criteria(overrides):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="set-down stalls with the dumbbell tilted in the pads; place times out")
+@pytest.mark.xfail(strict=True, reason="set-down stalls: the pads reach the bottom of the descent with the dumbbell 45 mm up")
 def test_dock_dumbbell_known_failure_both_shifted():
     result = run(DOCK, DOCK_KNOWN_FAILURE)
     assert result["success"]

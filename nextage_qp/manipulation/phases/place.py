@@ -30,6 +30,8 @@ from nextage_qp.servo import Command
 
 CONTACT = 0.001
 """The object counts as set down when its height is this close to its resting height [m]."""
+STALL = 3.0
+"""Time the object may stay up once the clamp has reached the bottom of its descent [s]."""
 
 
 class PlaceSpec(Spec):
@@ -74,6 +76,7 @@ class Place(Phase):
         self.leg, self.stage = 0, "transit"
         self.samples: list[tuple[np.ndarray, float]] = []
         self.corrections = 0
+        self.bottom_from: float | None = None
         self.info.update(carry_height_m=round(carry, 4), corrections=0)
 
     def _reachable_yaw(self, view: View, target_yaw: float) -> tuple[float, np.ndarray]:
@@ -109,13 +112,28 @@ class Place(Phase):
         elif self.stage == "hover":
             self._hover(view)
         elif self.stage == "descend":
-            self.sp.advance(np.array([*self.sp.pos[:2], self.rest - 0.005]), c.descend_speed, view.dt)
+            if self.sp.advance(np.array([*self.sp.pos[:2], self.rest - 0.005]), c.descend_speed, view.dt):
+                self._check_stall(view)
             down = view.body_pose(c.object).pos[2] <= self.rest + CONTACT
             done = down and view.settled()
             if down:
                 self.sp.jump(np.array([*self.sp.pos[:2], max(self.sp.pos[2], self.rest)]))
         targets, relative = self.clamp.targets(view, self.sp.pos, self.yaw)
         return Command(targets, (relative,), allow=frozenset({c.object}), posture=self.posture, done=done)
+
+    def _check_stall(self, view: View) -> None:
+        """Fail when the setpoint has been at the bottom of its descent for ``STALL`` s and the object is not down."""
+        if self.bottom_from is None:
+            self.bottom_from = view.t
+        obj, rot = view.body_pose(self.spec.object)
+        if view.t - self.bottom_from > STALL and obj[2] > self.rest + CONTACT:
+            tilt = np.degrees(np.arccos(np.clip(rot[2, 2], -1.0, 1.0)))
+            pads = self.clamp.pads(self.sp.pos, self.yaw)[0]
+            lag = max(float(view.frame_pose(t.frame).pos[2] - np.asarray(t.pos)[2]) for t in pads)
+            raise PhaseError(f"phase {self.name!r} (place): set-down stalled: {self.spec.object} is still "
+                             f"{(obj[2] - self.rest) * 1e3:.0f} mm over its resting height, tilted {tilt:.0f} deg, "
+                             f"{STALL:g} s after the clamp's setpoint reached the bottom of its descent (a pad "
+                             f"{lag * 1e3:.0f} mm above its target)")
 
     def _hover(self, view: View) -> None:
         """Wait for the sway to settle, then correct the setpoint by the averaged planar and yaw error."""
