@@ -32,6 +32,8 @@ CONTACT = 0.001
 """The object counts as set down when its height is this close to its resting height [m]."""
 STALL = 3.0
 """Time the object may stay up once the clamp has reached the bottom of its descent [s]."""
+STALLED = 0.01
+"""Height over its resting height [m] at which an object still up ``STALL`` s after that fails the phase."""
 
 
 class PlaceSpec(Spec):
@@ -122,11 +124,14 @@ class Place(Phase):
         return Command(targets, (relative,), allow=frozenset({c.object}), posture=self.posture, done=done)
 
     def _check_stall(self, view: View) -> None:
-        """Fail when the setpoint has been at the bottom of its descent for ``STALL`` s and the object is not down."""
+        """Fail when the setpoint has been at the bottom of its descent ``STALL`` s and the object is ``STALLED`` up.
+
+        An object a few millimetres up may still come down (the timeout bounds the wait); one held further up will not.
+        """
         if self.bottom_from is None:
             self.bottom_from = view.t
         obj, rot = view.body_pose(self.spec.object)
-        if view.t - self.bottom_from > STALL and obj[2] > self.rest + CONTACT:
+        if view.t - self.bottom_from > STALL and obj[2] > self.rest + STALLED:
             tilt = np.degrees(np.arccos(np.clip(rot[2, 2], -1.0, 1.0)))
             pads = self.clamp.pads(self.sp.pos, self.yaw)[0]
             lag = max(float(view.frame_pose(t.frame).pos[2] - np.asarray(t.pos)[2]) for t in pads)
