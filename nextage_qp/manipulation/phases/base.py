@@ -13,7 +13,8 @@ from typing import Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from nextage_qp.manipulation.context import Grip, View
+from nextage_qp.errors import PhaseError
+from nextage_qp.manipulation.context import Clamp, Grip, View
 from nextage_qp.servo import Command
 
 NameKind = Literal["frame", "object", "body", "reference", "joint"]
@@ -98,3 +99,10 @@ class Phase(ABC):
     def grip(self, current: Grip | None) -> Grip | None:
         """The clamp in force after this phase's start or latest update (default: unchanged)."""
         return current
+
+    def held(self, view: View, obj: str, relative_cost: float) -> Clamp:
+        """The clamp on ``obj`` that an earlier grasp left, driven with ``relative_cost``; fails without one."""
+        grip = view.grip
+        if grip is None or grip.object != obj:
+            raise PhaseError(f"phase {self.name!r}: {self.spec.kind} needs {obj!r} clamped by a grasp phase first")
+        return Clamp(grip, relative_cost)

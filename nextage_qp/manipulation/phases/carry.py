@@ -7,9 +7,8 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import yaw_of
-from nextage_qp.manipulation.context import Clamp, Setpoint, View, resolve_point
+from nextage_qp.manipulation.context import Setpoint, View, resolve_point
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
 from nextage_qp.servo import Command
 
@@ -55,10 +54,7 @@ class Carry(Phase):
 
     def start(self, view: View) -> None:  # noqa: D102
         c = self.spec
-        grip = view.grip
-        if grip is None or grip.object != c.object:
-            raise PhaseError(f"phase {self.name!r}: carry needs {c.object!r} clamped by a grasp phase first")
-        self.clamp = Clamp(grip, c.relative_cost)
+        self.clamp = self.held(view, c.object, c.relative_cost)
         obj, rot = view.body_pose(c.object)
         self.sp, yaw0 = Setpoint(obj), yaw_of(rot)
         self.goals = [resolve_point(view, w) for w in c.waypoints]

@@ -24,7 +24,7 @@ from pydantic import Field
 
 from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import wrap, yaw_of
-from nextage_qp.manipulation.context import Clamp, Setpoint, View
+from nextage_qp.manipulation.context import Setpoint, View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
 from nextage_qp.servo import Command
 
@@ -62,10 +62,7 @@ class Place(Phase):
 
     def start(self, view: View) -> None:  # noqa: D102
         c = self.spec
-        grip = view.grip
-        if grip is None or grip.object != c.object:
-            raise PhaseError(f"phase {self.name!r}: place needs {c.object!r} clamped by a grasp phase first")
-        self.clamp = Clamp(grip, c.relative_cost)
+        self.clamp = self.held(view, c.object, c.relative_cost)
         obj, rot = view.body_pose(c.object)
         tgt, trot = view.body_pose(c.target)
         self.rest = view.rest_height(c.object)
