@@ -256,9 +256,10 @@ def test_grasp_goes_down_beside_the_object_closes_to_the_force_and_leaves_a_grip
     phase = make_grasp()
     phase.start(view)
     assert phase.grip(None) is None and phase.info["approach_gap_m"] == 0.04
-    tops = [t.pos for t in view.plans[0]]  # first waypoint: above the faces, rolls left to the planner
-    assert tops[0] == pytest.approx([0.5, 0.124, 1.015 + 0.1 + 0.04]) and view.plans[0][0].axis is not None
-    assert view.plans[2][0].pos == pytest.approx([0.5, 0.124, 1.12])  # then straight down
+    high, above = view.plans[0][0], view.plans[1][0]  # first high over the faces, rolls left to the planner
+    assert above.pos == pytest.approx([0.5, 0.124, 1.015 + 0.1 + 0.04]) and above.axis is not None
+    assert high.pos == pytest.approx(above.pos + [0.0, 0.0, 0.08])
+    assert view.plans[3][0].pos == pytest.approx([0.5, 0.124, 1.12])  # then straight down
     last = run_until_done(phase, view, each=squeezed_by_the_pads(view))
     left, right = (t.pos for t in last.targets)
     assert left[1] == pytest.approx(0.084 - 0.01, abs=2e-4) and right[1] == pytest.approx(-0.074, abs=2e-4)

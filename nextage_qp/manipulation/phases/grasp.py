@@ -2,8 +2,9 @@ r"""``grasp``: clamp an object between two pads and squeeze it to a measured for
 
 1. **Heading.** The pads close along the object's lateral axis at heading :math:`\psi`; of the headings the
    object's symmetry makes equivalent, the one nearest the robot's own (pads along world y) is taken.
-2. **Approach.** Both pads go ``clearance`` above the object's top, then straight down to ``gap`` outside its
-   faces, through planned joints (:class:`~nextage_qp.manipulation.route.PlannedRoute`), so nothing touches the
+2. **Approach.** Both pads go ``HIGH`` over their approach point first (the arms' swing there passes over the
+   object), then ``clearance`` above the object's top, then straight down to ``gap`` outside its faces, through
+   planned joints (:class:`~nextage_qp.manipulation.route.PlannedRoute`), so nothing touches the
    object before the pads close. Each pad's roll about the clamp axis is the one the planner found reachable
    (a palm is a disc); from then on it is held, so the object cannot pivot about that axis.
 3. **Close.** The pads move in at ``close_speed`` until the wrist force/torque sensors read ``force`` [N] along
@@ -31,6 +32,8 @@ from nextage_qp.servo import Command
 
 PADS = tuple(arm.pad_site for arm in ARMS)
 SIDES = (1.0, -1.0)
+HIGH = 0.08
+"""The pads first go this far over their approach point, so the swing there passes over the object [m]."""
 PLACE_HOVER = 0.02
 """Height over the resting pose at which the clamp must reach ``place_at`` [m]."""
 """The first pad sits on the +y side of the object's heading, the second on the -y side."""
@@ -83,8 +86,9 @@ class Grasp(Phase):
             for gap in (c.gap, 0.6 * c.gap, 0.35 * c.gap):  # nearer the faces when the arms cannot spread so far
                 outside = [obj + self.rz @ np.array([0.0, s * (c.half_width + gap), c.height]) for s in SIDES]
                 above = [p + np.array([0.0, 0.0, max(top + c.clearance - p[2], 0.0)]) for p in outside]
+                high = [[a + np.array([0.0, 0.0, HIGH]) for a in above]]
                 down = [[a + f * (o - a) for a, o in zip(above, outside, strict=True)] for f in (0.0, 0.5, 1.0)]
-                self.route = PlannedRoute([self._targets(points) for points in down])
+                self.route = PlannedRoute([self._targets(points) for points in high + down])
                 if self.route.plan(view):
                     found = (gap, rolls is not None)
                     break
