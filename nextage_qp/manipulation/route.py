@@ -32,21 +32,23 @@ class PlannedRoute:
             through the IK, with its collision avoidance, and the planned joints as the posture to head for)
             instead of a joint-space move; for short legs near objects, such as going down beside one.
         speed: Cartesian speed of straight legs [m/s].
+        pos_tol: Position error [m] within which the planner counts the last waypoint as reached (default: the
+            view's); the others need the view's default.
     """
 
     def __init__(self, waypoints: Sequence[Sequence[FrameTarget]], straight: Sequence[bool] | None = None,
-                 speed: float = 0.05) -> None:
+                 speed: float = 0.05, pos_tol: float | None = None) -> None:
         self.waypoints = [tuple(w) for w in waypoints]
         self.straight = list(straight) if straight is not None else [False] * len(self.waypoints)
-        self.speed = speed
+        self.speed, self.pos_tol = speed, pos_tol
         self.joints: list[np.ndarray] = []
         self.leg = 0
         self._points: list[Setpoint] | None = None
     def plan(self, view: View) -> bool:
         """Solve every waypoint, each from the previous solution; False when one is out of reach."""
         self.joints, start = [], None
-        for targets in self.waypoints:
-            q = view.plan(targets, start)
+        for i, targets in enumerate(self.waypoints):
+            q = view.plan(targets, start, pos_tol=self.pos_tol if i == len(self.waypoints) - 1 else None)
             if q is None:
                 return False
             self.joints.append(q)

@@ -75,14 +75,15 @@ class SimView:
         return float(np.max(np.abs(self._sim.measured.q - self._servo.q_cmd)))
 
     def plan(self, targets: Sequence[FrameTarget], start: np.ndarray | None = None,  # noqa: D102
-             allow: frozenset[str] = frozenset()) -> np.ndarray | None:
+             allow: frozenset[str] = frozenset(), pos_tol: float | None = None) -> np.ndarray | None:
         if self._planner is None:
             config = self._servo.ik.config.model_copy(update={"restarts": 4, "max_iters": 80})
             self._planner = QPIK(self.robot, config)
         poses = {name: (p.pos, p.quat) for name, p in self._sim.measured.objects.items()}
         q0 = np.array(self._servo.q_cmd if start is None else start)
         result = self._planner.solve(list(targets), q0, object_poses=poses, allow=allow)
-        return result.q if result.pos_err_m <= REACH_POS_TOL and result.rot_err_rad <= REACH_ROT_TOL else None
+        tol = REACH_POS_TOL if pos_tol is None else pos_tol
+        return result.q if result.pos_err_m <= tol and result.rot_err_rad <= REACH_ROT_TOL else None
 
     def joint_names(self) -> tuple[str, ...]:  # noqa: D102
         return self.robot.joint_names

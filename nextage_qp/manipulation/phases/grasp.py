@@ -34,6 +34,8 @@ PADS = tuple(arm.pad_site for arm in ARMS)
 SIDES = (1.0, -1.0)
 HIGH = 0.08
 """The pads first go this far over their approach point, so the swing there passes over the object [m]."""
+APPROACH_TOL = 0.006
+"""The pads may stop this far from their point beside the object [m] (the close moves them in anyway)."""
 PLACE_HOVER = 0.02
 """Height over the resting pose at which the clamp must reach ``place_at`` [m]."""
 """The first pad sits on the +y side of the object's heading, the second on the -y side."""
@@ -75,12 +77,33 @@ class Grasp(Phase):
         c = self.spec
         obj, rot = view.body_pose(c.object)
         sym = view.yaw_symmetry(c.object)
-        self.yaw = wrap(yaw_of(rot), sym)  # the equivalent heading nearest the robot's own
-        self.rz = rot_z(self.yaw)
-        self.lateral = self.rz[:, 1]
+        nearest = wrap(yaw_of(rot), sym)  # the equivalent heading nearest the robot's own comes first
+        headings = sorted((wrap(nearest + k * sym) for k in range(max(1, round(2 * np.pi / sym)))), key=abs)
         top = obj[2] + view.extent(c.object, np.array([0.0, 0.0, 1.0]))
         self.rots: list[np.ndarray] | None = None
+        self.route = PlannedRoute([])
         found = None
+        for heading in headings:
+            self.yaw, self.rz = heading, rot_z(heading)
+            self.lateral = self.rz[:, 1]
+            found = self._plan_approach(view, obj, top)
+            if found:
+                break
+        if found is None:
+            raise PhaseError(f"phase {self.name!r} (grasp): the pads cannot reach both sides of {c.object} at any "
+                             f"of its headings ({', '.join(f'{np.degrees(h):.0f}' for h in headings)} deg)")
+        gap = found[0]
+        self.info["rolls_fit_placement"] = found[1]
+        self.rots = [view.pose_at(f, self.route.joints[-1]).rot for f in c.frames]  # the rolls found: held
+        self.depth = [-gap, -gap]  # pad target depth inside the surface, per pad [m]
+        self.info["approach_gap_m"] = round(gap, 4)
+        self.stage, self.hold_from = "approach", 0.0
+        self.made: Grip | None = None
+        self.info.update(heading_rad=round(self.yaw, 4))
+
+    def _plan_approach(self, view: View, obj: np.ndarray, top: float) -> tuple[float, bool] | None:
+        """Plan the approach at the current heading: (gap, rolls fit the placement), or None when out of reach."""
+        c = self.spec
         for rolls in [*self._placement_rolls(view), None]:  # rolls that also reach the placement come first
             self.rots = None if rolls is None else [self.rz @ r for r in rolls]
             for gap in (c.gap, 0.6 * c.gap, 0.35 * c.gap):  # nearer the faces when the arms cannot spread so far
@@ -88,23 +111,10 @@ class Grasp(Phase):
                 above = [p + np.array([0.0, 0.0, max(top + c.clearance - p[2], 0.0)]) for p in outside]
                 high = [[a + np.array([0.0, 0.0, HIGH]) for a in above]]
                 down = [[a + f * (o - a) for a, o in zip(above, outside, strict=True)] for f in (0.0, 0.5, 1.0)]
-                self.route = PlannedRoute([self._targets(points) for points in high + down])
+                self.route = PlannedRoute([self._targets(points) for points in high + down], pos_tol=APPROACH_TOL)
                 if self.route.plan(view):
-                    found = (gap, rolls is not None)
-                    break
-            if found:
-                break
-        if found is None:
-            raise PhaseError(f"phase {self.name!r} (grasp): the pads cannot reach both sides of {c.object} at "
-                             f"heading {np.degrees(self.yaw):.1f} deg")
-        gap = found[0]
-        self.info["rolls_fit_placement"] = found[1]
-        self.rots = [view.pose_at(f, self.route.joints[-1]).rot for f in c.frames]
-        self.depth = [-gap, -gap]  # pad target depth inside the surface, per pad [m]
-        self.info["approach_gap_m"] = round(gap, 4)
-        self.stage, self.hold_from = "approach", 0.0
-        self.made: Grip | None = None
-        self.info.update(heading_rad=round(self.yaw, 4))
+                    return gap, rolls is not None
+        return None
 
     def _placement_rolls(self, view: View) -> list[list[np.ndarray]]:
         """Pad rotations, relative to the clamp frame, with which the clamp also reaches ``place_at``.
