@@ -63,6 +63,8 @@ class Grip:
         lateral: The clamp axis (from the second pad to the first) in the object's frame.
         force: Squeeze force [N] the pads keep (0: no force loop, the offsets stay as they are).
         force_gain: Gain of the force loop [m/s per N].
+        place_joints: Joints with which the clamp reached the placement the grasp was chosen for (a start for
+            the place phase's planning), or None.
     """
 
     object: str
@@ -73,6 +75,7 @@ class Grip:
     lateral: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
     force: float = 0.0
     force_gain: float = 0.0
+    place_joints: np.ndarray | None = None
 
 
 FORCE_WINDOW = 0.1

@@ -81,6 +81,7 @@ class Grasp(Phase):
         headings = sorted((wrap(nearest + k * sym) for k in range(max(1, round(2 * np.pi / sym)))), key=abs)
         top = obj[2] + view.extent(c.object, np.array([0.0, 0.0, 1.0]))
         self.rots: list[np.ndarray] | None = None
+        self.place_q: np.ndarray | None = None
         self.route = PlannedRoute([])
         found = None
         for heading in headings:
@@ -104,7 +105,8 @@ class Grasp(Phase):
     def _plan_approach(self, view: View, obj: np.ndarray, top: float) -> tuple[float, bool] | None:
         """Plan the approach at the current heading: (gap, rolls fit the placement), or None when out of reach."""
         c = self.spec
-        for rolls in [*self._placement_rolls(view), None]:  # rolls that also reach the placement come first
+        for rolls, place_q in [*self._placement_rolls(view), (None, None)]:  # rolls that reach the placement first
+            self.place_q = place_q
             self.rots = None if rolls is None else [self.rz @ r for r in rolls]
             for gap in (c.gap, 0.6 * c.gap, 0.35 * c.gap):  # nearer the faces when the arms cannot spread so far
                 outside = [obj + self.rz @ np.array([0.0, s * (c.half_width + gap), c.height]) for s in SIDES]
@@ -116,8 +118,8 @@ class Grasp(Phase):
                     return gap, rolls is not None
         return None
 
-    def _placement_rolls(self, view: View) -> list[list[np.ndarray]]:
-        """Pad rotations, relative to the clamp frame, with which the clamp also reaches ``place_at``.
+    def _placement_rolls(self, view: View) -> list[tuple[list[np.ndarray], np.ndarray]]:
+        """Pad rotations, relative to the clamp frame, with which the clamp also reaches ``place_at``, and the joints.
 
         One set per equivalent yaw of the object there that the planner reaches; empty without ``place_at``.
         """
@@ -134,7 +136,7 @@ class Grasp(Phase):
             q = view.plan([FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=rz[:, 1])
                            for f, p in zip(c.frames, points, strict=True)], allow=frozenset({c.object}))
             if q is not None:
-                out.append([rz.T @ view.pose_at(f, q).rot for f in c.frames])
+                out.append(([rz.T @ view.pose_at(f, q).rot for f in c.frames], q))
         return out
 
     def _targets(self, points: list[np.ndarray]) -> tuple[FrameTarget, ...]:
@@ -190,7 +192,7 @@ class Grasp(Phase):
                 offsets={t.frame: rot.T @ (np.asarray(t.pos) - obj) for t in targets},
                 rotations={t.frame: rot.T @ np.asarray(t.rot) for t in targets},
                 relative=RelativeTarget.between(c.frames[0], c.frames[1], poses, cost=1.0),
-                lateral=rot.T @ self.lateral, force=c.force, force_gain=c.force_gain,
+                lateral=rot.T @ self.lateral, force=c.force, force_gain=c.force_gain, place_joints=self.place_q,
             )
         return Command(targets, allow=frozenset({c.object}), done=done)
 

@@ -30,6 +30,8 @@ from nextage_qp.servo import Command
 
 CONTACT = 0.001
 """The object counts as set down when its height is this close to its resting height [m]."""
+HOVER_TOL = 0.006
+"""Position error [m] within which the planner's clamp at the hover counts as reached (the hover corrects it)."""
 STALL = 3.0
 """Time the object may stay up once the clamp has reached the bottom of its descent [s]."""
 STALLED = 0.01
@@ -81,18 +83,23 @@ class Place(Phase):
     def _reachable_yaw(self, view: View, target_yaw: float) -> tuple[float, np.ndarray]:
         """The equivalent target yaw nearest the object's own that the clamp can reach, and its hover joints.
 
-        A yaw counts when the planner reaches the clamp at the hover over the target.
+        A yaw counts when the planner reaches the clamp at the hover over the target, solved from the commanded
+        joints or, when that stalls (against the obstacle between here and there), from the joints with which the
+        grasp found the placement reachable.
         """
         c = self.spec
         sym = view.yaw_symmetry(c.object)
         nearest = self.yaw + wrap(target_yaw - self.yaw, sym)
         count = max(1, round(2 * np.pi / sym))
+        hint = self.clamp.grip.place_joints
         for yaw in sorted((nearest + k * sym for k in range(-(count // 2), count - count // 2)),
                           key=lambda y: abs(y - self.yaw)):
-            low = view.plan(self.clamp.pads(self.goal, yaw)[0], allow=frozenset({c.object}))
-            if low is not None:
-                self.info["place_yaw_rad"] = round(yaw, 4)
-                return yaw, low
+            for start in (None,) if hint is None else (None, hint):  # from here, or from the grasp's check
+                low = view.plan(self.clamp.pads(self.goal, yaw)[0], start=start, allow=frozenset({c.object}),
+                                pos_tol=HOVER_TOL)
+                if low is not None:
+                    self.info["place_yaw_rad"] = round(yaw, 4)
+                    return yaw, low
         raise PhaseError(f"phase {self.name!r} (place): the clamp cannot reach {c.target}'s pose with "
                          f"{c.object} at any of its {count} equivalent yaws")
 
