@@ -421,3 +421,13 @@ def test_place_fails_when_the_object_does_not_come_down():
 
     with pytest.raises(PhaseError, match=r"set-down stalled: dumbbell is still 40 mm over its resting height"):
         run_until_done(phase, view, each=stuck)
+
+
+def test_grasp_fails_when_the_object_is_knocked_over_on_the_way_in():
+    view = grasp_view()
+    phase = make_grasp()
+    phase.start(view)
+    phase.update(view)
+    view.bodies["dumbbell"] = Pose(view.bodies["dumbbell"].pos, np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]))
+    with pytest.raises(PhaseError, match="knocked dumbbell over on the way in \\(tilted 90 deg"):
+        phase.update(view)

@@ -36,6 +36,8 @@ HIGH = 0.08
 """The pads first go this far over their approach point, so the swing there passes over the object [m]."""
 APPROACH_TOL = 0.006
 """The pads may stop this far from their point beside the object [m] (the close moves them in anyway)."""
+KNOCKED = 0.3
+"""Tilt of the object [rad] during the approach at which the grasp fails: the arms have knocked it over."""
 PLACE_HOVER = 0.02
 """Height over the resting pose at which the clamp must reach ``place_at`` [m]."""
 """The first pad sits on the +y side of the object's heading, the second on the -y side."""
@@ -165,6 +167,10 @@ class Grasp(Phase):
     def update(self, view: View) -> Command:  # noqa: D102
         c = self.spec
         if self.stage == "approach":
+            tilt = float(np.arccos(np.clip(view.body_pose(c.object).rot[2, 2], -1.0, 1.0)))
+            if tilt > KNOCKED:
+                raise PhaseError(f"phase {self.name!r} (grasp): the arms knocked {c.object} over on the way in "
+                                 f"(tilted {np.degrees(tilt):.0f} deg before the pads closed)")
             command = self.route.step(view)
             if self.route.done:
                 self.stage = "close"
