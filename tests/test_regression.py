@@ -29,11 +29,9 @@ DOCK_VARIANTS = [
     ["scene.poses.dumbbell.pos=[0.53,0.02,1.015]", "scene.poses.dumbbell.yaw=0.26"],
     ["scene.poses.dumbbell.pos=[0.48,-0.03,1.015]", "scene.poses.dumbbell_target.pos=[0.37,0.40,1.0]",
      "scene.poses.dumbbell_target.yaw=0.52"],
+    ["scene.poses.dumbbell.pos=[0.50,0.03,1.015]", "scene.poses.dumbbell.yaw=-0.26",
+     "scene.poses.dumbbell_target.pos=[0.33,0.36,1.0]"],
 ]
-# Known limitation: after the hover corrections the set-down stalls: the pads reach their targets but the dumbbell
-# stays 45 mm over its resting height; the place phase fails with that. Kept as a strict xfail so a fix shows up.
-DOCK_KNOWN_FAILURE = ["scene.poses.dumbbell.pos=[0.50,0.03,1.015]", "scene.poses.dumbbell.yaw=-0.26",
-                      "scene.poses.dumbbell_target.pos=[0.33,0.36,1.0]"]
 
 
 def run(path: Path, overrides=()):
@@ -78,20 +76,13 @@ def test_push_cube_shifted_variants_meet_the_success_criteria(overrides):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("overrides", DOCK_VARIANTS, ids=["object-shift+yaw", "target-shift+yaw"])
+@pytest.mark.parametrize("overrides", DOCK_VARIANTS, ids=["object-shift+yaw", "target-shift+yaw", "both-shift"])
 def test_dock_dumbbell_shifted_variants_meet_the_success_criteria(overrides):
     result = run(DOCK, overrides)
     assert_clean(result)
     assert result["object_error_xy_m"] <= 0.005 and result["success"]
     assert result["obstacle_contacts"] == 0
     assert not result["object_dropped"]
-
-
-@pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="set-down stalls: the pads reach the bottom of the descent with the dumbbell 45 mm up")
-def test_dock_dumbbell_known_failure_both_shifted():
-    result = run(DOCK, DOCK_KNOWN_FAILURE)
-    assert result["success"]
 
 
 @pytest.mark.slow
