@@ -76,6 +76,9 @@ class ScriptedView:
     def joint_names(self):
         return ("plan",)
 
+    def default_posture(self):
+        return np.zeros(1)
+
     def plan(self, targets, start=None, allow=frozenset(), pos_tol=None):
         if self.reach is not None and not self.reach(tuple(targets)):
             return None
@@ -256,10 +259,11 @@ def test_grasp_goes_down_beside_the_object_closes_to_the_force_and_leaves_a_grip
     phase = make_grasp()
     phase.start(view)
     assert phase.grip(None) is None and phase.info["approach_gap_m"] == 0.04
-    high, above = view.plans[0][0], view.plans[1][0]  # first high over the faces, rolls left to the planner
+    rise, high, above = (view.plans[i][0] for i in range(3))  # rolls left to the planner over the faces
     assert above.pos == pytest.approx([0.5, 0.124, 1.015 + 0.1 + 0.04]) and above.axis is not None
     assert high.pos == pytest.approx(above.pos + np.array([0.0, 0.0, 0.08]))
-    assert view.plans[3][0].pos == pytest.approx([0.5, 0.124, 1.12])  # then straight down
+    assert rise.pos == pytest.approx([0.5, 0.25, high.pos[2]])  # first straight up from where the pad is
+    assert view.plans[4][0].pos == pytest.approx([0.5, 0.124, 1.12])  # then straight down
     last = run_until_done(phase, view, each=squeezed_by_the_pads(view))
     left, right = (t.pos for t in last.targets)
     assert left[1] == pytest.approx(0.084 - 0.01, abs=2e-4) and right[1] == pytest.approx(-0.074, abs=2e-4)
@@ -279,6 +283,18 @@ def test_grasp_comes_in_closer_when_the_arms_cannot_spread_and_refuses_when_they
     view.reach = lambda targets: False
     with pytest.raises(PhaseError, match=r"cannot reach both sides of dumbbell at any of its headings \(0, -180 deg\)"):
         make_grasp().start(view)
+
+
+def test_grasp_clamps_off_the_centre_of_the_faces_when_the_centre_is_out_of_reach():
+    view = grasp_view()
+    view.reach = lambda targets: all(t.pos[0] <= 0.49 for t in targets if t.pos[2] < 1.2)  # nothing past x = 0.49
+    with pytest.raises(PhaseError, match="cannot reach both sides"):
+        make_grasp().start(view)  # the centre only
+    phase = make_grasp(off_centre=0.035)
+    phase.start(view)
+    assert phase.info["off_centre_m"] == pytest.approx(-0.0175)  # half way, towards the robot
+    run_until_done(phase, view, each=squeezed_by_the_pads(view))
+    assert phase.grip(None).offsets["left_pad"][0] == pytest.approx(-0.0175, abs=2e-4)
 
 
 def test_grasp_fails_when_the_pads_close_on_nothing():

@@ -118,14 +118,20 @@ class Clamp:
         return self.pads(pos, yaw)
 
     def pads(self, pos: np.ndarray, yaw: float) -> tuple[tuple[FrameTarget, ...], RelativeTarget]:
-        """Pad targets for the object setpoint ``(pos, yaw)`` at the current squeeze depths, and their tie."""
+        """Pad targets for the object setpoint ``(pos, yaw)`` at the current squeeze depths, and their tie.
+
+        The tie is the pads' commanded relative pose when the clamp closed, drawn together by the squeeze depths
+        since: what the arms held then, so taking it on does not jolt them (a pad the arm could not quite bring
+        to its target would otherwise be pulled there at once, and the joints' lag would open the clamp).
+        """
         g, rz = self.grip, rot_z(yaw)
         lateral = rz @ g.lateral
         points = [pos + rz @ g.offsets[f] - side * depth * lateral
                   for f, side, depth in zip(g.frames, self.SIDES, self.depth, strict=False)]
         targets = tuple(FrameTarget(f, pos=p, rot=rz @ g.rotations[f]) for f, p in zip(g.frames, points, strict=False))
-        poses = {t.frame: (np.asarray(t.pos), np.asarray(t.rot)) for t in targets}
-        return targets, RelativeTarget.between(g.frames[0], g.frames[1], poses, cost=self.relative_cost)
+        rel = g.relative
+        closer = sum(self.depth) * (g.rotations[g.frames[1]].T @ g.lateral)  # first pad's lateral, in the second's
+        return targets, RelativeTarget(rel.frame, rel.root, rel.pos - closer, rel.rot, self.relative_cost)
 
 
 class View(Protocol):
@@ -170,6 +176,9 @@ class View(Protocol):
 
     def pose_at(self, frame: str, q: np.ndarray) -> Pose:
         """World pose of a frame at joints ``q`` (e.g. a planned configuration)."""
+
+    def default_posture(self) -> np.ndarray:
+        """The joints [rad] the IK's redundancy heads for when a command names no posture."""
 
     def wrench(self, site: str) -> Wrench:
         """Measured contact wrench on a site's body, world frame: force [N] and torque about the site [N m]."""

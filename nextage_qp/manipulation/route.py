@@ -20,7 +20,8 @@ from nextage_qp.manipulation.context import Setpoint, View
 from nextage_qp.servo import Command
 
 REACHED = 0.005
-"""A waypoint counts as reached when every real frame is this close to its target [m] and the robot has settled."""
+"""A waypoint counts as reached when every frame is this close to where the planned joints put it [m] and the robot
+has settled."""
 
 
 class PlannedRoute:
@@ -32,8 +33,7 @@ class PlannedRoute:
             through the IK, with its collision avoidance, and the planned joints as the posture to head for)
             instead of a joint-space move; for short legs near objects, such as going down beside one.
         speed: Cartesian speed of straight legs [m/s].
-        pos_tol: Position error [m] within which the planner counts the last waypoint as reached (default: the
-            view's); the others need the view's default.
+        pos_tol: Position error [m] within which the planner counts a waypoint as reached (default: the view's).
     """
 
     def __init__(self, waypoints: Sequence[Sequence[FrameTarget]], straight: Sequence[bool] | None = None,
@@ -42,16 +42,18 @@ class PlannedRoute:
         self.straight = list(straight) if straight is not None else [False] * len(self.waypoints)
         self.speed, self.pos_tol = speed, pos_tol
         self.joints: list[np.ndarray] = []
+        self.planned: list[list[np.ndarray]] = []  # per waypoint, each frame's position at the planned joints
         self.leg = 0
         self._points: list[Setpoint] | None = None
     def plan(self, view: View) -> bool:
         """Solve every waypoint, each from the previous solution; False when one is out of reach."""
-        self.joints, start = [], None
-        for i, targets in enumerate(self.waypoints):
-            q = view.plan(targets, start, pos_tol=self.pos_tol if i == len(self.waypoints) - 1 else None)
+        self.joints, self.planned, start = [], [], None
+        for targets in self.waypoints:
+            q = view.plan(targets, start, pos_tol=self.pos_tol)
             if q is None:
                 return False
             self.joints.append(q)
+            self.planned.append([view.pose_at(t.frame, q).pos for t in targets])
             start = q
         self.leg = 0
         return True
@@ -75,8 +77,8 @@ class PlannedRoute:
         else:
             command = Command(joints=dict(zip(view.joint_names(), q, strict=True)))
         if not self.done:
-            near = all(t.pos is None or float(np.linalg.norm(view.frame_pose(t.frame).pos - t.pos)) < REACHED
-                       for t in targets)
+            near = all(float(np.linalg.norm(view.frame_pose(t.frame).pos - p)) < REACHED
+                       for t, p in zip(targets, self.planned[leg], strict=True))
             if near and view.settled():
                 self.leg += 1
                 self._points = None

@@ -93,6 +93,9 @@ class SimView:
             self._kinematics = Kinematics(self.robot)
         return self._kinematics.fk(frame, q)
 
+    def default_posture(self) -> np.ndarray:  # noqa: D102
+        return self._servo.ik.default_posture.copy()
+
     def wrench(self, site: str) -> Wrench:  # noqa: D102
         m, d = self.robot.model, self._sim.data
         kind, fid = self.robot.frame(site)

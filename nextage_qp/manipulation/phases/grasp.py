@@ -2,9 +2,9 @@ r"""``grasp``: clamp an object between two pads and squeeze it to a measured for
 
 1. **Heading.** The pads close along the object's lateral axis at heading :math:`\psi`; of the headings the
    object's symmetry makes equivalent, the one nearest the robot's own (pads along world y) is taken.
-2. **Approach.** Both pads go ``HIGH`` over their approach point first (the arms' swing there passes over the
-   object), then ``clearance`` above the object's top, then straight down to ``gap`` outside its faces, through
-   planned joints (:class:`~nextage_qp.manipulation.route.PlannedRoute`), so nothing touches the
+2. **Approach.** Both pads rise where they are, then go ``HIGH`` over their approach point (so the arms' swing
+   passes over the object), then ``clearance`` above the object's top, then straight down to ``gap`` outside its
+   faces, through planned joints (:class:`~nextage_qp.manipulation.route.PlannedRoute`), so nothing touches the
    object before the pads close. Each pad's roll about the clamp axis is the one the planner found reachable
    (a palm is a disc); from then on it is held, so the object cannot pivot about that axis.
 3. **Close.** The pads move in at ``close_speed`` until the wrist force/torque sensors read ``force`` [N] along
@@ -35,7 +35,8 @@ SIDES = (1.0, -1.0)
 HIGH = 0.08
 """The pads first go this far over their approach point, so the swing there passes over the object [m]."""
 APPROACH_TOL = 0.006
-"""The pads may stop this far from their point beside the object [m] (the close moves them in anyway)."""
+"""The pads may stop this far from their approach waypoints [m]: near the edge of the workspace the arms reach a few
+millimetres short, and the close moves the pads in anyway."""
 KNOCKED = 0.3
 """Tilt of the object [rad] during the approach at which the grasp fails: the arms have knocked it over."""
 PLACE_HOVER = 0.02
@@ -60,6 +61,9 @@ class GraspSpec(Spec):
     max_squeeze: float = Field(default=0.02, gt=0, le=0.1,
                                description="Deepest pad target inside the surface before the grasp fails [m].")
     hold: float = Field(default=0.5, ge=0, le=MAX_SECONDS, description="Time the force is held [s].")
+    off_centre: float = Field(default=0.0, ge=0, le=0.2,
+                              description="Farthest the pads may clamp off the centre of the faces, towards the robot, "
+                                          "when the centre is out of reach [m].")
     place_at: str | None = name_field("body", default=None,
                                       description="Body where the object will be set down: the pads take rolls "
                                                   "that reach there too.")
@@ -85,6 +89,7 @@ class Grasp(Phase):
         self.rots: list[np.ndarray] | None = None
         self.place_q: np.ndarray | None = None
         self.route = PlannedRoute([])
+        self.shift = 0.0
         found = None
         for heading in headings:
             self.yaw, self.rz = heading, rot_z(heading)
@@ -99,7 +104,7 @@ class Grasp(Phase):
         self.info["rolls_fit_placement"] = found[1]
         self.rots = [view.pose_at(f, self.route.joints[-1]).rot for f in c.frames]  # the rolls found: held
         self.depth = [-gap, -gap]  # pad target depth inside the surface, per pad [m]
-        self.info["approach_gap_m"] = round(gap, 4)
+        self.info.update(approach_gap_m=round(gap, 4), off_centre_m=round(self.shift, 4))
         self.stage, self.hold_from = "approach", 0.0
         self.made: Grip | None = None
         self.info.update(heading_rad=round(self.yaw, 4))
@@ -110,15 +115,32 @@ class Grasp(Phase):
         for rolls, place_q in [*self._placement_rolls(view), (None, None)]:  # rolls that reach the placement first
             self.place_q = place_q
             self.rots = None if rolls is None else [self.rz @ r for r in rolls]
-            for gap in (c.gap, 0.6 * c.gap, 0.35 * c.gap):  # nearer the faces when the arms cannot spread so far
-                outside = [obj + self.rz @ np.array([0.0, s * (c.half_width + gap), c.height]) for s in SIDES]
+            for gap, shift in self._candidates(obj):
+                self.shift = shift
+                outside = [obj + self.rz @ np.array([shift, s * (c.half_width + gap), c.height]) for s in SIDES]
                 above = [p + np.array([0.0, 0.0, max(top + c.clearance - p[2], 0.0)]) for p in outside]
-                high = [[a + np.array([0.0, 0.0, HIGH]) for a in above]]
+                high = [a + np.array([0.0, 0.0, HIGH]) for a in above]
                 down = [[a + f * (o - a) for a, o in zip(above, outside, strict=True)] for f in (0.0, 0.5, 1.0)]
-                self.route = PlannedRoute([self._targets(points) for points in high + down], pos_tol=APPROACH_TOL)
-                if self.route.plan(view):
-                    return gap, rolls is not None
+                legs = [self._targets(points) for points in [high, *down]]
+                for rise in (self._rise(view, high[0][2]), None):  # up where they are first, then over the object
+                    self.route = PlannedRoute(legs if rise is None else [rise, *legs], pos_tol=APPROACH_TOL)
+                    if self.route.plan(view):
+                        return gap, rolls is not None
         return None
+
+    def _candidates(self, obj: np.ndarray) -> list[tuple[float, float]]:
+        """(gap, shift) pairs to try, in order: the pads nearer the faces when the arms cannot spread so far, then
+        off the centre of the faces towards the robot (along the faces) when the centre is out of reach."""
+        c = self.spec
+        towards = -float(np.sign(self.rz[:2, 0] @ obj[:2]) or 1.0)  # along the faces, towards the chest axis
+        shifts = [towards * c.off_centre * k for k in (0.0, 0.5, 1.0)] if c.off_centre > 0 else [0.0]
+        return [(gap, shift) for shift in shifts for gap in (c.gap, 0.6 * c.gap, 0.35 * c.gap)]
+
+    def _rise(self, view: View, height: float) -> tuple[FrameTarget, ...]:
+        """The pads straight up to ``height`` from where they are, as they are turned."""
+        poses = [view.commanded_pose(f) for f in self.spec.frames]
+        return tuple(FrameTarget(f, pos=np.array([*p.pos[:2], max(p.pos[2], height)]), rot=p.rot)
+                     for f, p in zip(self.spec.frames, poses, strict=True))
 
     def _placement_rolls(self, view: View) -> list[tuple[list[np.ndarray], np.ndarray]]:
         """Pad rotations, relative to the clamp frame, with which the clamp also reaches ``place_at``, and the joints.
@@ -156,7 +178,7 @@ class Grasp(Phase):
     def _pads(self, view: View) -> tuple[FrameTarget, ...]:
         c = self.spec
         obj = view.body_pose(c.object).pos
-        points = [obj + self.rz @ np.array([0.0, s * (c.half_width - d), c.height])
+        points = [obj + self.rz @ np.array([self.shift, s * (c.half_width - d), c.height])
                   for s, d in zip(SIDES, self.depth, strict=True)]
         return self._targets(points)
 

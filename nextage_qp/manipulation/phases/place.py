@@ -36,6 +36,9 @@ STALL = 3.0
 """Time the object may stay up once the clamp has reached the bottom of its descent [s]."""
 STALLED = 0.01
 """Height over its resting height [m] at which an object still up ``STALL`` s after that fails the phase."""
+BLEND = 2.0
+"""Time [s] over which the IK's posture target slides from its default to the hover joints: a posture that jumped
+would swing the arms through the null space at once, and their lag would open the clamp."""
 
 
 class PlaceSpec(Spec):
@@ -73,6 +76,7 @@ class Place(Phase):
         self.sp, self.yaw = Setpoint(obj.copy()), yaw_of(rot)
         self.goal = np.array([tgt[0], tgt[1], self.rest + c.hover])
         self.goal_yaw, self.posture = self._reachable_yaw(view, yaw_of(trot))
+        self.posture_from, self.t0 = view.default_posture(), view.t
         self.legs = [np.array([obj[0], obj[1], carry]), np.array([tgt[0], tgt[1], carry]), self.goal]
         self.leg, self.stage = 0, "transit"
         self.samples: list[tuple[np.ndarray, float]] = []
@@ -125,7 +129,9 @@ class Place(Phase):
             if down:
                 self.sp.jump(np.array([*self.sp.pos[:2], max(self.sp.pos[2], self.rest)]))
         targets, relative = self.clamp.targets(view, self.sp.pos, self.yaw)
-        return Command(targets, (relative,), allow=frozenset({c.object}), posture=self.posture, done=done)
+        blend = float(np.clip((view.t - self.t0) / BLEND, 0.0, 1.0))
+        posture = self.posture_from + blend * blend * (3.0 - 2.0 * blend) * (self.posture - self.posture_from)
+        return Command(targets, (relative,), allow=frozenset({c.object}), posture=posture, done=done)
 
     def _check_stall(self, view: View) -> None:
         """Fail when the setpoint has been at the bottom of its descent ``STALL`` s and the object is ``STALLED`` up.
