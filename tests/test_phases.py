@@ -297,6 +297,16 @@ def test_grasp_clamps_off_the_centre_of_the_faces_when_the_centre_is_out_of_reac
     assert phase.grip(None).offsets["left_pad"][0] == pytest.approx(-0.0175, abs=2e-4)
 
 
+def test_grasp_takes_the_off_centre_grip_that_also_reaches_the_placement():
+    view = grasp_view()
+    view.bodies["target"] = pose(0.35, 0.38, 1.0)
+    view.reach = lambda targets: all(t.pos[0] >= 0.38 for t in targets if t.pos[1] > 0.2)  # near the target: far x
+    phase = make_grasp(off_centre=0.035, place_at="target")
+    phase.start(view)
+    assert phase.info["rolls_fit_placement"] and phase.info["off_centre_m"] == pytest.approx(0.035)
+    assert phase.place_q is not None
+
+
 def test_grasp_fails_when_the_pads_close_on_nothing():
     view = grasp_view()
     phase = make_grasp()

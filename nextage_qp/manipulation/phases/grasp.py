@@ -90,6 +90,7 @@ class Grasp(Phase):
         self.place_q: np.ndarray | None = None
         self.route = PlannedRoute([])
         self.shift = 0.0
+        self.placements = self._placements(view)
         found = None
         for heading in headings:
             self.yaw, self.rz = heading, rot_z(heading)
@@ -112,10 +113,10 @@ class Grasp(Phase):
     def _plan_approach(self, view: View, obj: np.ndarray, top: float) -> tuple[float, bool] | None:
         """Plan the approach at the current heading: (gap, rolls fit the placement), or None when out of reach."""
         c = self.spec
-        for rolls, place_q in [*self._placement_rolls(view), (None, None)]:  # rolls that reach the placement first
+        for rolls, place_q, at in [*self.placements, (None, None, None)]:  # grips that reach the placement first
             self.place_q = place_q
             self.rots = None if rolls is None else [self.rz @ r for r in rolls]
-            for gap, shift in self._candidates(obj):
+            for gap, shift in self._candidates(obj, at):
                 self.shift = shift
                 outside = [obj + self.rz @ np.array([shift, s * (c.half_width + gap), c.height]) for s in SIDES]
                 above = [p + np.array([0.0, 0.0, max(top + c.clearance - p[2], 0.0)]) for p in outside]
@@ -128,13 +129,16 @@ class Grasp(Phase):
                         return gap, rolls is not None
         return None
 
-    def _candidates(self, obj: np.ndarray) -> list[tuple[float, float]]:
-        """(gap, shift) pairs to try, in order: the pads nearer the faces when the arms cannot spread so far, then
-        off the centre of the faces towards the robot (along the faces) when the centre is out of reach."""
+    def _candidates(self, obj: np.ndarray, shift: float | None) -> list[tuple[float, float]]:
+        """(gap, shift) pairs to try, in order.
+
+        The pads nearer the faces when the arms cannot spread so far; with no ``shift`` given (by the placement),
+        then off the centre of the faces towards the robot (along the faces) when the centre is out of reach.
+        """
         c = self.spec
         towards = -float(np.sign(self.rz[:2, 0] @ obj[:2]) or 1.0)  # along the faces, towards the chest axis
-        shifts = [towards * c.off_centre * k for k in (0.0, 0.5, 1.0)] if c.off_centre > 0 else [0.0]
-        return [(gap, shift) for shift in shifts for gap in (c.gap, 0.6 * c.gap, 0.35 * c.gap)]
+        shifts = [shift] if shift is not None else [towards * c.off_centre * k for k in (0.0, 0.5, 1.0)]
+        return [(gap, s) for s in dict.fromkeys(shifts) for gap in (c.gap, 0.6 * c.gap, 0.35 * c.gap)]
 
     def _rise(self, view: View, height: float) -> tuple[FrameTarget, ...]:
         """The pads straight up to ``height`` from where they are, as they are turned."""
@@ -142,10 +146,12 @@ class Grasp(Phase):
         return tuple(FrameTarget(f, pos=np.array([*p.pos[:2], max(p.pos[2], height)]), rot=p.rot)
                      for f, p in zip(self.spec.frames, poses, strict=True))
 
-    def _placement_rolls(self, view: View) -> list[tuple[list[np.ndarray], np.ndarray]]:
-        """Pad rotations, relative to the clamp frame, with which the clamp also reaches ``place_at``, and the joints.
+    def _placements(self, view: View) -> list[tuple[list[np.ndarray], np.ndarray, float]]:
+        """Grips with which the clamp also reaches ``place_at``: (pad rotations in the clamp frame, joints, shift).
 
-        One set per equivalent yaw of the object there that the planner reaches; empty without ``place_at``.
+        The shift is the pads' offset along the faces. One grip per equivalent yaw of the object there that the
+        planner reaches, with the pads at the faces' centre or, when no yaw is in reach so, at the first shift (up
+        to ``off_centre`` either way) that is; empty without ``place_at``.
         """
         c = self.spec
         if c.place_at is None:
@@ -153,14 +159,17 @@ class Grasp(Phase):
         tgt, trot = view.body_pose(c.place_at)
         sym = view.yaw_symmetry(c.object)
         centre = np.array([tgt[0], tgt[1], view.rest_height(c.object) + c.height + PLACE_HOVER])
-        out = []
-        for k in range(max(1, round(2 * np.pi / sym))):
-            rz = rot_z(yaw_of(trot) + k * sym)
-            points = [centre + s * c.half_width * rz[:, 1] for s in SIDES]
-            q = view.plan([FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=rz[:, 1])
-                           for f, p in zip(c.frames, points, strict=True)], allow=frozenset({c.object}))
-            if q is not None:
-                out.append(([rz.T @ view.pose_at(f, q).rot for f in c.frames], q))
+        out: list[tuple[list[np.ndarray], np.ndarray, float]] = []
+        for shift in dict.fromkeys(c.off_centre * k for k in (0.0, 0.5, -0.5, 1.0, -1.0)):
+            for k in range(max(1, round(2 * np.pi / sym))):
+                rz = rot_z(yaw_of(trot) + k * sym)
+                points = [centre + rz @ np.array([shift, s * c.half_width, 0.0]) for s in SIDES]
+                q = view.plan([FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=rz[:, 1])
+                               for f, p in zip(c.frames, points, strict=True)], allow=frozenset({c.object}))
+                if q is not None:
+                    out.append(([rz.T @ view.pose_at(f, q).rot for f in c.frames], q, shift))
+            if out:
+                break
         return out
 
     def _targets(self, points: list[np.ndarray]) -> tuple[FrameTarget, ...]:
