@@ -303,8 +303,11 @@ def test_grasp_takes_the_off_centre_grip_that_also_reaches_the_placement():
     view.reach = lambda targets: all(t.pos[0] >= 0.38 for t in targets if t.pos[1] > 0.2)  # near the target: far x
     phase = make_grasp(off_centre=0.035, place_at="target")
     phase.start(view)
-    assert phase.info["rolls_fit_placement"] and phase.info["off_centre_m"] == pytest.approx(0.035)
+    assert phase.info["rolls_fit_placement"] and abs(phase.info["off_centre_m"]) == pytest.approx(0.035)
     assert phase.place_q is not None
+    view.reach = lambda targets: all(t.pos[1] < 0.2 for t in targets)  # nothing near the target
+    with pytest.raises(PhaseError, match=r"cannot reach target's pose .* out of the arms' reach"):
+        make_grasp(off_centre=0.035, place_at="target").start(view)
 
 
 def test_grasp_fails_when_the_pads_close_on_nothing():

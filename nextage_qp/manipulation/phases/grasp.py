@@ -1,7 +1,10 @@
 r"""``grasp``: clamp an object between two pads and squeeze it to a measured force.
 
-1. **Heading.** The pads close along the object's lateral axis at heading :math:`\psi`; of the headings the
-   object's symmetry makes equivalent, the one nearest the robot's own (pads along world y) is taken.
+1. **Heading and grip.** The pads close along the object's lateral axis at heading :math:`\psi`; of the headings
+   the object's symmetry makes equivalent, the nearest the robot's own (pads along world y) that the arms reach
+   is taken. The pads clamp the faces' centre or, where the arms cannot reach that, up to ``off_centre`` along the
+   faces; with ``place_at``, a grip (pad rolls and that shift) with which the clamp also reaches the placement is
+   preferred, and a placement no grip reaches fails the phase before anything moves.
 2. **Approach.** Both pads rise where they are, then go ``HIGH`` over their approach point (so the arms' swing
    passes over the object), then ``clearance`` above the object's top, then straight down to ``gap`` outside its
    faces, through planned joints (:class:`~nextage_qp.manipulation.route.PlannedRoute`), so nothing touches the
@@ -16,6 +19,7 @@ r"""``grasp``: clamp an object between two pads and squeeze it to a measured for
 
 from __future__ import annotations
 
+from itertools import chain
 from typing import Literal
 
 import numpy as np
@@ -65,8 +69,8 @@ class GraspSpec(Spec):
                               description="Farthest the pads may clamp off the centre of the faces, towards the robot, "
                                           "when the centre is out of reach [m].")
     place_at: str | None = name_field("body", default=None,
-                                      description="Body where the object will be set down: the pads take rolls "
-                                                  "that reach there too.")
+                                      description="Body where the object will be set down: the pads take a grip "
+                                                  "that reaches there too; none fails the grasp before moving.")
 
 
 def squeeze_force(view: View, frame: str, side: float, lateral: np.ndarray) -> float:
@@ -90,7 +94,7 @@ class Grasp(Phase):
         self.place_q: np.ndarray | None = None
         self.route = PlannedRoute([])
         self.shift = 0.0
-        self.placements = self._placements(view)
+        self.placements: dict[float, list[tuple[list[np.ndarray], np.ndarray]]] = {}
         found = None
         for heading in headings:
             self.yaw, self.rz = heading, rot_z(heading)
@@ -101,6 +105,10 @@ class Grasp(Phase):
         if found is None:
             raise PhaseError(f"phase {self.name!r} (grasp): the pads cannot reach both sides of {c.object} at any "
                              f"of its headings ({', '.join(f'{np.degrees(h):.0f}' for h in headings)} deg)")
+        if c.place_at is not None and not any(self.placements.values()):  # checked before anything moves
+            raise PhaseError(f"phase {self.name!r} (grasp): the clamp cannot reach {c.place_at}'s pose with "
+                             f"{c.object} at any of its equivalent yaws, at the faces' centre or up to "
+                             f"{c.off_centre * 1e3:g} mm off it: the target is out of the arms' reach")
         gap = found[0]
         self.info["rolls_fit_placement"] = found[1]
         self.rots = [view.pose_at(f, self.route.joints[-1]).rot for f in c.frames]  # the rolls found: held
@@ -111,13 +119,21 @@ class Grasp(Phase):
         self.info.update(heading_rad=round(self.yaw, 4))
 
     def _plan_approach(self, view: View, obj: np.ndarray, top: float) -> tuple[float, bool] | None:
-        """Plan the approach at the current heading: (gap, rolls fit the placement), or None when out of reach."""
+        """Plan the approach at the current heading: (gap, rolls fit the placement), or None when out of reach.
+
+        The pads clamp the faces' centre or, when the arms cannot reach that (at the object or at the placement),
+        a point up to ``off_centre`` along the faces: first those towards the robot, then the others; at each, a
+        grip that also reaches the placement first, then any.
+        """
         c = self.spec
-        for rolls, place_q, at in [*self.placements, (None, None, None)]:  # grips that reach the placement first
-            self.place_q = place_q
+        towards = -float(np.sign(self.rz[:2, 0] @ obj[:2]) or 1.0)  # along the faces, towards the chest axis
+        near = [towards * c.off_centre * k for k in (0.0, 0.5, 1.0)]
+        shifts = list(dict.fromkeys([*near, *(-s for s in near)]))
+        fitting = ((shift, grip) for shift in shifts for grip in self._placements(view, shift))  # lazily
+        for shift, (rolls, place_q) in chain(fitting, ((shift, (None, None)) for shift in dict.fromkeys(near))):
+            self.place_q, self.shift = place_q, shift
             self.rots = None if rolls is None else [self.rz @ r for r in rolls]
-            for gap, shift in self._candidates(obj, at):
-                self.shift = shift
+            for gap in (c.gap, 0.6 * c.gap, 0.35 * c.gap):  # nearer the faces when the arms cannot spread so far
                 outside = [obj + self.rz @ np.array([shift, s * (c.half_width + gap), c.height]) for s in SIDES]
                 above = [p + np.array([0.0, 0.0, max(top + c.clearance - p[2], 0.0)]) for p in outside]
                 high = [a + np.array([0.0, 0.0, HIGH]) for a in above]
@@ -129,47 +145,36 @@ class Grasp(Phase):
                         return gap, rolls is not None
         return None
 
-    def _candidates(self, obj: np.ndarray, shift: float | None) -> list[tuple[float, float]]:
-        """(gap, shift) pairs to try, in order.
-
-        The pads nearer the faces when the arms cannot spread so far; with no ``shift`` given (by the placement),
-        then off the centre of the faces towards the robot (along the faces) when the centre is out of reach.
-        """
-        c = self.spec
-        towards = -float(np.sign(self.rz[:2, 0] @ obj[:2]) or 1.0)  # along the faces, towards the chest axis
-        shifts = [shift] if shift is not None else [towards * c.off_centre * k for k in (0.0, 0.5, 1.0)]
-        return [(gap, s) for s in dict.fromkeys(shifts) for gap in (c.gap, 0.6 * c.gap, 0.35 * c.gap)]
-
     def _rise(self, view: View, height: float) -> tuple[FrameTarget, ...]:
         """The pads straight up to ``height`` from where they are, as they are turned."""
         poses = [view.commanded_pose(f) for f in self.spec.frames]
         return tuple(FrameTarget(f, pos=np.array([*p.pos[:2], max(p.pos[2], height)]), rot=p.rot)
                      for f, p in zip(self.spec.frames, poses, strict=True))
 
-    def _placements(self, view: View) -> list[tuple[list[np.ndarray], np.ndarray, float]]:
-        """Grips with which the clamp also reaches ``place_at``: (pad rotations in the clamp frame, joints, shift).
+    def _placements(self, view: View, shift: float) -> list[tuple[list[np.ndarray], np.ndarray]]:
+        """Grips with which the clamp, ``shift`` along the faces, also reaches ``place_at``, computed once per shift.
 
-        The shift is the pads' offset along the faces. One grip per equivalent yaw of the object there that the
-        planner reaches, with the pads at the faces' centre or, when no yaw is in reach so, at the first shift (up
-        to ``off_centre`` either way) that is; empty without ``place_at``.
+        Each is (pad rotations in the clamp frame, joints), one per equivalent yaw of the object there that the
+        planner reaches; empty without ``place_at``.
         """
         c = self.spec
         if c.place_at is None:
             return []
+        key = round(shift, 6)
+        if key in self.placements:
+            return self.placements[key]
         tgt, trot = view.body_pose(c.place_at)
         sym = view.yaw_symmetry(c.object)
         centre = np.array([tgt[0], tgt[1], view.rest_height(c.object) + c.height + PLACE_HOVER])
-        out: list[tuple[list[np.ndarray], np.ndarray, float]] = []
-        for shift in dict.fromkeys(c.off_centre * k for k in (0.0, 0.5, -0.5, 1.0, -1.0)):
-            for k in range(max(1, round(2 * np.pi / sym))):
-                rz = rot_z(yaw_of(trot) + k * sym)
-                points = [centre + rz @ np.array([shift, s * c.half_width, 0.0]) for s in SIDES]
-                q = view.plan([FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=rz[:, 1])
-                               for f, p in zip(c.frames, points, strict=True)], allow=frozenset({c.object}))
-                if q is not None:
-                    out.append(([rz.T @ view.pose_at(f, q).rot for f in c.frames], q, shift))
-            if out:
-                break
+        out: list[tuple[list[np.ndarray], np.ndarray]] = []
+        for k in range(max(1, round(2 * np.pi / sym))):
+            rz = rot_z(yaw_of(trot) + k * sym)
+            points = [centre + rz @ np.array([shift, s * c.half_width, 0.0]) for s in SIDES]
+            q = view.plan([FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=rz[:, 1])
+                           for f, p in zip(c.frames, points, strict=True)], allow=frozenset({c.object}))
+            if q is not None:
+                out.append(([rz.T @ view.pose_at(f, q).rot for f in c.frames], q))
+        self.placements[key] = out
         return out
 
     def _targets(self, points: list[np.ndarray]) -> tuple[FrameTarget, ...]:
