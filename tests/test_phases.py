@@ -8,9 +8,10 @@ import pytest
 
 from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import Pose, rot_z, yaw_of
-from nextage_qp.ik import RelativeTarget
-from nextage_qp.manipulation.context import Grip
+from nextage_qp.ik import FrameTarget, RelativeTarget
+from nextage_qp.manipulation.context import Clamp, Grip
 from nextage_qp.manipulation.phases import REGISTRY, build
+from nextage_qp.manipulation.route import PlannedRoute
 from nextage_qp.sensors import Wrench
 
 DT = 0.004
@@ -378,6 +379,45 @@ def test_place_lifts_over_the_obstacles_turns_to_the_nearest_equivalent_yaw_and_
     assert obj.pos[2] <= 1.015 + 0.001  # set down: within 1 mm of its resting height
     left, right = (t.pos for t in cmd.targets)
     assert np.linalg.norm(left - right) == pytest.approx(0.144)  # the pads keep the grip's spread
+
+
+def test_a_route_leg_is_reached_where_the_planned_joints_put_the_frame():
+    """Near the edge of reach the planner stops a few millimetres short; the leg is done there, not never."""
+    short = np.array([0.0, 0.0, -0.004])
+
+    class Short(ScriptedView):
+        def pose_at(self, frame, q):
+            p = super().pose_at(frame, q)
+            return Pose(p.pos + short, p.rot)
+
+    view = Short(frames={"left_pad": pose(0.4, 0.2, 1.0)}, commanded={"left_pad": pose(0.4, 0.2, 1.0)})
+    route = PlannedRoute([(FrameTarget("left_pad", pos=np.array([0.5, 0.2, 1.1])),)], pos_tol=0.006)
+    assert route.plan(view)
+    route.step(view)
+    view.frames["left_pad"] = Pose(np.array([0.5, 0.2, 1.1]) + short, np.eye(3))  # the arm got where it was planned
+    route.step(view)
+    assert route.done
+
+
+def test_clamp_ties_the_pads_by_their_relative_pose_at_the_close_drawn_in_by_the_squeeze():
+    grip = held_grip()  # the pads held 144 mm apart when the clamp closed, though their targets were 144 mm too
+    grip = Grip(grip.object, grip.frames, grip.offsets, grip.rotations,
+                RelativeTarget("left_pad", "right_pad", np.array([0.0, 0.140, 0.001]), np.eye(3), 1.0))
+    clamp = Clamp(grip, relative_cost=10.0)
+    clamp.depth = [0.002, 0.001]
+    targets, tie = clamp.pads(np.array([0.5, 0.0, 1.1]), 0.0)
+    assert tie.pos == pytest.approx([0.0, 0.137, 0.001]) and tie.cost == 10.0  # what the arms held, not the targets
+    assert targets[0].pos - targets[1].pos == pytest.approx([0.0, 0.141, 0.0])
+
+
+def test_place_slides_the_posture_from_the_default_to_the_hover_joints():
+    view = place_view()
+    phase = make("place", object="dumbbell", target="dumbbell_target")
+    phase.start(view)
+    first = phase.update(view)
+    assert first.posture == pytest.approx(view.default_posture(), abs=1e-6)  # no jump at the start of the lift
+    view.t += 2.0
+    assert phase.update(view).posture == pytest.approx(phase.posture)
 
 
 def test_place_refuses_a_target_pose_the_clamp_cannot_reach():
