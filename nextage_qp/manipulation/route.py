@@ -45,6 +45,7 @@ class PlannedRoute:
         self.planned: list[list[np.ndarray]] = []  # per waypoint, each frame's position at the planned joints
         self.leg = 0
         self._points: list[Setpoint] | None = None
+
     def plan(self, view: View) -> bool:
         """Solve every waypoint, each from the previous solution; False when one is out of reach."""
         self.joints, self.planned, start = [], [], None

@@ -66,8 +66,8 @@ class GraspSpec(Spec):
                                description="Deepest pad target inside the surface before the grasp fails [m].")
     hold: float = Field(default=0.5, ge=0, le=MAX_SECONDS, description="Time the force is held [s].")
     off_centre: float = Field(default=0.0, ge=0, le=0.2,
-                              description="Farthest the pads may clamp off the centre of the faces, towards the robot, "
-                                          "when the centre is out of reach [m].")
+                              description="Farthest the pads may clamp off the centre of the faces, along them, "
+                                          "where the centre is out of reach at the object or at the placement [m].")
     place_at: str | None = name_field("body", default=None,
                                       description="Body where the object will be set down: the pads take a grip "
                                                   "that reaches there too; none fails the grasp before moving.")
