@@ -11,6 +11,12 @@ with :math:`q` [rad], :math:`\dot q` [rad/s], :math:`K_p` [N·m/rad], :math:`K_d
 :math:`b` = MuJoCo's ``qfrc_bias`` (gravity + Coriolis/centrifugal) [N·m] when gravity compensation is on,
 a feed-forward torque :math:`\tau^{ff}` [N·m] and the actuator range :math:`\tau^{max}` [N·m].
 
+In the simulation the law runs inside MuJoCo (:meth:`PDController.install`): each joint's actuator becomes an
+affine ``general`` actuator, force :math:`= c - K_p q - K_d \dot q` clamped to :math:`\pm\tau^{max}`, fed
+:math:`c = K_p q^{ref} + K_d \dot q^{ref} + b + \tau^{ff}` once per physics step
+(:meth:`PDController.ctrl`), so ``mj_step`` evaluates the feedback on the state it integrates and no torque is
+computed in Python. :meth:`PDController.torque` is the same law in numpy (tests, analysis).
+
 Gains live in YAML, one entry per joint (``configs/gains/*.yaml``)::
 
     gravity_compensation: true
@@ -23,8 +29,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
+import mujoco
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
@@ -152,6 +159,57 @@ class PDController:
         if self.torque_limit.shape != gains.kp.shape or np.any(self.torque_limit <= 0):
             raise ConfigError(f"torque limits must be {gains.kp.size} values > 0 N m, got {self.torque_limit}")
         self.reset_counters()
+
+    def install(self, model: Any, actuator_ids: np.ndarray) -> None:
+        """Make the joints' actuators compute this PD law inside MuJoCo (see the module doc).
+
+        Each actuator becomes ``general`` with gain 1, affine bias ``(0, -kp, -kd)``, an unlimited control and
+        its torque limit as force range. The model is changed in place: a second simulation of the same model
+        installs its own gains.
+
+        Raises:
+            ConfigError: An actuator does not drive its joint with gear 1 (the law assumes joint torque = force).
+        """
+        ids = np.asarray(actuator_ids, dtype=int)
+        if not np.allclose(model.actuator_gear[ids, 0], 1.0) or not np.allclose(model.actuator_gear[ids, 1:], 0.0):
+            raise ConfigError("the PD law needs every joint actuator to have gear 1")
+        g = self.gains
+        model.actuator_gaintype[ids] = mujoco.mjtGain.mjGAIN_FIXED
+        model.actuator_gainprm[ids] = 0.0
+        model.actuator_gainprm[ids, 0] = 1.0
+        model.actuator_biastype[ids] = mujoco.mjtBias.mjBIAS_AFFINE
+        model.actuator_biasprm[ids] = 0.0
+        model.actuator_biasprm[ids, 1] = -g.kp
+        model.actuator_biasprm[ids, 2] = -g.kd
+        model.actuator_dyntype[ids] = mujoco.mjtDyn.mjDYN_NONE
+        model.actuator_ctrllimited[ids] = 0
+        model.actuator_forcelimited[ids] = 1
+        model.actuator_forcerange[ids, 0], model.actuator_forcerange[ids, 1] = -self.torque_limit, self.torque_limit
+
+    def ctrl(self, q_ref: np.ndarray, qd_ref: np.ndarray, bias: np.ndarray | None = None,
+             q_offset: np.ndarray | None = None, qd_offset: np.ndarray | None = None) -> np.ndarray:
+        r"""The control of the installed actuators: :math:`c = K_p q^{ref} + K_d \dot q^{ref} + b` (15,).
+
+        ``q_offset`` / ``qd_offset`` [rad, rad/s] are ``true - measured`` joint states: with them the actuator's
+        feedback on the true state acts on the measured one (noisy or delayed sensors).
+        """
+        g = self.gains
+        c = g.kp * q_ref + g.kd * qd_ref
+        if bias is not None and g.gravity_compensation:
+            c += bias
+        if q_offset is not None:
+            c += g.kp * q_offset
+        if qd_offset is not None:
+            c += g.kd * qd_offset
+        return c
+
+    def count(self, force: np.ndarray) -> None:
+        """Count one physics step's applied actuator force [N·m] (15,) in the saturation counters."""
+        self.ticks += 1
+        sat = np.abs(force) >= self.torque_limit - 1e-9
+        if sat.any():
+            self.saturated_ticks += sat
+            self.any_saturated_ticks += 1
 
     def reset_counters(self) -> None:
         """Zero the tick and saturation counters."""

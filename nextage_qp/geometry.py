@@ -22,6 +22,45 @@ class Pose(NamedTuple):
         return quat
 
 
+def mats_to_quats(mats: np.ndarray) -> np.ndarray:
+    """Unit quaternions (w, x, y, z), w >= 0, of rotation matrices ``mats`` (k, 3, 3) or (k, 9); (k, 4).
+
+    Shepperd's method, vectorised: each row uses the largest of the trace and the diagonal for the pivot.
+    """
+    m = np.asarray(mats, dtype=float).reshape(-1, 3, 3)
+    m00, m11, m22 = m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]
+    cand = np.stack([m00 + m11 + m22, m00, m11, m22], axis=1)
+    pivot = np.argmax(cand, axis=1)
+    out = np.empty((len(m), 4))
+    for p in range(4):
+        rows = np.flatnonzero(pivot == p)
+        if not rows.size:
+            continue
+        r = m[rows]
+        if p == 0:
+            s = 2.0 * np.sqrt(1.0 + cand[rows, 0])
+            q = [0.25 * s, (r[:, 2, 1] - r[:, 1, 2]) / s, (r[:, 0, 2] - r[:, 2, 0]) / s, (r[:, 1, 0] - r[:, 0, 1]) / s]
+        elif p == 1:
+            s = 2.0 * np.sqrt(np.maximum(1.0 + r[:, 0, 0] - r[:, 1, 1] - r[:, 2, 2], 1e-300))
+            q = [(r[:, 2, 1] - r[:, 1, 2]) / s, 0.25 * s, (r[:, 0, 1] + r[:, 1, 0]) / s, (r[:, 0, 2] + r[:, 2, 0]) / s]
+        elif p == 2:
+            s = 2.0 * np.sqrt(np.maximum(1.0 + r[:, 1, 1] - r[:, 0, 0] - r[:, 2, 2], 1e-300))
+            q = [(r[:, 0, 2] - r[:, 2, 0]) / s, (r[:, 0, 1] + r[:, 1, 0]) / s, 0.25 * s, (r[:, 1, 2] + r[:, 2, 1]) / s]
+        else:
+            s = 2.0 * np.sqrt(np.maximum(1.0 + r[:, 2, 2] - r[:, 0, 0] - r[:, 1, 1], 1e-300))
+            q = [(r[:, 1, 0] - r[:, 0, 1]) / s, (r[:, 0, 2] + r[:, 2, 0]) / s, (r[:, 1, 2] + r[:, 2, 1]) / s, 0.25 * s]
+        out[rows] = np.stack(q, axis=1)
+    out /= np.linalg.norm(out, axis=1, keepdims=True)
+    out[out[:, 0] < 0] *= -1.0
+    return out
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product of two 3-vectors (``np.cross`` costs ~15 us per call on 3-vectors; this ~2 us)."""
+    (a0, a1, a2), (b0, b1, b2) = a.tolist(), b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def rot_z(yaw: float) -> np.ndarray:
     """Rotation matrix of ``yaw`` [rad] about the world z axis."""
     c, s = np.cos(yaw), np.sin(yaw)

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from nextage_qp.geometry import mats_to_quats
+
 
 class Recorder:
     """Per-physics-step log of the loop, growing in chunks; saved as ``.npz`` plus a ``.json`` summary.
@@ -38,7 +40,9 @@ class Recorder:
         n = len(self.joint_names)
         self.frames, self.objects = tuple(frames), tuple(objects)
         self._dims = {"t": 1, "q": n, "qd": n, "q_ref": n, "qd_ref": n, "tau": n}
-        self._dims |= {f"frame_{f}": 7 for f in self.frames} | {f"object_{o}": 7 for o in self.objects}
+        # Frames are stored as they come from MuJoCo (position and rotation matrix, 12 values each) and turned
+        # into position + quaternion only when the arrays are read: no conversion inside the physics loop.
+        self._dims |= {"frames": 12 * len(self.frames)} | {f"object_{o}": 7 for o in self.objects}
         self._timing = {"sim_dt": sim_dt, "ctrl_dt": ctrl_dt}
         self.clear()
 
@@ -53,18 +57,25 @@ class Recorder:
         return self._n
 
     def record(self, t: float, *rows: Any) -> None:
-        """Append one step: time, q, qd, q_ref, qd_ref, tau, a list of frame poses, a list of object poses."""
+        """Append one step: time, q, qd, q_ref, qd_ref, tau (None: set later), frame poses, object poses.
+
+        The frame poses are one array (n_frames, 12): position [m] and row-major rotation matrix per frame.
+        """
         if self._n == len(self._buf["t"]):
             self._buf = {k: np.concatenate([b, np.empty_like(b)]) for k, b in self._buf.items()}
         i, buf = self._n, self._buf
         buf["t"][i, 0] = t
         for key, row in zip(("q", "qd", "q_ref", "qd_ref", "tau"), rows[:5], strict=True):
-            buf[key][i] = row
-        for name, pose in zip(self.frames, rows[5], strict=True):
-            buf[f"frame_{name}"][i] = pose
+            if row is not None:
+                buf[key][i] = row
+        buf["frames"][i] = rows[5].ravel()
         for name, pose in zip(self.objects, rows[6], strict=True):
             buf[f"object_{name}"][i] = pose
         self._n += 1
+
+    def set_last(self, key: str, row: Any) -> None:
+        """Overwrite one array's row of the last step (e.g. ``tau``, known only once the step has run)."""
+        self._buf[key][self._n - 1] = row
 
     def add(self, name: str, t: float, value: Any) -> None:
         """Append an extra signal sample (e.g. from a hook): ``extra_<name>`` at time ``t`` [s]."""
@@ -80,8 +91,11 @@ class Recorder:
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Everything recorded so far, as arrays (``t`` is 1-D)."""
-        out = {k: b[: self._n].copy() for k, b in self._buf.items()}
+        out = {k: b[: self._n].copy() for k, b in self._buf.items() if k != "frames"}
         out["t"] = out["t"][:, 0]
+        raw = self._buf["frames"][: self._n].reshape(self._n, len(self.frames), 12)
+        for j, name in enumerate(self.frames):
+            out[f"frame_{name}"] = np.concatenate([raw[:, j, :3], mats_to_quats(raw[:, j, 3:])], axis=1)
         for name, (ts, values) in self._extra.items():
             out[f"extra_{name}"], out[f"extra_{name}_t"] = np.asarray(values), np.asarray(ts)
         return out

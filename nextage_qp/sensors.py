@@ -40,14 +40,17 @@ class WrenchSensor:
         self.mass = float(model.body_mass[self.body])
         self.force_adr, self.torque_adr = int(model.sensor_adr[force_sensor]), int(model.sensor_adr[torque_sensor])
         self.gravity = np.array(model.opt.gravity)
+        self._weight = self.mass * self.gravity
+        w = self._weight
+        self._weight_cross = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])  # w x (.)
 
     def read(self, data: mujoco.MjData) -> Wrench:
         """The contact wrench now, in the world frame."""
         rot = data.site_xmat[self.site].reshape(3, 3)
-        weight = self.mass * self.gravity
-        force = -rot @ data.sensordata[self.force_adr : self.force_adr + 3] - weight
+        force = -(rot @ data.sensordata[self.force_adr : self.force_adr + 3]) - self._weight
         lever = data.xipos[self.body] - data.site_xpos[self.site]
-        torque = -rot @ data.sensordata[self.torque_adr : self.torque_adr + 3] - np.cross(lever, weight)
+        # -(lever x weight) = weight x lever
+        torque = self._weight_cross @ lever - rot @ data.sensordata[self.torque_adr : self.torque_adr + 3]
         return Wrench(force, torque)
 
     @staticmethod

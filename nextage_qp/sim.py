@@ -7,6 +7,10 @@ sampled at the same instant:
 
 .. math:: u_k = \operatorname{clip}(K_p(q^{ref}(t_k) - q_k) + K_d(\dot q^{ref}(t_k) - \dot q_k) + b(q_k, \dot q_k))
 
+The law runs in MuJoCo's actuators (:meth:`~nextage_qp.control.PDController.install`): Python sets one control
+vector per step and ``mj_step`` applies the feedback and the clamp; under the ``implicitfast`` integrator the
+damping term is integrated implicitly, so stiff ``kd`` does not destabilise the loop.
+
 What the controller sees passes through one seam, :class:`Sensors`: the joint state the PD law uses and the
 :class:`Measurement` (joints and free-object poses) the phases read after every tick. The default sensors are
 perfect; noise, delay or an estimator plug in there without touching the loop.
@@ -21,38 +25,19 @@ from collections.abc import Callable, Sequence
 
 import mujoco
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from nextage_qp.control import Gains, PDController
 from nextage_qp.errors import SimulationError
 from nextage_qp.recorder import Recorder, StageTimer
 from nextage_qp.robot import Robot
 from nextage_qp.sensors import Measurement, PerfectSensors, Pose, Sensors, WrenchSensor
+from nextage_qp.timing import Timing
 from nextage_qp.trajectory import JointTrajectory, RefState, TrajectoryLimits
+
+__all__ = ["Hook", "Simulation", "StageTimer", "Timing"]
 
 Hook = Callable[["Simulation"], None]
 _BAD = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
-
-
-class Timing(BaseModel):
-    """Loop rates: the physics step and the control period (a whole multiple of it)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    sim_dt: float = Field(default=0.001, gt=0, le=0.01, description="Physics step [s].")
-    ctrl_dt: float = Field(default=0.004, gt=0, le=0.05, description="IK + Ruckig period [s] (multiple of sim_dt).")
-
-    @model_validator(mode="after")
-    def _multiple(self) -> Timing:
-        ratio = self.ctrl_dt / self.sim_dt
-        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
-            raise ValueError(f"ctrl_dt ({self.ctrl_dt} s) must be a whole multiple of sim_dt ({self.sim_dt} s)")
-        return self
-
-    @property
-    def n_substeps(self) -> int:
-        """Physics steps per control period."""
-        return round(self.ctrl_dt / self.sim_dt)
 
 
 class Simulation:
@@ -99,12 +84,18 @@ class Simulation:
         self.max_speed = max_speed
         self.data = mujoco.MjData(self.model)
         self.pd = PDController(gains, robot.torque_limit)
+        self.pd.install(self.model, robot.actuator_ids)
         self.limits = limits or TrajectoryLimits()
         self.traj = JointTrajectory(self.limits, dt=self.ctrl_dt, lower=robot.lower, upper=robot.upper,
                                     joint_names=robot.joint_names)
         self.sensors: Sensors = sensors or PerfectSensors()
         self._perfect = sensors is None or isinstance(sensors, PerfectSensors)
         self.frames = tuple(robot.frame(f) for f in frames)
+        self._frame_rows = np.zeros((len(self.frames), 12))
+        self._site_rows = np.array([i for i, (k, _) in enumerate(self.frames) if k == "site"], dtype=int)
+        self._site_ids = np.array([fid for k, fid in self.frames if k == "site"], dtype=int)
+        self._body_rows = np.array([i for i, (k, _) in enumerate(self.frames) if k != "site"], dtype=int)
+        self._body_ids = np.array([fid for k, fid in self.frames if k != "site"], dtype=int)
         self.wrench_sensors = WrenchSensor.of_model(self.model)
         self.objects = tuple((name, robot.object_qpos_slice(name), robot.model.body(name).id)
                              for name in robot.object_names)
@@ -188,28 +179,36 @@ class Simulation:
             timer.start()
         if raw is None:
             self.traj.update()
+        pd, perfect, hooks = self.pd, self._perfect, self.substep_hooks
         for k in range(self.n_substeps):
             ref = raw if raw is not None else self.traj.interpolate(k * self.sim_dt)
             if timer:
                 timer.lap("ruckig")
             mujoco.mj_step1(m, d)
-            for hook in self.substep_hooks:
+            for hook in hooks:
                 hook(self)
             if timer:
                 timer.lap("physics")
             q, qd = d.qpos[qi], d.qvel[di]
-            qm, qdm = (q, qd) if self._perfect else self.sensors.joints(self.time, q.copy(), qd.copy())
-            tau = self.pd.torque(qm, qdm, ref.q, ref.qd, d.qfrc_bias[di])
-            d.ctrl[ai] = tau
+            if perfect:
+                d.ctrl[ai] = pd.ctrl(ref.q, ref.qd, d.qfrc_bias[di])
+            else:
+                qm, qdm = self.sensors.joints(self.time, q.copy(), qd.copy())
+                d.ctrl[ai] = pd.ctrl(ref.q, ref.qd, d.qfrc_bias[di], q - qm, qd - qdm)
             if timer:
                 timer.lap("pd")
-            rec.record(self.time, q, qd, ref.q, ref.qd, tau, self._frame_poses(), self._object_rows())
+            rec.record(self.time, q, qd, ref.q, ref.qd, None, self._frame_poses(), self._object_rows())
             if timer:
                 timer.lap("record")
-            mujoco.mj_step2(m, d)
+            mujoco.mj_step2(m, d)  # the actuators apply the PD law to this state (clamped to the torque limits)
             self._step += 1
             if timer:
                 timer.lap("physics")
+            tau = d.actuator_force[ai]
+            pd.count(tau)
+            rec.set_last("tau", tau)
+            if timer:
+                timer.lap("pd")
         self._check()
         self._measure()
         for hook in self.hooks:
@@ -223,15 +222,15 @@ class Simulation:
         while self._step < end:
             self.tick()
 
-    def _frame_poses(self) -> list[np.ndarray]:
-        d, out = self.data, []
-        for kind, fid in self.frames:
-            quat = np.empty(4)
-            if kind == "site":
-                mujoco.mju_mat2Quat(quat, d.site_xmat[fid])
-                out.append(np.concatenate([d.site_xpos[fid], quat]))
-            else:
-                out.append(np.concatenate([d.xpos[fid], d.xquat[fid]]))
+    def _frame_poses(self) -> np.ndarray:
+        """Position and row-major rotation matrix of every recorded frame, (n_frames, 12) (a reused buffer)."""
+        d, out = self.data, self._frame_rows
+        if self._site_ids.size:
+            out[self._site_rows, :3] = d.site_xpos[self._site_ids]
+            out[self._site_rows, 3:] = d.site_xmat[self._site_ids]
+        if self._body_ids.size:
+            out[self._body_rows, :3] = d.xpos[self._body_ids]
+            out[self._body_rows, 3:] = d.xmat[self._body_ids]
         return out
 
     def _object_rows(self) -> list[np.ndarray]:
@@ -241,10 +240,11 @@ class Simulation:
         d = self.data
         q, qd = d.qpos[self.robot.qpos_idx], d.qvel[self.robot.dof_idx]
         bad_warn = any(d.warning[w].number for w in _BAD)
+        # Fast path: a NaN fails both comparisons below, so only a healthy state returns here.
+        if not bad_warn and np.abs(qd).max() <= self.max_speed and np.isfinite(d.qpos).all():
+            return
         finite = np.isfinite(q) & np.isfinite(qd)
         fast = np.abs(np.nan_to_num(qd, nan=np.inf)) > self.max_speed
-        if not (bad_warn or not finite.all() or fast.any() or not np.all(np.isfinite(d.qpos))):
-            return
         names, t = self.robot.joint_names, self.time
         if not finite.all():
             # NaN spreads to every joint within a step: name the first joint that went bad in this tick.

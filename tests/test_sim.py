@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from nextage_qp.control import Gains, load_gains
+from nextage_qp.control import Gains, PDController, load_gains
 from nextage_qp.errors import SimulationError
 from nextage_qp.nextage import JOINT_NAMES
 from nextage_qp.robot import Robot
@@ -63,10 +63,24 @@ def test_hooks_run_every_tick_and_extra_signals_saved(robot, gains, tmp_path):
     assert summary["samples"] == 100 and summary["note"] == "hook test"
 
 
-def test_divergence_is_caught_and_partial_log_written(robot, tmp_path):
+def test_stiff_damping_is_integrated_implicitly(robot):
+    # kd * sim_dt / inertia >> 2 diverges when the PD law is explicit; in MuJoCo's actuators under the
+    # implicitfast integrator the damping term is implicit and the joint settles.
     kd = np.full(N, 1.0)
-    kd[JOINT_NAMES.index("LARM_JOINT5")] = 200.0  # kd * sim_dt / inertia >> 2: explicit PD is unstable
-    gains = Gains(np.full(N, 10.0), kd, gravity_compensation=True)
+    kd[JOINT_NAMES.index("LARM_JOINT5")] = 200.0
+    sim = Simulation(robot, Gains(np.full(N, 10.0), kd, gravity_compensation=True), max_speed=5.0)
+    sim.reset(robot.keyframe_q())
+    target = robot.keyframe_q().copy()
+    target[JOINT_NAMES.index("LARM_JOINT5")] = 0.1
+    sim.set_target(target, shaped=False)
+    sim.run(0.5)
+    assert np.all(np.isfinite(sim.q)) and np.max(np.abs(sim.qd)) < 5.0
+
+
+def test_divergence_is_caught_and_partial_log_written(robot, tmp_path):
+    kp = np.full(N, 10.0)
+    kp[JOINT_NAMES.index("LARM_JOINT5")] = 1e6  # kp * sim_dt**2 / inertia >> 1: the stiffness is explicit
+    gains = Gains(kp, np.full(N, 1.0), gravity_compensation=True)
     sim = Simulation(robot, gains, frames=("left_wrist",), max_speed=5.0)
     home = robot.keyframe_q()
     sim.reset(home)
@@ -128,3 +142,20 @@ def test_obstacle_contacts_are_counted_per_physics_step(gains):
     assert len(touching_steps) == 48
     assert monitor.obstacle_contacts == sum(touching_steps) > 0
     assert monitor.min_clearance is not None and monitor.min_clearance < 0
+
+
+def test_actuators_apply_the_documented_pd_law(robot):
+    # The law runs in MuJoCo's actuators; the torque they applied matches PDController.torque (numpy) on the
+    # recorded state, saturation included.
+    gains = Gains(np.full(N, 300.0), np.full(N, 20.0), gravity_compensation=False)
+    sim = Simulation(robot, gains)
+    sim.reset(robot.keyframe_q())
+    target = robot.keyframe_q() + 0.3  # far enough for some joints to saturate at first
+    sim.set_target(target)
+    sim.run(0.2)
+    a = sim.recorder.arrays()
+    law = PDController(gains, robot.torque_limit)
+    rows = zip(a["q"], a["qd"], a["q_ref"], a["qd_ref"], strict=True)
+    expected = np.array([law.torque(q, qd, qr, qdr) for q, qd, qr, qdr in rows])
+    np.testing.assert_allclose(a["tau"], expected, atol=1e-6)
+    assert sim.pd.ticks == len(a["t"]) and sim.pd.any_saturated_ticks == law.any_saturated_ticks

@@ -87,6 +87,7 @@ class ActiveCollisionLimit(mink.Limit):
         self._travel = np.zeros(model.ngeom)
         self._last_pos = np.full((model.ngeom, 3), np.nan)
         self._last_mat = np.full((model.ngeom, 9), np.nan)
+        self._first = True
         self._rbound_chord = rbound / np.sqrt(2.0)  # ||R1 - R2||_F / sqrt(2) bounds a unit vector's shift
         # Per pair: the distance lower bound last stored plus both geoms' travel at that moment (-inf: none).
         self._base = np.full(len(keys), -np.inf)
@@ -156,7 +157,9 @@ class ActiveCollisionLimit(mink.Limit):
         dpos, dmat = pos - self._last_pos, mat - self._last_mat
         moved = np.sqrt(np.einsum("ij,ij->i", dpos, dpos))
         moved += self._rbound_chord * np.sqrt(np.einsum("ij,ij->i", dmat, dmat))
-        self._travel += np.nan_to_num(moved)  # first call: no bound is stored yet, nothing to void
+        if self._first:  # no pose stored yet (NaN), and no bound to void
+            moved[:], self._first = 0.0, False
+        self._travel += moved
         self._last_pos[:], self._last_mat[:] = pos, mat
         travel = self._travel
         lower = self._base - travel[self.geom1] - travel[self.geom2]

@@ -145,6 +145,7 @@ class QPIK:
         extra_tasks: Sequence[mink.Task] = (),
         object_poses: ObjectPoses | None = None,
         allow: frozenset[str] = frozenset(),
+        good_enough: tuple[float, float] | None = None,
     ) -> IKResult:
         """Iterate IK steps of ``config.dt`` from ``q0`` until every target is within tolerance.
 
@@ -161,6 +162,8 @@ class QPIK:
             extra_tasks: Further mink tasks added to every step.
             object_poses: Object name -> (pos, quat wxyz) for collision avoidance.
             allow: Collision groups whose pairs are not avoided (e.g. an object the frames hold).
+            good_enough: Position [m] and orientation [rad] errors at which a stalled descent is kept without
+                restarts (a caller that accepts millimetres need not pay for restarts chasing microns).
 
         Raises:
             IKInfeasibleError: A step's QP is infeasible (e.g. ``q0`` far outside the joint limits).
@@ -186,6 +189,8 @@ class QPIK:
             if best is None or score < best[0]:
                 best = (score, q_best, pos_err, rot_err, status)
             if status == "converged":
+                break
+            if good_enough is not None and best[2] <= good_enough[0] and best[3] <= good_enough[1]:
                 break
         assert best is not None
         _, q_best, pos_err, rot_err, status = best

@@ -43,7 +43,7 @@ class FrameTarget:
             object.__setattr__(self, "pos", _vector(self.pos, f"{where}: pos"))
         if self.rot is not None:
             rot = np.asarray(self.rot, dtype=float)
-            if rot.shape != (3, 3) or not np.allclose(rot.T @ rot, np.eye(3), atol=1e-6) or np.linalg.det(rot) < 0:
+            if rot.shape != (3, 3) or not _is_rotation(rot):
                 raise ConfigError(f"{where}: rot must be a 3x3 rotation matrix, got {rot.tolist()}")
             object.__setattr__(self, "rot", rot)
         if (self.axis is None) != (self.direction is None):
@@ -64,6 +64,16 @@ class FrameTarget:
     def has_orientation(self) -> bool:
         """True when the target constrains orientation (full rotation or one axis)."""
         return self.rot is not None or self.axis is not None
+
+
+def _is_rotation(rot: np.ndarray) -> bool:
+    """True for a finite 3x3 rotation matrix (orthonormal to 1e-6, determinant +1); cheap, called every tick."""
+    ortho = np.abs(rot.T @ rot - np.eye(3)).max()
+    if not ortho <= 1e-6:  # also False for NaN
+        return False
+    a, b, c = rot[0].tolist(), rot[1].tolist(), rot[2].tolist()
+    det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])
+    return det > 0
 
 
 def _vector(value: np.ndarray, where: str) -> np.ndarray:

@@ -35,6 +35,11 @@ class PhaseRecord:
                 "duration_s": round(self.duration_s, 3), **self.info}
 
 
+CONTACT_WATCH = 0.02
+"""Obstacle clearance [m] below which every physics step is checked for contact (farther, none can occur
+within one control period: that would take 5 m/s)."""
+
+
 class OutcomeMonitor:
     """Safety metrics over a run: obstacle clearance and contacts, and whether a clamped object was dropped.
 
@@ -55,10 +60,14 @@ class OutcomeMonitor:
         self._is_obstacle = np.zeros(m.ngeom, dtype=bool)
         self._is_obstacle[list(self.obstacle or ())] = True
         self.movers = tuple(g for k in ("left_arm", "right_arm", "torso", "head", obj) for g in groups.get(k, ()))
+        pairs = np.array([(og, g) for og in (self.obstacle or ()) for g in self.movers], dtype=int).reshape(-1, 2)
+        self._pair1, self._pair2 = pairs[:, 0], pairs[:, 1]
+        self._pair_rsum = m.geom_rbound[self._pair1] + m.geom_rbound[self._pair2]
         self.min_clearance: float | None = None
         self.obstacle_contacts = 0
         self.dropped = False
         self._fromto = np.zeros(6)
+        self._watch = True  # something may touch the obstacle before the next tick: check every physics step
 
     def attach(self, sim: Simulation) -> None:
         """Register the monitor's hooks with a simulation (the contact hook only when there is an obstacle)."""
@@ -67,9 +76,13 @@ class OutcomeMonitor:
             sim.substep_hooks.append(self.on_substep)
 
     def on_substep(self, sim: Simulation) -> None:
-        """Hook run at every physics step: count the steps in which anything touches the obstacle."""
+        """Hook run at every physics step: count the steps in which anything touches the obstacle.
+
+        Skipped while the last tick found every mover farther than ``CONTACT_WATCH`` from the obstacle (nothing
+        here moves that far within one control period).
+        """
         d = sim.data
-        if self.obstacle is None or d.ncon == 0:
+        if not self._watch or d.ncon == 0:
             return
         geoms = d.contact.geom[: d.ncon]
         touching = self._is_obstacle[geoms]
@@ -77,18 +90,28 @@ class OutcomeMonitor:
             self.obstacle_contacts += 1
 
     def on_tick(self, sim: Simulation) -> None:
-        """Hook run by the simulation after every control tick: minimum clearance to the obstacle."""
+        """Hook run by the simulation after every control tick: minimum clearance to the obstacle.
+
+        Also decides whether the next tick's physics steps need the contact count (:meth:`on_substep`).
+        """
         if self.obstacle is None:
             return
         d, m = sim.data, self.model
         best = self.min_clearance if self.min_clearance is not None else 1.0
-        for og in self.obstacle:
-            for g in self.movers:
-                gap = np.linalg.norm(d.geom_xpos[og] - d.geom_xpos[g]) - m.geom_rbound[og] - m.geom_rbound[g]
-                if gap > best:
-                    continue
-                best = min(best, float(mujoco.mj_geomDistance(m, d, og, g, best, self._fromto)))
+        # Bounding spheres first (vectorised): only pairs whose spheres come within the best clearance so far
+        # (or within CONTACT_WATCH) need the narrow phase, nearest first so the bound tightens early.
+        delta = d.geom_xpos[self._pair1] - d.geom_xpos[self._pair2]
+        gap = np.sqrt(np.einsum("ij,ij->i", delta, delta)) - self._pair_rsum
+        cut = max(best, CONTACT_WATCH)
+        nearest = CONTACT_WATCH
+        for k in np.argsort(gap)[: int(np.count_nonzero(gap <= cut))].tolist():
+            if gap[k] > cut:
+                break
+            dist = float(mujoco.mj_geomDistance(m, d, int(self._pair1[k]), int(self._pair2[k]), cut, self._fromto))
+            best, nearest = min(best, dist), min(nearest, dist)
+            cut = max(best, CONTACT_WATCH)
         self.min_clearance = best
+        self._watch = nearest < CONTACT_WATCH
 
     def check_hold(self, sim: Simulation, grip: Grip) -> None:
         """Flag a drop when the clamped object is far from the midpoint of the clamp pads (true poses)."""

@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import UnknownNameError
-from nextage_qp.geometry import Pose
+from nextage_qp.geometry import Pose, cross
 from nextage_qp.ik import QPIK, FrameTarget
 from nextage_qp.kinematics import Kinematics
 from nextage_qp.manipulation.context import Grip
@@ -81,8 +81,9 @@ class SimView:
             self._planner = QPIK(self.robot, config)
         poses = {name: (p.pos, p.quat) for name, p in self._sim.measured.objects.items()}
         q0 = np.array(self._servo.q_cmd if start is None else start)
-        result = self._planner.solve(list(targets), q0, object_poses=poses, allow=allow)
         tol = REACH_POS_TOL if pos_tol is None else pos_tol
+        result = self._planner.solve(list(targets), q0, object_poses=poses, allow=allow,
+                                     good_enough=(0.5 * tol, 0.5 * REACH_ROT_TOL))
         return result.q if result.pos_err_m <= tol and result.rot_err_rad <= REACH_ROT_TOL else None
 
     def joint_names(self) -> tuple[str, ...]:  # noqa: D102
@@ -104,7 +105,7 @@ class SimView:
             if sensor.body == body:
                 w = self._sim.measured.wrenches[sensor.name]
                 here = d.xpos[fid] if kind == "body" else d.site_xpos[fid]
-                return Wrench(w.force, w.torque + np.cross(d.site_xpos[sensor.site] - here, w.force))
+                return Wrench(w.force, w.torque + cross(d.site_xpos[sensor.site] - here, w.force))
         with_sensor = [n for n in self.robot.site_names if int(m.site_bodyid[m.site(n).id]) in
                        {s.body for s in self._sim.wrench_sensors}]
         raise UnknownNameError("site on a body with a force/torque sensor", site, with_sensor)
