@@ -9,8 +9,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
+from importlib import metadata
+from typing import NoReturn
 
 from nextage_qp.errors import NextageQPError
 
@@ -18,9 +21,25 @@ COMMANDS = ("info", "fk", "ik", "step_response", "reach", "run", "sweep")
 """Modules of :mod:`nextage_qp.commands`, in the order ``--help`` lists them."""
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (exit 2), pointing at ``--help``."""
+
+    def error(self, message: str) -> NoReturn:  # noqa: D102
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())}; see '{self.prog} --help'\n")
+
+
+def version() -> str:
+    """The installed package's version."""
+    try:
+        return metadata.version("nextage_qp")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every available subcommand registered."""
-    parser = argparse.ArgumentParser(prog="nextage-qp", description=__doc__.splitlines()[0] if __doc__ else None)
+    parser = OneLineParser(prog="nextage-qp", description=__doc__.splitlines()[0] if __doc__ else None)
+    parser.add_argument("--version", action="version", version=f"nextage-qp {version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMANDS:
         try:
@@ -36,9 +55,14 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``nextage-qp``; returns the process exit code."""
     parser = build_parser()
-    args = parser.parse_args(argv)
     try:
-        return int(args.func(args))
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version, or a usage error already printed as one line
+        return exc.code if isinstance(exc.code, int) else 2
+    try:
+        code = int(args.func(args))
+        sys.stdout.flush()  # inside the try: a reader that left (``| head``) is caught below
+        return code
     except NextageQPError as exc:
         message = " ".join(str(exc).split())  # always one line
         print(f"nextage-qp {args.command}: error: {message}", file=sys.stderr)
@@ -46,6 +70,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"nextage-qp {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # e.g. ``nextage-qp fk | head``: the reader left, nothing more to say
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # so the flush at exit does not raise again
+        return 141
 
 
 if __name__ == "__main__":

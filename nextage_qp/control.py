@@ -46,7 +46,7 @@ NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False, strict=True)]
 class JointGains(BaseModel):
     """One joint's gains: ``kp`` [N·m/rad] and ``kd`` [N·m·s/rad], finite and >= 0."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     kp: NonNegative
     kd: NonNegative
@@ -55,7 +55,7 @@ class JointGains(BaseModel):
 class GainsFile(BaseModel):
     """The schema of a gains YAML: one entry per robot joint and the gravity-compensation switch."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     gravity_compensation: bool = Field(default=True, strict=True)
     joints: dict[str, JointGains]

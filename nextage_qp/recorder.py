@@ -5,7 +5,6 @@ Saved as ``.npz`` (arrays) plus a ``.json`` summary (duration, peak torques and 
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -14,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from nextage_qp.geometry import mats_to_quats
+from nextage_qp.json_out import dumps
 
 
 class Recorder:
@@ -123,7 +123,7 @@ class Recorder:
         savez: Any = np.savez_compressed  # numpy's stub mistypes **arrays
         savez(path, **self.arrays())
         js = path.with_suffix(".json")
-        js.write_text(json.dumps(self.summary(), indent=2, default=str) + "\n")
+        js.write_text(dumps(self.summary()) + "\n")
         return js
 
 

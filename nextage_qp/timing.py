@@ -8,7 +8,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 class Timing(BaseModel):
     """Loop rates: the physics step and the control period (a whole multiple of it)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     sim_dt: float = Field(default=0.001, gt=0, le=0.01, description="Physics step [s].")
     ctrl_dt: float = Field(default=0.004, gt=0, le=0.05, description="IK + Ruckig period [s] (multiple of sim_dt).")

@@ -42,7 +42,7 @@ class TrajectoryLimits(BaseModel):
         max_jerk: [rad/s³].
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     max_velocity: PerJoint = 1.0
     max_acceleration: PerJoint = 4.0

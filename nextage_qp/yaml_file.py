@@ -6,6 +6,7 @@ bad value and what would be valid.
 
 from __future__ import annotations
 
+import re
 import typing
 from pathlib import Path
 from typing import Any
@@ -16,6 +17,84 @@ from pydantic import BaseModel, ValidationError
 from nextage_qp.errors import ConfigError
 
 
+class StrictLoader(yaml.SafeLoader):
+    """PyYAML's safe loader with YAML 1.2 scalars and no silent surprises.
+
+    * Booleans are only ``true`` / ``false`` (YAML 1.1's ``yes``, ``no``, ``on``, ``off`` stay strings, so
+      ``settle: yes`` is refused where a number is expected instead of read as 1.0).
+    * Floats include ``1e-5`` (YAML 1.1 needs a dot and reads it as a string).
+    * A key given twice in one mapping is an error (PyYAML keeps the last one silently).
+    """
+
+
+StrictLoader.yaml_implicit_resolvers = {
+    first: [(tag, rx) for tag, rx in resolvers if tag not in ("tag:yaml.org,2002:bool", "tag:yaml.org,2002:float")]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+}
+StrictLoader.add_implicit_resolver("tag:yaml.org,2002:bool", re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"),
+                                   list("tTfF"))
+StrictLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                |[-+]?\.(?:inf|Inf|INF)
+                |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."),
+)
+
+
+def _mapping_without_duplicates(loader: StrictLoader, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+    seen: dict[Any, int] = {}
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if key in seen:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"key {key!r} appears twice in one mapping (lines {seen[key] + 1} and "
+                f"{key_node.start_mark.line + 1}); give it once", key_node.start_mark)
+        seen[key] = key_node.start_mark.line
+    return loader.construct_mapping(node, deep=deep)
+
+
+StrictLoader.add_constructor("tag:yaml.org,2002:map", _mapping_without_duplicates)
+
+
+def load_yaml(text: str) -> Any:
+    """Parse YAML text with :class:`StrictLoader` (raises ``yaml.YAMLError``)."""
+    return yaml.load(text, Loader=StrictLoader)  # a SafeLoader subclass: no arbitrary objects
+
+
+def yaml_error_line(exc: yaml.YAMLError) -> str:
+    """A YAML error as one line: the problem and where (line, column)."""
+    problem, mark = getattr(exc, "problem", None), getattr(exc, "problem_mark", None)
+    if problem and mark is not None:
+        context = getattr(exc, "context", None)
+        return f"{context + ': ' if context else ''}{problem} (line {mark.line + 1}, column {mark.column + 1})"
+    return " ".join(str(exc).split())
+
+
+def read_text_file(file: Path) -> str:
+    """The UTF-8 text of ``file``.
+
+    Raises:
+        ConfigError: Not a readable file (missing, a directory, no permission) or not UTF-8 text.
+    """
+    if file.is_dir():
+        raise ConfigError(f"{file}: is a directory, not a file")
+    try:
+        raw = file.read_bytes()
+    except OSError as exc:
+        raise ConfigError(f"{file}: cannot read: {exc.strerror}") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{file}: not UTF-8 text (byte 0x{raw[exc.start]:02x} at offset {exc.start}); "
+                          "expected a YAML text file") from None
+    if "\x00" in text:
+        raise ConfigError(f"{file}: binary data (a NUL byte at offset {text.index(chr(0))}); expected a YAML text file")
+    return text
+
+
 def read_yaml_mapping(file: Path, expected: str) -> dict[str, Any]:
     """The mapping at the top of ``file``.
 
@@ -24,14 +103,14 @@ def read_yaml_mapping(file: Path, expected: str) -> dict[str, Any]:
         expected: What the top level should be, for the error message (e.g. "a mapping at the top level").
 
     Raises:
-        ConfigError: The file cannot be read, is not valid YAML, or its top level is not a mapping.
+        ConfigError: The file cannot be read, is not UTF-8 text, is not valid YAML (duplicate keys included),
+            or its top level is not a mapping.
     """
+    text = read_text_file(file)
     try:
-        doc = yaml.safe_load(file.read_text())
-    except OSError as exc:
-        raise ConfigError(f"{file}: cannot read: {exc.strerror}") from None
+        doc = load_yaml(text)
     except yaml.YAMLError as exc:
-        raise ConfigError(f"{file}: not valid YAML: {' '.join(str(exc).split())}") from None
+        raise ConfigError(f"{file}: not valid YAML: {yaml_error_line(exc)}") from None
     if not isinstance(doc, dict):
         raise ConfigError(f"{file}: expected {expected}")
     return doc

@@ -116,12 +116,13 @@ def test_sweep_file_that_is_not_a_mapping(tmp_path, capsys, text, message):
     [
         (["--n", "0"], "--n must be between 1"),
         ([], "--n is required"),
-        (["--n", "2", "--seed", "-1"], "--seed must be >= 0"),
+        (["--n", "2", "--seed", "-1"], "--seed: expected an integer in [0, 4294967295], got '-1'"),
         (["--only", "x,1"], "--only 'x,1': expected episode indices"),
         (["--n", "2", "--workers", "0"], "--workers must be between 1"),
         (["--n", "2", "--ray-address", "1.2.3.4:6379"], "--ray-address needs --backend ray"),
         (["--n", "2", "--json", "."], "is a directory"),
-        (["--n", "2", "--plot", "no/such/dir/p.png"], "does not exist"),
+        (["--n", "2", "--plot", "pyproject.toml/p.png"], "is a file, not a folder"),
+        (["--n", "2", "--plot", "p.txt"], "expected a file ending in .png or .pdf or .svg"),
     ],
 )
 def test_bad_sweep_arguments(capsys, args, message):

@@ -4,12 +4,20 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
+from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.json_out import finite_json
 from nextage_qp.robot import Robot
+
+PLOT_SUFFIXES = (".png", ".pdf", ".svg")
+"""File types the plots can be written as (matplotlib picks the format from the suffix)."""
 
 
 def parse_joint_assignments(robot: Robot, items: list[str], base: np.ndarray) -> np.ndarray:
@@ -28,7 +36,74 @@ def parse_joint_assignments(robot: Robot, items: list[str], base: np.ndarray) ->
             values[name] = float(value)
         except ValueError:
             raise ConfigError(f"--q {item!r}: expected NAME=RAD, e.g. LARM_JOINT1=-0.4") from None
+        j = robot.joint_index(name)
+        lo, hi = float(robot.lower[j]), float(robot.upper[j])
+        if not lo <= values[name] <= hi:  # also refuses NaN
+            raise ConfigError(f"--q {item!r}: {name} must be a finite angle in its range [{lo:.4g}, {hi:.4g}] rad")
     return robot.q_from_names(values, base=base)
+
+
+def number(lo: float, hi: float, *, lo_open: bool = False, integer: bool = False) -> Callable[[str], float]:
+    """An argparse ``type``: a finite number in ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``), or an integer."""
+    show = (lambda v: str(int(v))) if integer else (lambda v: f"{v:g}")
+    span = f"{'(' if lo_open else '['}{show(lo)}, {show(hi)}]"
+    kind = "an integer" if integer else "a finite number"
+
+    def parse(text: str) -> float:
+        try:
+            value = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {kind} in {span}, got {text!r}") from None
+        if not math.isfinite(value) or value < lo or value > hi or (lo_open and value == lo):
+            raise argparse.ArgumentTypeError(f"expected {kind} in {span}, got {text!r}")
+        return value
+
+    parse.__name__ = "number"
+    return parse
+
+
+COORD = number(-10.0, 10.0)
+"""A world coordinate or a direction component [m]: finite, within 10 m of the origin."""
+SECONDS = number(0.0, 3600.0, lo_open=True)
+"""A simulated duration [s]: positive, at most an hour."""
+SEED = number(0, 2**32 - 1, integer=True)
+"""A random seed: an integer in [0, 2^32)."""
+
+
+def output_file(*suffixes: str) -> Callable[[str], Path]:
+    """An argparse ``type`` for an output file, checked before anything runs.
+
+    The path must not be a directory, its nearest existing folder must be writable (missing folders are made
+    when the file is written), and its suffix one of ``suffixes`` (none given: the first is added, so the
+    path reported is the path written).
+    """
+
+    def parse(text: str) -> Path:
+        path = Path(text)
+        want = " or ".join(suffixes)
+        if not text.strip() or text.endswith(("/", os.sep)) or path.is_dir():
+            raise argparse.ArgumentTypeError(f"{text!r} is a directory; give a file name ending in {want}")
+        if path.suffix.lower() not in suffixes:
+            if path.suffix:
+                raise argparse.ArgumentTypeError(f"{text!r}: expected a file ending in {want}")
+            path = path.with_name(path.name + suffixes[0])
+        folder = path.parent
+        while not folder.exists() and folder != folder.parent:
+            folder = folder.parent
+        if not folder.is_dir():
+            raise argparse.ArgumentTypeError(f"{text!r}: {folder} is a file, not a folder")
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise argparse.ArgumentTypeError(f"{text!r}: folder {folder} is not writable")
+        return path
+
+    parse.__name__ = "output file"
+    return parse
+
+
+def prepare_output(path: Path) -> Path:
+    """Make the folders of an output file checked by :func:`output_file`; returns the path."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
 
 
 def add_scene_arg(parser: argparse.ArgumentParser, default: str = "scene") -> None:
@@ -39,9 +114,10 @@ def add_scene_arg(parser: argparse.ArgumentParser, default: str = "scene") -> No
 def add_sim_args(parser: argparse.ArgumentParser, plot_help: str) -> None:
     """Add the options shared by the simulated commands: gains, duration, plot, log, JSON and scene."""
     parser.add_argument("--gains", default="default", help="gains YAML path or bundled name: default, report")
-    parser.add_argument("--duration", type=float, default=3.0, help="simulated time [s] (default 3)")
-    parser.add_argument("--plot", metavar="PNG", help=plot_help)
-    parser.add_argument("--log", metavar="NPZ", help="write the recorded run (.npz + .json summary)")
+    parser.add_argument("--duration", type=SECONDS, default=3.0, help="simulated time [s] (default 3, at most 3600)")
+    parser.add_argument("--plot", metavar="PNG", type=output_file(*PLOT_SUFFIXES), help=plot_help)
+    parser.add_argument("--log", metavar="NPZ", type=output_file(".npz"),
+                        help="write the recorded run (.npz + .json summary)")
     parser.add_argument("--json", action="store_true", help="print the outcome as JSON")
     add_scene_arg(parser)
 
@@ -57,13 +133,5 @@ def print_outcome(out: dict[str, Any], as_json: bool, keys: tuple[str, ...] | No
 
 
 def print_json(obj: Any) -> None:
-    """Print one JSON object, converting numpy values."""
-    print(json.dumps(obj, indent=2, default=_to_builtin))
-
-
-def _to_builtin(x: Any) -> Any:
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, np.generic):
-        return x.item()
-    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
+    """Print one strict JSON object: numpy values converted, NaN and infinities written as null."""
+    print(json.dumps(finite_json(obj), indent=2, allow_nan=False))

@@ -9,7 +9,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from nextage_qp.commands.common import add_scene_arg, print_json
+from nextage_qp.commands.common import COORD, add_scene_arg, number, print_json
 from nextage_qp.errors import ConfigError
 from nextage_qp.ik import QPIK, FrameTarget, IKConfig, IKResult
 from nextage_qp.ik.baselines import dls_ik, lm_ik, pinv_ik
@@ -20,16 +20,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``ik`` subcommand."""
     p = subparsers.add_parser("ik", help="inverse kinematics of one or two frames (QP or a baseline)")
     p.add_argument("--frame", required=True, help="body or site, e.g. left_wrist or LARM_JOINT5_Link")
-    p.add_argument("--pos", nargs=3, type=float, required=True, metavar=("X", "Y", "Z"), help="target position [m]")
-    p.add_argument("--axis", nargs=3, type=float, metavar=("AX", "AY", "AZ"), help="tool axis (frame coords) to aim")
-    p.add_argument("--dir", nargs=3, type=float, default=None, metavar=("DX", "DY", "DZ"),
+    p.add_argument("--pos", nargs=3, type=COORD, required=True, metavar=("X", "Y", "Z"), help="target position [m]")
+    p.add_argument("--axis", nargs=3, type=COORD, metavar=("AX", "AY", "AZ"), help="tool axis (frame coords) to aim")
+    p.add_argument("--dir", nargs=3, type=COORD, default=None, metavar=("DX", "DY", "DZ"),
                    help="world direction for --axis (default 0 0 1)")  # fmt: skip
-    p.add_argument("--quat", nargs=4, type=float, metavar=("W", "X", "Y", "Z"), help="target orientation")
+    p.add_argument("--quat", nargs=4, type=number(-1e3, 1e3), metavar=("W", "X", "Y", "Z"), help="target orientation")
     p.add_argument("--frame2", help="second frame, solved in the same QP")
-    p.add_argument("--pos2", nargs=3, type=float, metavar=("X", "Y", "Z"))
-    p.add_argument("--axis2", nargs=3, type=float, metavar=("AX", "AY", "AZ"))
-    p.add_argument("--dir2", nargs=3, type=float, default=None, metavar=("DX", "DY", "DZ"))
-    p.add_argument("--quat2", nargs=4, type=float, metavar=("W", "X", "Y", "Z"))
+    p.add_argument("--pos2", nargs=3, type=COORD, metavar=("X", "Y", "Z"))
+    p.add_argument("--axis2", nargs=3, type=COORD, metavar=("AX", "AY", "AZ"))
+    p.add_argument("--dir2", nargs=3, type=COORD, default=None, metavar=("DX", "DY", "DZ"))
+    p.add_argument("--quat2", nargs=4, type=number(-1e3, 1e3), metavar=("W", "X", "Y", "Z"))
     p.add_argument("--from", dest="start", default="home", help="start keyframe: home or zero (default home)")
     p.add_argument("--method", choices=("qp", "pinv", "dls", "lm"), default="qp", help="IK method (default qp)")
     p.add_argument("--solver", default="daqp", help="QP backend for --method qp (default daqp)")
@@ -46,7 +46,11 @@ def _target(frame: str, pos: list[float], axis: list[float] | None, direction: l
         raise ConfigError(f"--dir{flag} needs --axis{flag}")
     rot = None
     if quat is not None:
-        w, x, y, z = np.asarray(quat) / max(float(np.linalg.norm(quat)), 1e-12)
+        norm = float(np.linalg.norm(quat))
+        if norm < 1e-6:
+            raise ConfigError(f"--quat{flag} {' '.join(f'{v:g}' for v in quat)}: not a rotation (zero length); "
+                              "give a unit quaternion W X Y Z, e.g. 1 0 0 0")
+        w, x, y, z = np.asarray(quat) / norm
         rot = np.array([
             [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
             [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],

@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 import numpy as np
 
-from nextage_qp.commands.common import add_sim_args, print_outcome
+from nextage_qp.commands.common import COORD, add_sim_args, number, prepare_output, print_outcome
 from nextage_qp.control import load_gains
 from nextage_qp.experiments.reach import run_reach
 from nextage_qp.robot import Robot
 from nextage_qp.trajectory import TrajectoryLimits
+
+REACHED_M = 0.002
+"""Final position error [m] within which ``reach`` counts the target as reached (exit 0; otherwise exit 1)."""
 
 
 def _vec(values: list[float] | None) -> np.ndarray | None:
@@ -41,7 +45,7 @@ def _run(args: argparse.Namespace) -> int:
 
         dist = np.linalg.norm(a[f"frame_{args.frame}"][:, :3] - np.asarray(args.pos), axis=1)
         title = f"reach: {args.frame} → ({', '.join(f'{x:g}' for x in args.pos)}) m, QP IK → Ruckig → PD"
-        plot_reach(a["t"], dist, args.plot, frame=args.frame, tau=a["tau"], title=title)
+        plot_reach(a["t"], dist, prepare_output(args.plot), frame=args.frame, tau=a["tau"], title=title)
     v = limits.arrays()[0]
     out = {
         "frame": args.frame,
@@ -53,7 +57,12 @@ def _run(args: argparse.Namespace) -> int:
         "max_ref_velocity_ratio": float(np.max(np.abs(a["qd_ref"]) / v)),
         "final_q": robot.q_to_names(sim.q),
     }
+    out["reached"] = bool(res.final_error_m <= REACHED_M)
     print_outcome(out, args.json, ("frame", "final_error_m", "time_to_1mm_s", "max_abs_torque_nm", "saturated_steps"))
+    if not out["reached"]:
+        print(f"nextage-qp reach: error: {args.frame} ended {res.final_error_m * 1e3:.1f} mm from the target "
+              f"(reached means within {REACHED_M * 1e3:g} mm): out of reach or blocked", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -65,11 +74,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=__doc__.splitlines()[0] if __doc__ else None,
     )
     p.add_argument("--frame", default="left_wrist", help="site or body to move (default: left_wrist)")
-    p.add_argument("--pos", type=float, nargs=3, required=True, metavar=("X", "Y", "Z"), help="target [m], world")
-    p.add_argument("--axis", type=float, nargs=3, metavar=("AX", "AY", "AZ"), help="tool axis in the frame")
-    p.add_argument("--direction", type=float, nargs=3, metavar=("DX", "DY", "DZ"), help="world direction for --axis")
-    p.add_argument("--max-velocity", type=float, default=1.0, help="reference velocity limit [rad/s]")
-    p.add_argument("--max-acceleration", type=float, default=4.0, help="reference acceleration limit [rad/s^2]")
-    p.add_argument("--max-jerk", type=float, default=40.0, help="reference jerk limit [rad/s^3]")
+    p.add_argument("--pos", type=COORD, nargs=3, required=True, metavar=("X", "Y", "Z"), help="target [m], world")
+    p.add_argument("--axis", type=COORD, nargs=3, metavar=("AX", "AY", "AZ"), help="tool axis in the frame")
+    p.add_argument("--direction", type=COORD, nargs=3, metavar=("DX", "DY", "DZ"), help="world direction for --axis")
+    p.add_argument("--max-velocity", type=number(0, 100, lo_open=True), default=1.0,
+                   help="reference velocity limit [rad/s], in (0, 100]")
+    p.add_argument("--max-acceleration", type=number(0, 1e4, lo_open=True), default=4.0,
+                   help="reference acceleration limit [rad/s^2], in (0, 1e4]")
+    p.add_argument("--max-jerk", type=number(0, 1e6, lo_open=True), default=40.0,
+                   help="reference jerk limit [rad/s^3], in (0, 1e6]")
     add_sim_args(p, "write distance-to-target plot")
     p.set_defaults(func=_run)

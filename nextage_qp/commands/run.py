@@ -12,7 +12,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from nextage_qp.commands.common import print_json
+from nextage_qp.commands.common import PLOT_SUFFIXES, SEED, output_file, prepare_output, print_json
 from nextage_qp.manipulation.config import jitter_overrides, load_config
 from nextage_qp.manipulation.runner import Runner
 
@@ -23,12 +23,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("config", help="YAML file, e.g. configs/push_cube.yaml")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. --set scene.poses.cube.pos=[0.35,0.02,0.91] (repeatable)")
-    p.add_argument("--seed", type=int, default=None,
+    p.add_argument("--seed", type=SEED, default=None,
                    help="jitter object start and target by up to 2 cm and 10 deg with this seed")
     p.add_argument("--json", action="store_true", help="print one JSON result object on stdout")
-    p.add_argument("--log", type=Path, help="write the recorded signals (.npz) and a .json summary")
-    p.add_argument("--plot", type=Path, help="write a PNG: object distance to target, tool paths, phases")
-    p.add_argument("--video", type=Path, help="render an MP4 headless (MUJOCO_GL=egl) with debug markers")
+    p.add_argument("--log", type=output_file(".npz"), metavar="NPZ",
+                   help="write the recorded signals (.npz) and a .json summary")
+    p.add_argument("--plot", type=output_file(*PLOT_SUFFIXES), metavar="PNG",
+                   help="write a PNG: object distance to target, tool paths, phases")
+    p.add_argument("--video", type=output_file(".mp4"), metavar="MP4",
+                   help="render an MP4 headless (MUJOCO_GL=egl) with debug markers")
     p.add_argument("--viewer", action="store_true", help="open the MuJoCo viewer with debug markers")
     p.set_defaults(func=run)
 
@@ -44,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     if args.video:
         from nextage_qp.viz.run import VideoRecorder
 
-        recorder_video = VideoRecorder(runner, args.video)
+        recorder_video = VideoRecorder(runner, prepare_output(args.video))
         callbacks.append(recorder_video.on_tick)
     viewer = None
     if args.viewer:
@@ -65,35 +68,58 @@ def run(args: argparse.Namespace) -> int:
                 cb(r, phase)
 
         result = runner.run(on_tick)
-    written = _write_outputs(runner, args, recorder_video)
+    written, failed = _write_outputs(runner, args, recorder_video)
     if written:
         result["outputs"] = written
+    if failed:
+        result["output_errors"] = failed
     if viewer is not None:
         viewer.close()
     if args.json:
         print_json(result)
     else:
         _print_summary(result, Console())
+    if failed:
+        print(f"nextage-qp run: error: {'; '.join(failed)}", file=sys.stderr)
+        return 2
     if result["error"]:
         print(f"nextage-qp run: error: {' '.join(result['error'].split())}", file=sys.stderr)
     return 0 if result["success"] else 1
 
 
-def _write_outputs(runner: Runner, args: argparse.Namespace, video: Any) -> dict[str, str]:
+def _write_outputs(runner: Runner, args: argparse.Namespace, video: Any) -> tuple[dict[str, str], list[str]]:
+    """Write every output asked for; one that fails does not stop the others (nor the result)."""
     written: dict[str, str] = {}
+    failed: list[str] = []
+
+    def attempt(option: str, path: Path, write: Any) -> None:
+        try:
+            write()
+        except OSError as exc:
+            failed.append(f"{option} {path}: cannot write: {exc.strerror or exc}")
+
     if args.log:
-        runner.sim.recorder.meta.update(result=runner.summary())
-        written["log"] = str(args.log)
-        written["log_summary"] = str(runner.sim.recorder.save(args.log))
+        def log() -> None:
+            runner.sim.recorder.meta.update(result=runner.summary())
+            written["log_summary"] = str(runner.sim.recorder.save(prepare_output(args.log)))
+            written["log"] = str(args.log)
+
+        attempt("--log", args.log, log)
     if args.plot:
         from nextage_qp.viz.run import plot_run
 
-        plot_run(runner, args.plot)
-        written["plot"] = str(args.plot)
+        def plot() -> None:
+            plot_run(runner, prepare_output(args.plot))
+            written["plot"] = str(args.plot)
+
+        attempt("--plot", args.plot, plot)
     if video is not None:
-        video.close()
-        written["video"] = str(args.video)
-    return written
+        def close_video() -> None:
+            video.close()
+            written["video"] = str(args.video)
+
+        attempt("--video", args.video, close_video)
+    return written, failed
 
 
 def _print_summary(result: dict[str, Any], console: Console) -> None:

@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from nextage_qp.commands.common import add_sim_args, print_outcome
+from nextage_qp.commands.common import add_sim_args, number, prepare_output, print_outcome
 from nextage_qp.control import load_gains
 from nextage_qp.experiments.step_response import run_step
 from nextage_qp.robot import Robot
@@ -26,7 +26,7 @@ def _run(args: argparse.Namespace) -> int:
         j = robot.joint_index(args.joint)
         mode = "Ruckig-shaped" if args.shaped else "raw step"
         title = f"{args.joint}: {mode} to {args.target_deg:g}° ({gains.source})"
-        plot_step_response(sim.recorder.arrays(), j, args.joint, target, args.plot, title=title)
+        plot_step_response(sim.recorder.arrays(), j, args.joint, target, prepare_output(args.plot), title=title)
     out = {"joint": args.joint, "target_rad": target, "gains": gains.source, "shaped": args.shaped, **metrics._asdict()}
     print_outcome(out, args.json)
     return 0
@@ -40,7 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=__doc__.splitlines()[0] if __doc__ else None,
     )
     p.add_argument("--joint", required=True, help="joint name, e.g. LARM_JOINT2")
-    p.add_argument("--target-deg", type=float, required=True, help="absolute target angle [deg]")
+    p.add_argument("--target-deg", type=number(-360, 360), required=True, help="absolute target angle [deg]")
     p.add_argument("--shaped", action="store_true", help="follow a Ruckig trajectory instead of a raw step")
     add_sim_args(p, "write position/velocity/torque plot")
     p.set_defaults(func=_run)

@@ -16,6 +16,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
+from nextage_qp.commands.common import PLOT_SUFFIXES, SEED, finite_json, output_file, prepare_output
 from nextage_qp.errors import ConfigError
 from nextage_qp.sweep.episode import Episode
 from nextage_qp.sweep.run import BACKENDS, plan, run_sweep
@@ -32,13 +33,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("sweep", help="run a task over randomised scenes (success rate with its 95 %% interval)")
     p.add_argument("sweep", help="sweep YAML, e.g. configs/sweeps/push_cube.yaml")
     p.add_argument("--n", type=int, help="episodes 0..N-1 (required unless --only)")
-    p.add_argument("--seed", type=int, default=0, help="sweep seed: episode i depends on (seed, i) only (default 0)")
+    p.add_argument("--seed", type=SEED, default=0, help="sweep seed: episode i depends on (seed, i) only (default 0)")
     p.add_argument("--workers", type=int, help="parallel episodes (default: the CPU count, or the Ray cluster's)")
     p.add_argument("--backend", choices=BACKENDS, default="local", help="local process pool (default) or ray")
     p.add_argument("--ray-address", help="Ray cluster to join (default: $RAY_ADDRESS, else a local instance)")
     p.add_argument("--out", type=Path, help="directory of the episode records (default runs/sweeps/NAME-seedS)")
-    p.add_argument("--json", type=Path, metavar="PATH", help="write the summary as JSON")
-    p.add_argument("--plot", type=Path, metavar="PNG", help="write the error CDF and error against each parameter")
+    p.add_argument("--json", type=output_file(".json"), metavar="PATH", help="write the summary as JSON")
+    p.add_argument("--plot", type=output_file(*PLOT_SUFFIXES), metavar="PNG",
+                   help="write the error CDF and error against each parameter")
     p.add_argument("--resume", action="store_true", help="continue the sweep in --out, skipping finished episodes")
     p.add_argument("--only", metavar="I,J,...", help="run only these episode indices (e.g. to replay a failure)")
     p.set_defaults(func=run)
@@ -61,22 +63,10 @@ def _indices(args: argparse.Namespace) -> list[int]:
 
 
 def _check_args(args: argparse.Namespace) -> None:
-    if args.seed < 0:
-        raise ConfigError(f"--seed must be >= 0, got {args.seed}")
     if args.workers is not None and not 1 <= args.workers <= 1024:
         raise ConfigError(f"--workers must be between 1 and 1024, got {args.workers}")
     if args.ray_address and args.backend != "ray":
         raise ConfigError("--ray-address needs --backend ray")
-    for flag, path in (("--json", args.json), ("--plot", args.plot)):
-        if path is None:
-            continue
-        if path.is_dir():
-            raise ConfigError(f"{flag} {path}: is a directory; give a file path")
-        parent = path.parent if str(path.parent) else Path(".")
-        if not parent.is_dir():
-            raise ConfigError(f"{flag} {path}: folder {parent} does not exist")
-        if not os.access(parent, os.W_OK):
-            raise ConfigError(f"{flag} {path}: folder {parent} is not writable")
 
 
 class _Progress:
@@ -155,13 +145,13 @@ def run(args: argparse.Namespace) -> int:
     wall = time.monotonic() - t0
     summary = summarize(spec, args.seed, episodes, session_episodes=len(episodes) - len(already), session_wall_s=wall)
     summary["out"] = str(out)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    (out / "summary.json").write_text(json.dumps(finite_json(summary), indent=2, allow_nan=False) + "\n")
     if args.json:
-        args.json.write_text(json.dumps(summary, indent=2) + "\n")
+        prepare_output(args.json).write_text(json.dumps(finite_json(summary), indent=2, allow_nan=False) + "\n")
     if args.plot:
         from nextage_qp.viz.sweep import plot_sweep
 
-        plot_sweep(spec, episodes, args.plot)
+        plot_sweep(spec, episodes, prepare_output(args.plot))
     console = Console()
     if not console.is_terminal:
         console = Console(width=120)

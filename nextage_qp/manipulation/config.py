@@ -22,13 +22,13 @@ from nextage_qp.manipulation.phases import REGISTRY, Spec
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, name_field
 from nextage_qp.sim import Timing
 from nextage_qp.trajectory import TrajectoryLimits
-from nextage_qp.yaml_file import read_yaml_mapping, validate
+from nextage_qp.yaml_file import load_yaml, read_yaml_mapping, validate, yaml_error_line
 
 Vec3 = tuple[float, float, float]
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class PoseOverride(_Strict):
@@ -115,7 +115,11 @@ def apply_override(doc: dict[str, Any], assignment: str, source: str = "--set") 
     if not sep or not key:
         example = "scene.poses.cube.pos=[0.35,0,0.91]"
         raise ConfigError(f"{source} {assignment!r}: expected dotted.key=value, e.g. {example}")
-    value = yaml.safe_load(raw)
+    try:
+        value = load_yaml(raw)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{source} {assignment!r}: the value is not valid YAML: {yaml_error_line(exc)}; "
+                          "quote strings, write lists as [a, b]") from None
     parts = key.split(".")
     node: Any = doc
     for i, part in enumerate(parts):

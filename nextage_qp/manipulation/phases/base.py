@@ -36,7 +36,7 @@ def name_field(kind: NameKind, *args: Any, **kwargs: Any) -> Any:
 class Spec(BaseModel):
     """Fields every phase has; subclasses add ``kind: Literal[...]`` and their own."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     kind: str
     name: str | None = Field(default=None, description="Label in progress and results (default: kind + index).")

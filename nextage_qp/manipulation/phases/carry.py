@@ -18,7 +18,7 @@ Vec3 = tuple[float, float, float]
 class Waypoint(BaseModel):
     """Where the grasped object's origin should pass: a body-relative or world position and yaw."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     relative_to: str = name_field("reference", default="world")
     offset: Vec3 = (0.0, 0.0, 0.0)

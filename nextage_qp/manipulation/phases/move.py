@@ -24,7 +24,7 @@ class TargetSpec(BaseModel):
     tool ``axis`` (frame coordinates) that must point along a world ``direction``; or none.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     frame: str = name_field("frame", description="Site or body to move, e.g. left_tool.")
     relative_to: str = name_field("reference", default="world", description="'world' or a body name.")
