@@ -87,7 +87,11 @@ def compile_scene(scene: str | Path, overrides: SceneOverrides | None = None) ->
     Raises:
         ConfigError: The scene is missing or an override names a body that is not in it.
     """
-    return scene_spec(scene, overrides).compile()
+    spec = scene_spec(scene, overrides)
+    try:
+        return spec.compile()
+    except ValueError as exc:
+        raise ConfigError(f"scene {str(scene)!r} does not compile: {' '.join(str(exc).split())}") from None
 
 
 def scene_spec(scene: str | Path, overrides: SceneOverrides | None = None) -> mujoco.MjSpec:
@@ -98,31 +102,46 @@ def scene_spec(scene: str | Path, overrides: SceneOverrides | None = None) -> mu
             physical (a mass or friction factor that is not > 0).
     """
     path = scene_path(scene)
-    spec = mujoco.MjSpec.from_file(str(path))
+    if path.is_dir():
+        raise ConfigError(f"scene {str(scene)!r} is a directory; give an MJCF file or a bundled scene name")
+    try:
+        spec = mujoco.MjSpec.from_file(str(path))
+    except ValueError as exc:  # MuJoCo's parser: not XML, not MJCF, a missing include
+        raise ConfigError(f"scene {str(path)!r} is not a valid MJCF file: {' '.join(str(exc).split())}") from None
     overrides = overrides or SceneOverrides()
-    names = [b.name for b in spec.bodies if b.name]
+    free = mujoco.mjtJoint.mjJNT_FREE
 
-    def body_of(name: str) -> mujoco.MjsBody:
-        body = spec.body(name)
-        if body is None:
-            raise UnknownNameError("body", name, names)
-        return body
+    def rigid_subtree(body: mujoco.MjsBody) -> bool:  # no joint but a free one in the body and below it
+        return all(j.type == free for j in body.joints) and all(rigid_subtree(c) for c in body.bodies)
+
+    # Poses: the scene's own bodies (objects, targets, obstacles), not the robot's links. Masses and friction:
+    # the free objects only.
+    placeable = [b.name for b in spec.worldbody.bodies if b.name and rigid_subtree(b)]
+    objects = [b.name for b in spec.bodies if b.name and any(j.type == free for j in b.joints)]
+
+    def body_of(name: str, kind: str, valid: list[str]) -> mujoco.MjsBody:
+        if name not in valid:
+            raise UnknownNameError(kind, name, valid)
+        return spec.body(name)
 
     for name, pose in overrides.poses.items():
-        body = body_of(name)
+        body = body_of(name, "scene body (object, target or obstacle)", placeable)
         if pose.pos is not None:
             body.pos = np.asarray(pose.pos, dtype=float)
         if pose.yaw is not None:
             body.quat = _yaw_quat(pose.yaw)
     for name, mass in overrides.masses.items():
-        body = body_of(name)
-        if not mass > 0:
-            raise ConfigError(f"mass of {name!r} must be > 0 kg, got {mass}")
-        scale = mass / float(np.atleast_1d(body.mass)[0])
+        body = body_of(name, "object", objects)
+        if not (mass > 0 and np.isfinite(mass)):
+            raise ConfigError(f"mass of {name!r} must be a finite mass > 0 kg, got {mass}")
+        old = float(np.atleast_1d(body.mass)[0])
+        if not old > 0:
+            raise ConfigError(f"mass of {name!r}: the scene gives it no mass to scale (set it in the MJCF)")
+        scale = mass / old
         body.mass = mass
         body.inertia = np.asarray(body.inertia) * scale
     for name, factor in overrides.friction_scale.items():
-        body_of(name)
+        body_of(name, "object", objects)
         if not (factor > 0 and np.isfinite(factor)):
             raise ConfigError(f"friction_scale of {name!r} must be a finite factor > 0, got {factor}")
     scaled = {n: f for n, f in overrides.friction_scale.items() if f != 1.0}

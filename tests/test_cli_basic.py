@@ -61,3 +61,29 @@ def test_cli_errors_are_one_line_exit_2(capsys, argv, message):
     err = capsys.readouterr().err
     assert message in err
     assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_readme_synopsis_names_every_option_of_every_command():
+    import argparse
+    from pathlib import Path
+
+    from nextage_qp.cli import build_parser
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    block = readme[readme.index("## Command line"):]
+    block = block[block.index("```") + 3:]
+    block = block[: block.index("```")]
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    missing: list[str] = []
+    for name, parser in sub.choices.items():
+        line = block[block.index(f"nextage-qp {name} "):]  # the command's lines, up to the next command
+        nxt = line.find("\nnextage-qp ", 1)
+        text = line if nxt < 0 else line[:nxt]
+        missing += [f"{name} {o}" for a in parser._actions for o in a.option_strings
+                    if o.startswith("--") and o != "--help" and o not in text]
+    assert not missing, f"README synopsis lacks: {missing}"
+
+
+def test_version(capsys):
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.startswith("nextage-qp ")

@@ -52,7 +52,7 @@ def test_override_into_phase_list():
         (lambda d: d["phases"][0].update(frame="left_hnd"), "phases[0].frame: 'left_hnd' is not valid; valid: left_wrist"),
         (lambda d: d["phases"][0].update(object="ball"), "phases[0].object: 'ball' is not valid; valid: cube"),
         (lambda d: d.update(target="goal"), "target: 'goal' is not valid; valid:"),
-        (lambda d: d["scene"]["poses"].update(cub={"pos": [0, 0, 1]}), "unknown body 'cub'; valid:"),
+        (lambda d: d["scene"]["poses"].update(cub={"pos": [0, 0, 1]}), "unknown scene body (object, target or obstacle) 'cub'; valid: table, cube, cube_target"),
         (lambda d: d["ik"]["collision_pairs"].append({"a": "left_arm", "b": "wall"}), "unknown geom group"),
     ],
 )

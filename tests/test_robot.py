@@ -147,8 +147,12 @@ def test_scene_overrides_move_objects_targets_and_mass():
 def test_scene_override_errors():
     with pytest.raises(UnknownNameError, match="cube"):
         Robot.from_scene("push_cube", SceneOverrides(poses={"cubee": BodyPose(pos=(0, 0, 1))}))
-    with pytest.raises(ConfigError, match="must be > 0"):
+    with pytest.raises(ConfigError, match="must be a finite mass > 0"):
         Robot.from_scene("dock_dumbbell", SceneOverrides(masses={"dumbbell": -1.0}))
+    with pytest.raises(UnknownNameError, match="unknown object 'wall'; valid: dumbbell"):
+        Robot.from_scene("dock_dumbbell", SceneOverrides(masses={"wall": 1.0}))
+    with pytest.raises(UnknownNameError, match=r"scene body .* 'LARM_JOINT0_Link'"):
+        Robot.from_scene("dock_dumbbell", SceneOverrides(poses={"LARM_JOINT0_Link": BodyPose(pos=(0, 0, 1))}))
     with pytest.raises(ConfigError, match="bundled scenes: dock_dumbbell"):
         scene_path("no_such_scene")
 

@@ -159,3 +159,19 @@ def test_actuators_apply_the_documented_pd_law(robot):
     expected = np.array([law.torque(q, qd, qr, qdr) for q, qd, qr, qdr in rows])
     np.testing.assert_allclose(a["tau"], expected, atol=1e-6)
     assert sim.pd.ticks == len(a["t"]) and sim.pd.any_saturated_ticks == law.any_saturated_ticks
+
+
+def test_frames_recorded_raw_read_back_as_unit_quaternions():
+    import mujoco
+
+    from nextage_qp.geometry import mats_to_quats
+
+    rng = np.random.default_rng(0)
+    quats = rng.normal(size=(200, 4))
+    quats[:4] = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]  # every pivot branch
+    quats /= np.linalg.norm(quats, axis=1, keepdims=True)
+    mats = np.empty((len(quats), 9))
+    for q, m in zip(quats, mats, strict=True):
+        mujoco.mju_quat2Mat(m, q)
+    got = mats_to_quats(mats)
+    np.testing.assert_allclose(got, quats * np.sign(quats[:, :1] + 1e-300), atol=1e-9)

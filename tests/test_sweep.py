@@ -84,7 +84,7 @@ def test_yaml_scalar_reads_back_bit_exact(value):
         ({"scene.poses.cube.pos": {"offset": [[-0.05, 0, 0], [0.05, 0]]}}, {}, "same length"),
         ({"phases.0.name": {"offset": [0, 1]}}, {}, "offset needs a numeric base value"),
         ({"phases.3.speed": {"uniform": [0.1, 0.2]}}, {}, "list has 1 item(s)"),
-        ({"scene.poses.cubee.pos": {"uniform": [[0, 0, 1], [0, 0, 1]]}}, {}, "unknown body 'cubee'"),
+        ({"scene.poses.cubee.pos": {"uniform": [[0, 0, 1], [0, 0, 1]]}}, {}, "unknown scene body (object, target or obstacle) 'cubee'"),
         ({"seed": {"uniform": [0, 1]}}, {}, "randomize.seed: the sweep sets each episode's run seed"),
         ({"gains": {"choice": ["default", "nope"]}}, {}, "gains"),
         ({}, {}, "randomize: Dictionary should have at least 1 item"),

@@ -20,6 +20,7 @@ from nextage_qp.errors import ConfigError
 from nextage_qp.ik import IKConfig
 from nextage_qp.manipulation.phases import REGISTRY, Spec
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, name_field
+from nextage_qp.scene import package_root
 from nextage_qp.sim import Timing
 from nextage_qp.trajectory import TrajectoryLimits
 from nextage_qp.yaml_file import load_yaml, read_yaml_mapping, validate, yaml_error_line
@@ -141,18 +142,50 @@ def apply_override(doc: dict[str, Any], assignment: str, source: str = "--set") 
             raise ConfigError(f"{source} {key}: {'.'.join(parts[:i])!r} is a value, not a mapping or list")
 
 
+def config_file(path: str | Path) -> Path:
+    """A config given as a path or a bundled name (``push_cube``, ``dock_dumbbell``).
+
+    Raises:
+        ConfigError: A directory, or neither a file nor a bundled name (the message lists the bundled configs).
+    """
+    file = Path(path)
+    if file.is_file():
+        return file
+    if file.is_dir():
+        raise ConfigError(f"{file}: is a directory; give a config file, e.g. configs/push_cube.yaml")
+    bundled = package_root() / "configs"
+    for cand in (bundled / file, bundled / f"{file}.yaml"):
+        if cand.is_file() and len(file.parts) == 1:
+            return cand
+    names = sorted(p.stem for p in bundled.glob("*.yaml"))
+    raise ConfigError(f"{file}: no such config file; bundled: {', '.join(names)} (or a path to a YAML file)")
+
+
+def _relative_to(doc: dict[str, Any], folder: Path) -> None:
+    """Make the file paths a config names (``gains``, ``scene.file``) relative to its own folder, in place.
+
+    A value that names an existing file next to the config becomes that file's path; anything else (a bundled
+    name, an absolute path) is left for the loaders to resolve.
+    """
+    scene = doc.get("scene")
+    holders: list[tuple[dict[str, Any], str]] = [(doc, "gains")]
+    if isinstance(scene, dict):
+        holders.append((scene, "file"))
+    for holder, key in holders:
+        value = holder.get(key)
+        if isinstance(value, str) and value and not Path(value).is_absolute() and (folder / value).is_file():
+            holder[key] = str(folder / value)
+
+
 def load_config(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> ManipulationConfig:
     """Read, override and validate a manipulation YAML.
 
     Raises:
         ConfigError: Missing file, invalid YAML, a bad override or a schema violation (one line each).
     """
-    file = Path(path)
-    if not file.is_file():
-        bundled = sorted(p.name for p in (Path("configs")).glob("*.yaml")) if Path("configs").is_dir() else []
-        hint = f"; configs here: {', '.join(bundled)}" if bundled else ""
-        raise ConfigError(f"{file}: no such config file{hint}")
+    file = config_file(path)
     doc = read_yaml_mapping(file, "a mapping at the top level")
+    _relative_to(doc, file.parent)
     for assignment in overrides:
         apply_override(doc, assignment)
     return validate(config_model(), doc, str(file))
@@ -174,4 +207,7 @@ def jitter_overrides(path: str | Path, seed: int, base: list[str]) -> list[str]:
         yaw = (pose.yaw or 0.0) + float(rng.uniform(-np.pi / 18, np.pi / 18))
         x, y, z = pose.pos
         out += [f"scene.poses.{body}.pos=[{x + dx:.4f},{y + dy:.4f},{z}]", f"scene.poses.{body}.yaw={yaw:.4f}"]
+    if len(out) == len(base):
+        raise ConfigError(f"{path}: --seed shifts the start of the object and the target, but scene.poses gives "
+                          f"neither {cfg.object!r} nor {cfg.target!r} a pos; add one or drop --seed")
     return out
