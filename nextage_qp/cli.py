@@ -11,6 +11,7 @@ import argparse
 import importlib
 import os
 import sys
+import warnings
 from collections.abc import Sequence
 from importlib import metadata
 from typing import NoReturn
@@ -52,8 +53,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+QUIET_WARNINGS = (
+    r"Converted matrix .* to scipy\.sparse",  # qpsolvers, when the QP goes to OSQP: a cost, not a fault
+    r"The default value of raise_error will change",  # osqp's notice of its own future default
+    r"Tight layout not applied",  # matplotlib, for figures whose legends do not fit tightly
+)
+"""Library warnings the command line keeps off stderr (an error there is one line; these are not errors)."""
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``nextage-qp``; returns the process exit code."""
+    for message in QUIET_WARNINGS:
+        warnings.filterwarnings("ignore", message=message)
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

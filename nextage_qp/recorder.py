@@ -21,7 +21,8 @@ class Recorder:
 
     Arrays in the ``.npz``: ``t`` [s] (k,), ``q``, ``qd``, ``q_ref``, ``qd_ref`` [rad, rad/s] and ``tau``
     [N·m] (k, 15), ``frame_<name>`` and ``object_<name>`` (k, 7: position [m], quaternion w x y z), and for
-    every signal added with :meth:`add` ``extra_<name>`` (m, ...) with its times ``extra_<name>_t``.
+    every signal added with :meth:`add` ``extra_<name>`` (m, ...) with its times ``extra_<name>_t``. Saved files
+    also hold ``joint_names`` (the column order of the (k, 15) arrays), ``frame_names`` and ``object_names``.
 
     Attributes:
         meta: Free-form facts merged into the JSON summary (e.g. ``error``, the target).
@@ -121,7 +122,9 @@ class Recorder:
         path = Path(npz_path)
         path.parent.mkdir(parents=True, exist_ok=True)
         savez: Any = np.savez_compressed  # numpy's stub mistypes **arrays
-        savez(path, **self.arrays())
+        names = {"joint_names": np.array(self.joint_names), "frame_names": np.array(self.frames, dtype=str),
+                 "object_names": np.array(self.objects, dtype=str)}
+        savez(path, **self.arrays(), **names)
         js = path.with_suffix(".json")
         js.write_text(dumps(self.summary()) + "\n")
         return js

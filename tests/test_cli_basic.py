@@ -87,3 +87,17 @@ def test_readme_synopsis_names_every_option_of_every_command():
 def test_version(capsys):
     assert main(["--version"]) == 0
     assert capsys.readouterr().out.startswith("nextage-qp ")
+
+
+def test_library_notices_stay_off_stderr(capsys):
+    assert main(["ik", "--frame", "left_wrist", "--pos", "0.4", "0.2", "1.0", "--solver", "osqp", "--json"]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_step_response_says_never_and_log_names_its_columns(tmp_path, capsys):
+    code = main(["step-response", "--joint", "LARM_JOINT1", "--target-deg", "-10", "--duration", "0.05",
+                 "--log", str(tmp_path / "sr")])
+    assert code == 0
+    assert "settling_time_s    never" in capsys.readouterr().out
+    with np.load(tmp_path / "sr.npz") as z:  # the suffix is added, and the arrays say what their columns are
+        assert list(z["joint_names"])[:2] == ["CHEST_JOINT0", "HEAD_JOINT0"] and z["q"].shape[1] == 15

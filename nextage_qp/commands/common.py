@@ -43,6 +43,14 @@ def parse_joint_assignments(robot: Robot, items: list[str], base: np.ndarray) ->
     return robot.q_from_names(values, base=base)
 
 
+def out_console() -> Any:
+    """A rich console on stdout that does not truncate when stdout is a pipe or a file (200 columns there)."""
+    from rich.console import Console
+
+    console = Console()
+    return console if console.is_terminal else Console(width=200)
+
+
 def number(lo: float, hi: float, *, lo_open: bool = False, integer: bool = False) -> Callable[[str], float]:
     """An argparse ``type``: a finite number in ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``), or an integer."""
     show = (lambda v: str(int(v))) if integer else (lambda v: f"{v:g}")
@@ -129,6 +137,8 @@ def print_outcome(out: dict[str, Any], as_json: bool, keys: tuple[str, ...] | No
         return
     for key in keys or tuple(out):
         value = out[key]
+        if value is None and key.endswith("_s"):
+            value = "never"  # a time that was never reached (e.g. settling)
         print(f"{key:18s} {value:.6g}" if isinstance(value, float) else f"{key:18s} {value}")
 
 

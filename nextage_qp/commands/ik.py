@@ -6,10 +6,9 @@ import argparse
 from collections.abc import Callable
 
 import numpy as np
-from rich.console import Console
 from rich.table import Table
 
-from nextage_qp.commands.common import COORD, add_scene_arg, number, print_json
+from nextage_qp.commands.common import COORD, add_scene_arg, number, out_console, print_json
 from nextage_qp.errors import ConfigError
 from nextage_qp.ik import QPIK, FrameTarget, IKConfig, IKResult
 from nextage_qp.ik.baselines import dls_ik, lm_ik, pinv_ik
@@ -111,7 +110,7 @@ def _print_table(robot: Robot, result: IKResult, method: str) -> None:
     table.add_column("deg", justify="right")
     for name, value in zip(robot.joint_names, result.q, strict=True):
         table.add_row(name, f"{value:+.4f}", f"{np.degrees(value):+.1f}")
-    console = Console()
+    console = out_console()
     console.print(table)
     console.print(f"position error {result.pos_err_m * 1e3:.3f} mm, orientation error "
                   f"{np.degrees(result.rot_err_rad):.3f} deg, converged: {result.converged}, "

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import argparse
 
-from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from nextage_qp.commands.common import print_json
+from nextage_qp.commands.common import out_console, print_json
 from nextage_qp.describe import describe
 from nextage_qp.robot import Robot
 
@@ -28,7 +27,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print_json(info)
         return 0
-    console = Console()
+    console = out_console()
     table = Table(title=f"{args.scene}: joints", title_justify="left")
     for col in ("joint", "lower [rad]", "upper [rad]", "axis", "damping", "torque [N m]"):
         table.add_column(escape(col), justify="left" if col in ("joint", "axis") else "right")

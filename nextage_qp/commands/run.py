@@ -12,7 +12,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from nextage_qp.commands.common import PLOT_SUFFIXES, SEED, output_file, prepare_output, print_json
+from nextage_qp.commands.common import PLOT_SUFFIXES, SEED, out_console, output_file, prepare_output, print_json
 from nextage_qp.manipulation.config import jitter_overrides, load_config
 from nextage_qp.manipulation.runner import Runner
 
@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print_json(result)
     else:
-        _print_summary(result, Console())
+        _print_summary(result, out_console())
     if failed:
         print(f"nextage-qp run: error: {'; '.join(failed)}", file=sys.stderr)
         return 2
