@@ -55,15 +55,18 @@ def run(args: argparse.Namespace) -> int:
 
         viewer = LiveViewer(runner)
         callbacks.append(viewer.on_tick)
-    budget = sum(p.timeout for p in cfg.phases) + cfg.timing.settle
+    # The bar counts phases (how long each takes is not known in advance: timeouts are only upper bounds).
+    names = [cfg.phase_name(i) for i in range(len(cfg.phases))]
     with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[phase]}"),
-                  TextColumn("t={task.completed:.1f} s"), TimeElapsedColumn(), console=err, transient=True,
+                  TextColumn("sim t={task.fields[t]:.1f} s"), TimeElapsedColumn(), console=err, transient=True,
                   disable=not err.is_terminal) as progress:
-        bar = progress.add_task(cfg.task, total=budget, phase="")
+        bar = progress.add_task(cfg.task, total=len(names) + 1, phase="", t=0.0)
 
         def on_tick(r: Runner, phase: Any) -> None:
             if round(r.sim.time / r.sim.ctrl_dt) % 25 == 0:
-                progress.update(bar, completed=r.sim.time, phase=phase.name if phase else "settle")
+                done = sum(rec.status == "done" for rec in r.records)
+                label = f"{phase.name} ({done + 1}/{len(names)})" if phase is not None else "settle"
+                progress.update(bar, completed=done, phase=label, t=r.sim.time)
             for cb in callbacks:
                 cb(r, phase)
 
