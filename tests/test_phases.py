@@ -500,3 +500,33 @@ def test_grasp_fails_when_the_object_is_knocked_over_on_the_way_in():
     view.bodies["dumbbell"] = Pose(view.bodies["dumbbell"].pos, np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]))
     with pytest.raises(PhaseError, match="knocked dumbbell over on the way in \\(tilted 90 deg"):
         phase.update(view)
+
+
+def test_levelling_rolls_both_pads_against_the_tilt_about_the_clamp_axis():
+    class TiltedView:
+        dt = 0.004
+
+        def __init__(self, tilt):
+            c, s = np.cos(tilt), np.sin(tilt)
+            self.rot = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])  # about +y, the clamp axis
+
+        def body_pose(self, name):
+            return Pose(np.zeros(3), self.rot)
+
+    clamp = Clamp(held_grip(), 1.0)
+    clamp.level_gain = 2.0
+    assert clamp.level(TiltedView(0.05), yaw=0.0) == pytest.approx(0.05)
+    assert clamp.roll == pytest.approx(-2.0 * 0.05 * 0.004)  # rolls the other way
+    clamp.roll = 0.0
+    before, rel_before = clamp.pads(np.array([0.5, 0.0, 1.0]), 0.0)
+    clamp.roll = -0.1
+    after, rel_after = clamp.pads(np.array([0.5, 0.0, 1.0]), 0.0)
+    for b, a in zip(before, after, strict=True):
+        np.testing.assert_allclose(a.pos, b.pos)  # the pads stay where they are, on the roll's axis
+        turned = b.rot.T @ a.rot
+        assert np.degrees(np.arccos((np.trace(turned) - 1) / 2)) == pytest.approx(np.degrees(0.1))
+        np.testing.assert_allclose(turned @ np.array([0, 1.0, 0]), [0, 1.0, 0], atol=1e-12)  # about the axis
+    np.testing.assert_allclose(rel_after.pos, rel_before.pos)
+    for _ in range(10_000):  # bounded
+        clamp.level(TiltedView(0.5), yaw=0.0)
+    assert clamp.roll == pytest.approx(-0.3)

@@ -86,6 +86,17 @@ MAX_DEEPEN = 0.01
 """Most the force loop may push a pad further in than the grasp left it [m]."""
 
 
+MAX_ROLL = 0.3
+"""Most the levelling loop rolls the pads [rad]."""
+
+
+def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rotation of ``angle`` [rad] about the unit ``axis`` (Rodrigues)."""
+    x, y, z = axis
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+
+
 class Clamp:
     r"""The pads of a :class:`Grip` around an object setpoint, squeezing at the grip's force.
 
@@ -99,6 +110,24 @@ class Clamp:
         self.grip, self.relative_cost = grip, relative_cost
         self.depth = [0.0 for _ in grip.frames]
         self.felt = [grip.force for _ in grip.frames]
+        self.roll = 0.0
+        """Roll [rad] of both pads about the clamp axis that levels the object (see :meth:`level`)."""
+        self.level_gain = 0.0
+        """Gain [1/s] of the levelling loop (0: off)."""
+
+    def level(self, view: View, yaw: float) -> float:
+        r"""Integrate the object's tilt about the clamp axis into the pads' roll; returns the tilt [rad].
+
+        An object held between two pads can creep about the pads' axis (it only has their friction to hold it
+        there); the loop rolls both pads together, :math:`\dot\rho = -k\,\theta`, which turns the object back
+        upright without changing the pads' positions or their pose relative to each other.
+        """
+        rot = view.body_pose(self.grip.object).rot
+        lateral = rot_z(yaw) @ self.grip.lateral
+        z = rot[:, 2]
+        tilt = float(np.arcsin(np.clip(z[0] * lateral[1] - z[1] * lateral[0], -1.0, 1.0)))  # (e_z x z) . lateral
+        self.roll = float(np.clip(self.roll - self.level_gain * tilt * view.dt, -MAX_ROLL, MAX_ROLL))
+        return tilt
 
     def targets(self, view: View, pos: np.ndarray, yaw: float) -> tuple[tuple[FrameTarget, ...], RelativeTarget]:
         """Pad targets for the object setpoint ``(pos, yaw)`` and the relative target that ties them.
@@ -115,6 +144,8 @@ class Clamp:
                 self.felt[i] += alpha * (felt - self.felt[i])
                 step = float(np.clip(g.force_gain * (g.force - self.felt[i]), -0.01, 0.01)) * view.dt
                 self.depth[i] = float(np.clip(self.depth[i] + step, -MAX_EASE, MAX_DEEPEN))
+        if self.level_gain > 0:
+            self.level(view, yaw)
         return self.pads(pos, yaw)
 
     def pads(self, pos: np.ndarray, yaw: float) -> tuple[tuple[FrameTarget, ...], RelativeTarget]:
@@ -128,7 +159,9 @@ class Clamp:
         lateral = rz @ g.lateral
         points = [pos + rz @ g.offsets[f] - side * depth * lateral
                   for f, side, depth in zip(g.frames, self.SIDES, self.depth, strict=False)]
-        targets = tuple(FrameTarget(f, pos=p, rot=rz @ g.rotations[f]) for f, p in zip(g.frames, points, strict=False))
+        turn = _axis_angle(lateral, self.roll) @ rz
+        targets = tuple(FrameTarget(f, pos=p, rot=turn @ g.rotations[f])
+                        for f, p in zip(g.frames, points, strict=False))
         rel = g.relative
         closer = sum(self.depth) * (g.rotations[g.frames[1]].T @ g.lateral)  # first pad's lateral, in the second's
         return targets, RelativeTarget(rel.frame, rel.root, rel.pos - closer, rel.rot, self.relative_cost)

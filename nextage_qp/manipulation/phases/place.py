@@ -58,6 +58,8 @@ class PlaceSpec(Spec):
     corrections: int = Field(default=4, ge=0, le=20, description="Corrections allowed at the hover.")
     settle: float = Field(default=0.4, gt=0, le=MAX_SECONDS, description="Time the live pose is averaged [s].")
     relative_cost: float = Field(default=10.0, ge=0, le=1e4, description="Weight of the pads' relative pose.")
+    level_gain: float = Field(default=2.0, ge=0, le=20, description=(
+        "Gain [1/s] of the loop that rolls the pads to keep the object upright (0: off)."))
 
 
 class Place(Phase):
@@ -68,6 +70,7 @@ class Place(Phase):
     def start(self, view: View) -> None:  # noqa: D102
         c = self.spec
         self.clamp = self.held(view, c.object, c.relative_cost)
+        self.clamp.level_gain = c.level_gain
         obj, rot = view.body_pose(c.object)
         tgt, trot = view.body_pose(c.target)
         self.rest = view.rest_height(c.object)
