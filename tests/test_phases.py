@@ -439,6 +439,22 @@ def test_release_opens_lifts_and_ends_the_grip():
     assert last.targets[1].pos == pytest.approx([0.5, -0.122, 1.20])
 
 
+def test_release_first_hands_the_weight_to_the_table():
+    view = grasp_view()
+    view.grip = held_grip()
+    view.commanded = {"left_pad": pose(0.5, 0.072, 1.12), "right_pad": pose(0.5, -0.072, 1.12)}
+    view.forces = {"left_pad": [0.0, 0.0, -2.0], "right_pad": [0.0, 0.0, -2.0]}  # the pads hold it up
+    phase = make("release", object="dumbbell", gap=0.05, lift=0.08, unload=0.006)
+    phase.start(view)
+    for _ in range(200):  # 0.8 s at 5 mm/s: down 4 mm, still carrying the weight
+        cmd = phase.update(view)
+    assert cmd.targets[0].pos[2] == pytest.approx(1.116, abs=2e-4) and cmd.targets[0].pos[1] == pytest.approx(0.072)
+    view.forces = {}  # the table carries it now: open from here
+    last = run_until_done(phase, view)
+    assert last.targets[0].pos == pytest.approx([0.5, 0.122, 1.116 + 0.08], abs=2e-4)
+    assert phase.info["unloaded_m"] == pytest.approx(0.004, abs=2e-4)
+
+
 def test_joints_sends_its_goal_until_reached_and_settled():
     view = ScriptedView(joints={"LARM_JOINT0": 0.0})
     phase = make("joints", positions={"LARM_JOINT0": 0.5}, tolerance=0.01)

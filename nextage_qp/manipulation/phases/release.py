@@ -1,4 +1,4 @@
-"""``release``: open the pads away from a set-down object along the clamp axis, then lift them."""
+"""``release``: hand a set-down object's weight to the table, open the pads along the clamp axis, then lift them."""
 
 from __future__ import annotations
 
@@ -13,6 +13,11 @@ from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
 from nextage_qp.manipulation.phases.grasp import PADS, SIDES
 from nextage_qp.servo import Command
 
+UNLOAD_SPEED = 0.005
+"""Speed [m/s] at which the pads go down to hand the object's weight to the table."""
+UNLOADED = 0.3
+"""Vertical load [N] on the pads below which the table carries the object."""
+
 
 class ReleaseSpec(Spec):
     """Open the pads away from the object along the clamp axis, then retreat upwards."""
@@ -22,13 +27,17 @@ class ReleaseSpec(Spec):
     gap: float = Field(default=0.05, gt=0, le=0.3, description="How far the pads back away from the object [m].")
     lift: float = Field(default=0.08, ge=0, le=0.5, description="How far the pads then rise [m].")
     open_speed: float = Field(default=0.02, gt=0, le=0.5, description="Opening speed [m/s] (slow: no tug).")
+    unload: float = Field(default=0.006, ge=0, le=0.05, description=(
+        "Most the pads go down before opening [m], until the table carries the object's whole weight (a pad "
+        "that still holds some of it lifts and tips the object as it opens)."))
     speed: float = Field(default=0.1, gt=0, le=0.5, description="Lifting speed [m/s].")
 
 
 class Release(Phase):
     """Open along the clamp axis, then lift; the clamp ends as the pads start to open.
 
-    Each pad backs away by ``gap`` at ``open_speed``, then rises by ``lift``.
+    The pads first go down (at most ``unload``) until the table carries the object's whole weight, then each backs
+    away by ``gap`` at ``open_speed`` and rises by ``lift``.
     """
 
     spec: ReleaseSpec
@@ -41,19 +50,42 @@ class Release(Phase):
         lateral = rot @ grip.lateral if grip is not None else rot[:, 1]
         self.points = [Setpoint(view.commanded_pose(f).pos) for f in self.frames]
         self.rots = [view.commanded_pose(f).rot for f in self.frames]
-        opened = [sp.pos + s * c.gap * lateral for sp, s in zip(self.points, SIDES, strict=False)]
-        self.stages = [(opened, c.open_speed), ([p + np.array([0.0, 0.0, c.lift]) for p in opened], c.speed)]
+        self.lateral = lateral
+        self.start_z = [float(sp.pos[2]) for sp in self.points]
+        self.lowered = [sp.pos - np.array([0.0, 0.0, c.unload]) for sp in self.points]
         self.stage = 0
+        self.stages: list[tuple[list[np.ndarray], float]] = []
+        if c.unload <= 0:
+            self._open()
+
+    def _open(self) -> None:
+        """Stages from where the pads are now: back away along the clamp axis, then rise."""
+        c = self.spec
+        opened = [sp.pos + s * c.gap * self.lateral for sp, s in zip(self.points, SIDES, strict=False)]
+        self.stages = [(opened, c.open_speed), ([p + np.array([0.0, 0.0, c.lift]) for p in opened], c.speed)]
+        self.stage = 1
+        self.info["unloaded_m"] = round(max(z - float(sp.pos[2]) for z, sp in zip(self.start_z, self.points,
+                                                                                     strict=True)), 4)
 
     def update(self, view: View) -> Command:  # noqa: D102
-        if self.stage < len(self.stages):
-            goals, speed = self.stages[self.stage]
+        if self.stage == 0:  # hand the object's weight to the table
+            if self._unloaded(view) or all([sp.advance(g, UNLOAD_SPEED, view.dt)
+                                            for sp, g in zip(self.points, self.lowered, strict=True)]):
+                self._open()
+        elif self.stage - 1 < len(self.stages):
+            goals, speed = self.stages[self.stage - 1]
             if all([sp.advance(g, speed, view.dt) for sp, g in zip(self.points, goals, strict=True)]):
                 self.stage += 1
         targets = tuple(FrameTarget(f, pos=sp.pos, rot=r) for f, sp, r in zip(self.frames, self.points, self.rots,
                                                                                strict=True))
-        allow = frozenset({self.spec.object}) if self.stage == 0 else frozenset()  # touching it while opening
-        return Command(targets, allow=allow, done=self.stage == len(self.stages) and view.settled())
+        allow = frozenset({self.spec.object}) if self.stage <= 1 else frozenset()  # touching it, down and opening
+        done = self.stage == 1 + len(self.stages) and view.settled()
+        return Command(targets, allow=allow, done=done)
+
+    def _unloaded(self, view: View) -> bool:
+        """True once the pads no longer hold the object up (their contact forces no longer point down)."""
+        load = sum(float(view.wrench(f).force[2]) for f in self.frames)
+        return load >= -UNLOADED
 
     def grip(self, current: Grip | None) -> Grip | None:  # noqa: D102
         return None  # the clamp ends as the pads start to open
