@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 from collections.abc import Callable
@@ -13,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.json_out import finite_json
+from nextage_qp.json_out import dumps
 from nextage_qp.robot import Robot
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
@@ -81,8 +80,8 @@ SEED = number(0, 2**32 - 1, integer=True)
 def output_file(*suffixes: str) -> Callable[[str], Path]:
     """An argparse ``type`` for an output file, checked before anything runs.
 
-    The path must not be a directory, its nearest existing folder must be writable (missing folders are made
-    when the file is written), and its suffix one of ``suffixes`` (none given: the first is added, so the
+    The path must not be a directory, its nearest existing folder must be writable (the writers make the missing
+    folders), and its suffix one of ``suffixes`` (none given: the first is added, so the
     path reported is the path written).
     """
 
@@ -106,12 +105,6 @@ def output_file(*suffixes: str) -> Callable[[str], Path]:
 
     parse.__name__ = "output file"
     return parse
-
-
-def prepare_output(path: Path) -> Path:
-    """Make the folders of an output file checked by :func:`output_file`; returns the path."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return path
 
 
 def add_scene_arg(parser: argparse.ArgumentParser, default: str = "scene") -> None:
@@ -144,4 +137,4 @@ def print_outcome(out: dict[str, Any], as_json: bool, keys: tuple[str, ...] | No
 
 def print_json(obj: Any) -> None:
     """Print one strict JSON object: numpy values converted, NaN and infinities written as null."""
-    print(json.dumps(finite_json(obj), indent=2, allow_nan=False))
+    print(dumps(obj))

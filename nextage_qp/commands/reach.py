@@ -7,7 +7,7 @@ import sys
 
 import numpy as np
 
-from nextage_qp.commands.common import COORD, add_sim_args, number, prepare_output, print_outcome
+from nextage_qp.commands.common import COORD, add_sim_args, number, print_outcome
 from nextage_qp.control import load_gains
 from nextage_qp.experiments.reach import run_reach
 from nextage_qp.robot import Robot
@@ -45,7 +45,7 @@ def _run(args: argparse.Namespace) -> int:
 
         dist = np.linalg.norm(a[f"frame_{args.frame}"][:, :3] - np.asarray(args.pos), axis=1)
         title = f"reach: {args.frame} → ({', '.join(f'{x:g}' for x in args.pos)}) m, QP IK → Ruckig → PD"
-        plot_reach(a["t"], dist, prepare_output(args.plot), frame=args.frame, tau=a["tau"], title=title)
+        plot_reach(a["t"], dist, args.plot, frame=args.frame, tau=a["tau"], title=title)
     v = limits.arrays()[0]
     out = {
         "frame": args.frame,

@@ -12,7 +12,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from nextage_qp.commands.common import PLOT_SUFFIXES, SEED, out_console, output_file, prepare_output, print_json
+from nextage_qp.commands.common import PLOT_SUFFIXES, SEED, out_console, output_file, print_json
 from nextage_qp.manipulation.config import jitter_overrides, load_config
 from nextage_qp.manipulation.runner import Runner
 
@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     if args.video:
         from nextage_qp.viz.run import VideoRecorder
 
-        recorder_video = VideoRecorder(runner, prepare_output(args.video))
+        recorder_video = VideoRecorder(runner, args.video)
         callbacks.append(recorder_video.on_tick)
     viewer = None
     if args.viewer:
@@ -104,7 +104,7 @@ def _write_outputs(runner: Runner, args: argparse.Namespace, video: Any) -> tupl
     if args.log:
         def log() -> None:
             runner.sim.recorder.meta.update(result=runner.summary())
-            written["log_summary"] = str(runner.sim.recorder.save(prepare_output(args.log)))
+            written["log_summary"] = str(runner.sim.recorder.save(args.log))
             written["log"] = str(args.log)
 
         attempt("--log", args.log, log)
@@ -112,7 +112,7 @@ def _write_outputs(runner: Runner, args: argparse.Namespace, video: Any) -> tupl
         from nextage_qp.viz.run import plot_run
 
         def plot() -> None:
-            plot_run(runner, prepare_output(args.plot))
+            plot_run(runner, args.plot)
             written["plot"] = str(args.plot)
 
         attempt("--plot", args.plot, plot)

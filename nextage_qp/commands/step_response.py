@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from nextage_qp.commands.common import add_sim_args, number, prepare_output, print_outcome
+from nextage_qp.commands.common import add_sim_args, number, print_outcome
 from nextage_qp.control import load_gains
 from nextage_qp.experiments.step_response import run_step
 from nextage_qp.robot import Robot
@@ -26,7 +26,7 @@ def _run(args: argparse.Namespace) -> int:
         j = robot.joint_index(args.joint)
         mode = "Ruckig-shaped" if args.shaped else "raw step"
         title = f"{args.joint}: {mode} to {args.target_deg:g}° ({gains.source})"
-        plot_step_response(sim.recorder.arrays(), j, args.joint, target, prepare_output(args.plot), title=title)
+        plot_step_response(sim.recorder.arrays(), j, args.joint, target, args.plot, title=title)
     out = {"joint": args.joint, "target_rad": target, "gains": gains.source, "shaped": args.shaped, **metrics._asdict()}
     print_outcome(out, args.json)
     return 0

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import tempfile
@@ -16,8 +15,9 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
-from nextage_qp.commands.common import PLOT_SUFFIXES, SEED, finite_json, output_file, prepare_output
+from nextage_qp.commands.common import PLOT_SUFFIXES, SEED, output_file
 from nextage_qp.errors import ConfigError
+from nextage_qp.json_out import dumps
 from nextage_qp.sweep.episode import Episode
 from nextage_qp.sweep.run import BACKENDS, plan, run_sweep
 from nextage_qp.sweep.spec import SweepSpec
@@ -145,13 +145,14 @@ def run(args: argparse.Namespace) -> int:
     wall = time.monotonic() - t0
     summary = summarize(spec, args.seed, episodes, session_episodes=len(episodes) - len(already), session_wall_s=wall)
     summary["out"] = str(out)
-    (out / "summary.json").write_text(json.dumps(finite_json(summary), indent=2, allow_nan=False) + "\n")
+    (out / "summary.json").write_text(dumps(summary) + "\n")
     if args.json:
-        prepare_output(args.json).write_text(json.dumps(finite_json(summary), indent=2, allow_nan=False) + "\n")
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(dumps(summary) + "\n")
     if args.plot:
         from nextage_qp.viz.sweep import plot_sweep
 
-        plot_sweep(spec, episodes, prepare_output(args.plot))
+        plot_sweep(spec, episodes, args.plot)
     console = Console()
     if not console.is_terminal:
         console = Console(width=120)
