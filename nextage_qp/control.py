@@ -33,12 +33,12 @@ from typing import Annotated, Any
 
 import mujoco
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, Field, field_validator
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.nextage import JOINT_NAMES
 from nextage_qp.scene import package_root
-from nextage_qp.yaml_file import read_yaml_mapping, validate
+from nextage_qp.yaml_file import STRICT, read_yaml_mapping, validate
 
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False, strict=True)]
 
@@ -46,7 +46,7 @@ NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False, strict=True)]
 class JointGains(BaseModel):
     """One joint's gains: ``kp`` [N·m/rad] and ``kd`` [N·m·s/rad], finite and >= 0."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = STRICT
 
     kp: NonNegative
     kd: NonNegative
@@ -55,7 +55,7 @@ class JointGains(BaseModel):
 class GainsFile(BaseModel):
     """The schema of a gains YAML: one entry per robot joint and the gravity-compensation switch."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = STRICT
 
     gravity_compensation: bool = Field(default=True, strict=True)
     joints: dict[str, JointGains]

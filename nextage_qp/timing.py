@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
+
+from nextage_qp.yaml_file import STRICT
 
 
 class Timing(BaseModel):
     """Loop rates: the physics step and the control period (a whole multiple of it)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = STRICT
 
     sim_dt: float = Field(default=0.001, gt=0, le=0.01, description="Physics step [s].")
     ctrl_dt: float = Field(default=0.004, gt=0, le=0.05, description="IK + Ruckig period [s] (multiple of sim_dt).")

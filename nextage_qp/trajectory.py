@@ -21,11 +21,12 @@ from typing import NamedTuple
 
 import numpy as np
 import ruckig
-from pydantic import BaseModel, ConfigDict, field_validator
+from pydantic import BaseModel, field_validator
 
 from nextage_qp.errors import TrajectoryError
 from nextage_qp.nextage import JOINT_NAMES
 from nextage_qp.robot import PerJoint, per_joint
+from nextage_qp.yaml_file import STRICT
 
 _OK = (ruckig.Result.Working, ruckig.Result.Finished)
 
@@ -42,7 +43,7 @@ class TrajectoryLimits(BaseModel):
         max_jerk: [rad/s³].
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = STRICT
 
     max_velocity: PerJoint = 1.0
     max_acceleration: PerJoint = 4.0

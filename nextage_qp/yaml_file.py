@@ -12,9 +12,13 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from pydantic import BaseModel, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError
 
 from nextage_qp.errors import ConfigError
+
+STRICT = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+"""The ``model_config`` of every schema read from YAML: unknown keys are errors, values are immutable, and no
+float may be NaN or infinite (``.inf`` / ``.nan`` are valid YAML, never a valid setting)."""
 
 
 class StrictLoader(yaml.SafeLoader):

@@ -9,9 +9,10 @@ from __future__ import annotations
 from typing import Literal
 
 import qpsolvers
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, Field, field_validator, model_validator
 
 from nextage_qp.robot import GroupSpec
+from nextage_qp.yaml_file import STRICT
 
 
 class CollisionPairConfig(BaseModel):
@@ -21,7 +22,7 @@ class CollisionPairConfig(BaseModel):
     constraint is sent to the QP only while the pair is closer than ``detection_distance``.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = STRICT
 
     a: str = Field(description="First geom group, e.g. 'left_arm'.")
     b: str = Field(description="Second geom group, e.g. 'table'.")
@@ -46,7 +47,7 @@ class CollisionGroupConfig(BaseModel):
     [LARM_JOINT3_Link]}`` for a forearm).
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = STRICT
 
     bodies: tuple[str, ...] = ()
     subtrees: tuple[str, ...] = ()
@@ -74,7 +75,7 @@ class IKConfig(BaseModel):
     Levenberg–Marquardt damping :math:`\mu`.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = STRICT
 
     position_cost: float = Field(default=1.0, ge=0.0, description="Weight of frame position errors [1/m].")
     orientation_cost: float = Field(default=1.0, ge=0.0, description="Weight of frame orientation errors [1/rad].")

@@ -14,7 +14,7 @@ from typing import Annotated, Any, Literal, Union
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, create_model
+from pydantic import BaseModel, Field, create_model
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.ik import IKConfig
@@ -23,13 +23,13 @@ from nextage_qp.manipulation.phases.base import MAX_SECONDS, name_field
 from nextage_qp.scene import package_root
 from nextage_qp.sim import Timing
 from nextage_qp.trajectory import TrajectoryLimits
-from nextage_qp.yaml_file import load_yaml, read_yaml_mapping, validate, yaml_error_line
+from nextage_qp.yaml_file import STRICT, load_yaml, read_yaml_mapping, validate, yaml_error_line
 
 Vec3 = tuple[float, float, float]
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = STRICT
 
 
 class PoseOverride(_Strict):

@@ -23,20 +23,20 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
 
 from nextage_qp.errors import ConfigError, InfeasibleError
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import build_robot
 from nextage_qp.sweep.keys import key_hash, lookup, scene_default, yaml_scalar
-from nextage_qp.yaml_file import read_yaml_mapping, validate
+from nextage_qp.yaml_file import STRICT, read_yaml_mapping, validate
 
 Number = Annotated[float, Field(allow_inf_nan=False)]
 Bound = Number | list[Number]
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = STRICT
 
 
 class Distribution(_Strict):

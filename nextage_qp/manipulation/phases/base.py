@@ -11,11 +11,12 @@ from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from typing import Any, ClassVar, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
 
 from nextage_qp.errors import PhaseError
 from nextage_qp.manipulation.context import Clamp, Grip, View
 from nextage_qp.servo import Command
+from nextage_qp.yaml_file import STRICT
 
 NameKind = Literal["frame", "object", "body", "reference", "joint"]
 """What a name field refers to: a site or body of the robot (``frame``), a free object, any body, a body or
@@ -36,7 +37,7 @@ def name_field(kind: NameKind, *args: Any, **kwargs: Any) -> Any:
 class Spec(BaseModel):
     """Fields every phase has; subclasses add ``kind: Literal[...]`` and their own."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = STRICT
 
     kind: str
     name: str | None = Field(default=None, description="Label in progress and results (default: kind + index).")

@@ -5,12 +5,13 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
 
 from nextage_qp.geometry import yaw_of
 from nextage_qp.manipulation.context import Setpoint, View, resolve_point
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
 from nextage_qp.servo import Command
+from nextage_qp.yaml_file import STRICT
 
 Vec3 = tuple[float, float, float]
 
@@ -18,7 +19,7 @@ Vec3 = tuple[float, float, float]
 class Waypoint(BaseModel):
     """Where the grasped object's origin should pass: a body-relative or world position and yaw."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = STRICT
 
     relative_to: str = name_field("reference", default="world")
     offset: Vec3 = (0.0, 0.0, 0.0)

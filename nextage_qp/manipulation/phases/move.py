@@ -6,11 +6,12 @@ import math
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
 
 from nextage_qp.manipulation.context import Setpoint, View, frame_target, resolve_point
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
 from nextage_qp.servo import Command
+from nextage_qp.yaml_file import STRICT
 
 Vec3 = tuple[float, float, float]
 
@@ -24,7 +25,7 @@ class TargetSpec(BaseModel):
     tool ``axis`` (frame coordinates) that must point along a world ``direction``; or none.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = STRICT
 
     frame: str = name_field("frame", description="Site or body to move, e.g. left_tool.")
     relative_to: str = name_field("reference", default="world", description="'world' or a body name.")
