@@ -10,6 +10,8 @@ import numpy as np
 import yaml
 from pydantic import BaseModel
 
+from nextage_qp.yaml_file import load_yaml
+
 
 def yaml_scalar(value: Any) -> str:
     """A YAML flow literal that reads back as exactly ``value`` (floats keep every bit)."""
@@ -18,7 +20,7 @@ def yaml_scalar(value: Any) -> str:
     if isinstance(value, float):
         text = repr(value)
         mantissa, e, exponent = text.partition("e")
-        if e and "." not in mantissa:  # PyYAML reads 1e-05 as a string; 1.0e-05 as a float
+        if e and "." not in mantissa:  # YAML 1.1 reads 1e-05 as a string; 1.0e-05 is a float
             text = f"{mantissa}.0e{exponent}"
         return text
     if isinstance(value, int):
@@ -27,7 +29,7 @@ def yaml_scalar(value: Any) -> str:
         return "[" + ",".join(yaml_scalar(v) for v in value) + "]"
     if isinstance(value, str):
         try:
-            plain = yaml.safe_load(value) == value and "," not in value and "]" not in value
+            plain = load_yaml(value) == value and "," not in value and "]" not in value  # as --set reads it
         except yaml.YAMLError:
             plain = False
         return value if plain else json.dumps(value)  # a JSON string is a double-quoted YAML scalar
