@@ -15,6 +15,9 @@ from nextage_qp.errors import ConfigError
 from nextage_qp.json_out import dumps
 from nextage_qp.robot import Robot
 
+PLAIN_PROGRESS_S = 10.0
+"""Seconds between plain progress lines on stderr when it is not a terminal (a shorter run prints none)."""
+
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 """File types the plots can be written as (matplotlib picks the format from the suffix)."""
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +13,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from nextage_qp.commands.common import PLOT_SUFFIXES, SEED, out_console, output_file, print_json
+from nextage_qp.commands.common import PLAIN_PROGRESS_S, PLOT_SUFFIXES, SEED, out_console, output_file, print_json
 from nextage_qp.manipulation.config import jitter_overrides, load_config
 from nextage_qp.manipulation.runner import Runner
 
@@ -56,6 +57,8 @@ def run(args: argparse.Namespace) -> int:
         viewer = LiveViewer(runner)
         callbacks.append(viewer.on_tick)
     # The bar counts phases (how long each takes is not known in advance: timeouts are only upper bounds).
+    # Off a terminal (a log, CI), a plain line every PLAIN_PROGRESS_S of wall time instead.
+    plain = {"last": time.monotonic()}
     names = [cfg.phase_name(i) for i in range(len(cfg.phases))]
     with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.fields[phase]}"),
                   TextColumn("sim t={task.fields[t]:.1f} s"), TimeElapsedColumn(), console=err, transient=True,
@@ -67,6 +70,10 @@ def run(args: argparse.Namespace) -> int:
                 done = sum(rec.status == "done" for rec in r.records)
                 label = f"{phase.name} ({done + 1}/{len(names)})" if phase is not None else "settle"
                 progress.update(bar, completed=done, phase=label, t=r.sim.time)
+                if not err.is_terminal and time.monotonic() - plain["last"] >= PLAIN_PROGRESS_S:
+                    plain["last"] = time.monotonic()
+                    print(f"run {cfg.task}: phase {label}, simulated {r.sim.time:.1f} s", file=sys.stderr,
+                          flush=True)
             for cb in callbacks:
                 cb(r, phase)
 

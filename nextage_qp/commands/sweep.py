@@ -15,7 +15,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
-from nextage_qp.commands.common import PLOT_SUFFIXES, SEED, output_file
+from nextage_qp.commands.common import PLAIN_PROGRESS_S, PLOT_SUFFIXES, SEED, output_file
 from nextage_qp.errors import ConfigError
 from nextage_qp.json_out import dumps
 from nextage_qp.sweep.episode import Episode
@@ -23,9 +23,6 @@ from nextage_qp.sweep.run import BACKENDS, plan, run_sweep
 from nextage_qp.sweep.spec import SweepSpec
 from nextage_qp.sweep.store import SweepStore
 from nextage_qp.sweep.summary import BINS, summarize
-
-PLAIN_PROGRESS_S = 10.0
-"""Seconds between progress lines when stderr is not a terminal."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
