@@ -18,6 +18,10 @@ from typing import NoReturn
 
 from nextage_qp.errors import NextageQPError
 
+DESCRIPTION = ("Task-space control of the Nextage dual-arm robot in MuJoCo: QP differential IK, jerk-limited "
+               "references, PD torque control; YAML-configured manipulation tasks and randomised sweeps.")
+"""What ``nextage-qp --help`` says first."""
+
 COMMANDS = ("info", "fk", "ik", "step_response", "reach", "run", "sweep")
 """Modules of :mod:`nextage_qp.commands`, in the order ``--help`` lists them."""
 
@@ -39,7 +43,7 @@ def version() -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every available subcommand registered."""
-    parser = OneLineParser(prog="nextage-qp", description=__doc__.splitlines()[0] if __doc__ else None)
+    parser = OneLineParser(prog="nextage-qp", description=DESCRIPTION)
     parser.add_argument("--version", action="version", version=f"nextage-qp {version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMANDS:
@@ -65,6 +69,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``nextage-qp``; returns the process exit code."""
     for message in QUIET_WARNINGS:
         warnings.filterwarnings("ignore", message=message)
+    from nextage_qp.mj_warnings import capture_mujoco_warnings
+
+    capture_mujoco_warnings()  # a diverging simulation fails with one line quoting MuJoCo, not with its own print
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

@@ -219,7 +219,7 @@ class Robot:
                 groups[name] = found
         for name, spec in (extra or {}).items():
             roots = ids(spec.subtrees, True, f"body (collision group {name!r} subtree)")
-            below = {b for b in range(m.nbody) if any(_descends(m, b, r) for r in roots)}
+            below = {b for b in range(m.nbody) if any(descends(m, b, r) for r in roots)}
             groups[name] = of_bodies(ids(spec.bodies, True, f"body (collision group {name!r})") | below)
         return groups
 
@@ -247,7 +247,8 @@ def per_joint(value: PerJoint, default: float, names: Sequence[str]) -> np.ndarr
     return np.array(arr, dtype=float)
 
 
-def _descends(m: mujoco.MjModel, body: int, root: int) -> bool:
+def descends(m: mujoco.MjModel, body: int, root: int) -> bool:
+    """Whether ``body`` is ``root`` or lies in its subtree (every body descends from the world, 0)."""
     while body > 0:
         if body == root:
             return True

@@ -28,6 +28,7 @@ import numpy as np
 
 from nextage_qp.control import Gains, PDController
 from nextage_qp.errors import SimulationError
+from nextage_qp.mj_warnings import MUJOCO_WARNINGS
 from nextage_qp.recorder import Recorder, StageTimer
 from nextage_qp.robot import Robot
 from nextage_qp.sensors import Measurement, PerfectSensors, Pose, Sensors, WrenchSensor
@@ -142,6 +143,7 @@ class Simulation:
     def reset(self, q0: np.ndarray) -> None:
         """Robot at rest at ``q0`` [rad], objects at their scene start poses, empty log, reference = ``q0``."""
         mujoco.mj_resetData(self.model, self.data)
+        MUJOCO_WARNINGS.clear()  # a failure quotes the first warning of its own run
         self.robot.set_q(self.data, np.asarray(q0, dtype=float))
         mujoco.mj_forward(self.model, self.data)
         self.traj.reset(q0)
@@ -260,6 +262,8 @@ class Simulation:
             what = f"joint {names[j]} velocity {qd[j]:.3g} rad/s exceeds {self.max_speed:g} rad/s"
         else:
             what = "MuJoCo reported a bad position, velocity or acceleration (an object's state is not finite)"
+        if bad_warn and MUJOCO_WARNINGS:
+            what += f" (MuJoCo: {MUJOCO_WARNINGS[0].rstrip('.')})"
         msg = f"t={t:.3f} s: {what}; the simulation diverged (gains too stiff for sim_dt={self.sim_dt} s?)"
         self.recorder.meta["error"] = msg
         raise SimulationError(msg)

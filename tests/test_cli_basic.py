@@ -101,3 +101,10 @@ def test_step_response_says_never_and_log_names_its_columns(tmp_path, capsys):
     assert "settling_time_s    never" in capsys.readouterr().out
     with np.load(tmp_path / "sr.npz") as z:  # the suffix is added, and the arrays say what their columns are
         assert list(z["joint_names"])[:2] == ["CHEST_JOINT0", "HEAD_JOINT0"] and z["q"].shape[1] == 15
+
+
+@pytest.mark.parametrize("command", [[], ["info"], ["fk"], ["ik"], ["step-response"], ["reach"], ["run"], ["sweep"]])
+def test_help_is_plain_text(command, capsys):
+    assert main([*command, "--help"]) == 0
+    out = capsys.readouterr().out
+    assert "``" not in out and ":mod:" not in out and ":class:" not in out, out

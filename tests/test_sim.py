@@ -175,3 +175,30 @@ def test_frames_recorded_raw_read_back_as_unit_quaternions():
         mujoco.mju_quat2Mat(m, q)
     got = mats_to_quats(mats)
     np.testing.assert_allclose(got, quats * np.sign(quats[:, :1] + 1e-300), atol=1e-9)
+
+
+def test_object_nan_fails_with_mujocos_warning_and_writes_no_log_file(gains, tmp_path, monkeypatch):
+    import mujoco
+
+    from nextage_qp.mj_warnings import capture_mujoco_warnings
+    from nextage_qp.robot import Robot
+
+    monkeypatch.chdir(tmp_path)
+    previous = mujoco.get_mju_user_warning()
+    capture_mujoco_warnings()
+    try:
+        robot = Robot.from_scene("push_cube")
+        sim = Simulation(robot, gains, frames=())
+        sim.reset(robot.keyframe_q())
+        cube = robot.model.jnt_dofadr[robot.model.body("cube").jntadr[0]]
+
+        def corrupt(s):
+            if s.time >= 0.05:
+                s.data.qvel[cube] = np.nan
+
+        sim.hooks.append(corrupt)
+        with pytest.raises(SimulationError, match=r"not finite.*\(MuJoCo: Nan, Inf or huge value in QVEL"):
+            sim.run(0.5)
+    finally:
+        mujoco.set_mju_user_warning(previous)
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()

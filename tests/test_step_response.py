@@ -51,3 +51,15 @@ def test_cli_rejects_out_of_range_target(capsys):
     assert main(["step-response", "--joint", "LARM_JOINT2", "--target-deg", "120"]) == 2
     err = capsys.readouterr().err
     assert "outside LARM_JOINT2's range" in err and len(err.strip().splitlines()) == 1
+
+
+def test_step_into_the_pedestal_names_the_contact(capsys):
+    import json
+
+    from nextage_qp.cli import main
+
+    assert main(["step-response", "--joint", "LARM_JOINT1", "--target-deg", "45", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["settling_time_s"] is None and "pedestal" in out["blocked_by_contact"]
+    assert main(["step-response", "--joint", "LARM_JOINT2", "--target-deg", "45", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["blocked_by_contact"] is None

@@ -13,7 +13,7 @@ import pytest
 from nextage_qp.cli import main
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import Runner
-from nextage_qp.viz.run import workspace_view
+from nextage_qp.viz.viewer import workspace_view
 
 
 def test_without_a_display_one_line_and_exit_2(monkeypatch, capsys):
@@ -49,7 +49,7 @@ def test_viewer_under_xvfb_paces_to_real_time_and_exits_0(tmp_path):
 
 
 def test_video_writes_one_frame_per_period(tmp_path):
-    from nextage_qp.viz.run import VideoRecorder
+    from nextage_qp.viz.video import VideoRecorder
 
     runner = Runner(load_config("push_cube", []), "push_cube")
     video = VideoRecorder(runner, tmp_path / "v.mp4", fps=25, size=(120, 160))
@@ -64,7 +64,7 @@ def test_video_writes_one_frame_per_period(tmp_path):
 
 def test_video_without_a_gl_backend_is_one_error_before_the_run(tmp_path, monkeypatch):
     from nextage_qp.errors import ConfigError
-    from nextage_qp.viz.run import VideoRecorder
+    from nextage_qp.viz.video import VideoRecorder
 
     runner = Runner(load_config("push_cube", []), "push_cube")
     monkeypatch.setenv("MUJOCO_GL", "no_such_backend")

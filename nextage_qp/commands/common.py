@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -14,6 +15,15 @@ import numpy as np
 from nextage_qp.errors import ConfigError
 from nextage_qp.json_out import dumps
 from nextage_qp.robot import Robot
+
+
+def help_text(doc: str | None) -> str | None:
+    """The first line of a docstring as plain text for ``--help`` (reStructuredText roles and literals removed)."""
+    if not doc:
+        return None
+    line = doc.strip().splitlines()[0]
+    return re.sub(r"(?::\w+:)?`+([^`]+)`+", r"\1", line)
+
 
 PLAIN_PROGRESS_S = 10.0
 """Seconds between plain progress lines on stderr when it is not a terminal (a shorter run prints none)."""

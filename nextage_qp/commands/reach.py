@@ -7,7 +7,7 @@ import sys
 
 import numpy as np
 
-from nextage_qp.commands.common import COORD, add_sim_args, number, print_outcome
+from nextage_qp.commands.common import COORD, add_sim_args, help_text, number, print_outcome
 from nextage_qp.control import load_gains
 from nextage_qp.experiments.reach import run_reach
 from nextage_qp.robot import Robot
@@ -71,7 +71,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "reach",
         help="move a frame to a Cartesian target (QP IK -> Ruckig -> PD -> MuJoCo)",
-        description=__doc__.splitlines()[0] if __doc__ else None,
+        description=help_text(__doc__),
     )
     p.add_argument("--frame", default="left_wrist", help="site or body to move (default: left_wrist)")
     p.add_argument("--pos", type=COORD, nargs=3, required=True, metavar=("X", "Y", "Z"), help="target [m], world")

@@ -46,13 +46,13 @@ def run(args: argparse.Namespace) -> int:
     callbacks = []
     recorder_video = None
     if args.video:
-        from nextage_qp.viz.run import VideoRecorder
+        from nextage_qp.viz.video import VideoRecorder
 
         recorder_video = VideoRecorder(runner, args.video)
         callbacks.append(recorder_video.on_tick)
     viewer = None
     if args.viewer:
-        from nextage_qp.viz.run import LiveViewer
+        from nextage_qp.viz.viewer import LiveViewer
 
         viewer = LiveViewer(runner)
         callbacks.append(viewer.on_tick)

@@ -6,9 +6,9 @@ import argparse
 
 import numpy as np
 
-from nextage_qp.commands.common import add_sim_args, number, print_outcome
+from nextage_qp.commands.common import add_sim_args, help_text, number, print_outcome
 from nextage_qp.control import load_gains
-from nextage_qp.experiments.step_response import run_step
+from nextage_qp.experiments.step_response import blocking_contacts, run_step
 from nextage_qp.robot import Robot
 
 
@@ -28,6 +28,9 @@ def _run(args: argparse.Namespace) -> int:
         title = f"{args.joint}: {mode} to {args.target_deg:g}° ({gains.source})"
         plot_step_response(sim.recorder.arrays(), j, args.joint, target, args.plot, title=title)
     out = {"joint": args.joint, "target_rad": target, "gains": gains.source, "shaped": args.shaped, **metrics._asdict()}
+    # A step that did not settle because the moving links press on something says so (not a gains problem).
+    contacts = blocking_contacts(robot, sim, args.joint) if metrics.settling_time_s is None else []
+    out["blocked_by_contact"] = "; ".join(contacts) if contacts else None
     print_outcome(out, args.json)
     return 0
 
@@ -37,7 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "step-response",
         help="step one joint from home to an absolute target under PD control",
-        description=__doc__.splitlines()[0] if __doc__ else None,
+        description=help_text(__doc__),
     )
     p.add_argument("--joint", required=True, help="joint name, e.g. LARM_JOINT2")
     p.add_argument("--target-deg", type=number(-360, 360), required=True, help="absolute target angle [deg]")

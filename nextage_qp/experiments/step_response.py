@@ -8,7 +8,7 @@ import numpy as np
 
 from nextage_qp.control import Gains
 from nextage_qp.errors import ConfigError
-from nextage_qp.robot import Robot
+from nextage_qp.robot import Robot, descends
 from nextage_qp.sim import Simulation
 
 
@@ -56,6 +56,30 @@ def step_metrics(
         max_abs_torque_nm=float(np.abs(tau).max()),
         saturated_steps=int(np.sum(np.abs(tau) >= tau_max - 1e-9)),
     )
+
+
+def blocking_contacts(robot: Robot, sim: Simulation, joint: str) -> list[str]:
+    """Contacts, in the final state, between the bodies ``joint`` moves and the rest of the scene.
+
+    Each is ``"A against B"`` (geom names, or their bodies' where a geom has none), ``A`` on the moving side.
+    """
+    m, d = robot.model, sim.data
+    root = int(m.jnt_bodyid[robot.joint_ids[robot.joint_index(joint)]])
+    moving = {b for b in range(m.nbody) if descends(m, b, root)}
+
+    def name(geom: int) -> str:
+        return m.geom(geom).name or m.body(int(m.geom_bodyid[geom])).name
+
+    found: list[str] = []
+    for c in d.contact[: d.ncon]:
+        g1, g2 = int(c.geom1), int(c.geom2)
+        side1, side2 = int(m.geom_bodyid[g1]) in moving, int(m.geom_bodyid[g2]) in moving
+        if side1 != side2:
+            a, b = (g1, g2) if side1 else (g2, g1)
+            pair = f"{name(a)} against {name(b)}"
+            if pair not in found:
+                found.append(pair)
+    return found
 
 
 def run_step(

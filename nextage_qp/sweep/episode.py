@@ -101,6 +101,9 @@ def run_episode(task: EpisodeTask) -> Episode:
     """Run one episode in this process and return its record (never raises)."""
     from nextage_qp.manipulation.config import load_config
     from nextage_qp.manipulation.runner import Runner
+    from nextage_qp.mj_warnings import capture_mujoco_warnings
+
+    capture_mujoco_warnings()  # in a worker process: MuJoCo's own prints would interleave with the progress
 
     start = time.perf_counter()
     record = Episode(task.index, task.seed, dict(task.params), list(task.overrides), status="error",

@@ -1,4 +1,4 @@
-"""Pictures of a manipulation run: debug markers, headless video, the live viewer and a summary plot.
+"""Pictures of a manipulation run: debug markers and a summary plot (video: video.py, live viewer: viewer.py).
 
 Markers (as the report's coloured spheres): green = object target, blue = the IK's commanded tool
 frames, red = the measured tool frames, yellow = where each tool started.
@@ -7,12 +7,11 @@ frames, red = the measured tool frames, yellow = where each tool started.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
-from nextage_qp.errors import ConfigError
 from nextage_qp.nextage import TOOL_SITES
 
 if TYPE_CHECKING:
@@ -21,7 +20,8 @@ if TYPE_CHECKING:
 GREEN, BLUE, RED, YELLOW = (0.1, 0.9, 0.2, 0.8), (0.2, 0.4, 1.0, 0.8), (1.0, 0.2, 0.1, 0.8), (1.0, 0.9, 0.1, 0.8)
 
 
-def _tool_frames(runner: Runner) -> list[str]:
+def tool_frames(runner: Runner) -> list[str]:
+    """The tool sites of the run's robot (markers are drawn for these)."""
     return [f for f in TOOL_SITES if f in runner.robot.site_names]
 
 
@@ -33,7 +33,7 @@ def marker_points(runner: Runner, starts: dict[str, np.ndarray]) -> list[Marker]
     """The target, commanded, measured and start tool positions as marker spheres."""
     view = runner.view
     points: list[Marker] = [(np.asarray(view.body_pose(runner.cfg.target).pos, dtype=float), GREEN, 0.015)]
-    for frame in _tool_frames(runner):
+    for frame in tool_frames(runner):
         points += [(np.asarray(view.commanded_pose(frame).pos, dtype=float), BLUE, 0.008),
                    (np.asarray(view.frame_pose(frame).pos, dtype=float), RED, 0.006), (starts[frame], YELLOW, 0.006)]
     return points
@@ -56,202 +56,6 @@ def add_markers(scene: mujoco.MjvScene, runner: Runner, starts: dict[str, np.nda
 
 FAST_FLAGS = (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION, mujoco.mjtRndFlag.mjRND_SKYBOX)
 """Render features the video leaves out: in software GL they cost several times the rest of a frame."""
-
-
-def video_process(path: str, fps: int, size: tuple[int, int], camera: str, frames: Any, status: Any) -> None:
-    """Render the states received on ``frames`` and encode them into ``path`` (``None`` ends the video).
-
-    The first item on ``frames`` is the pickled model; each later item is ``(qpos, mocap_pos, mocap_quat,
-    markers)``. Reports ``("ready", None)`` once the GL context and the file are open, then ``("done", n_frames)``,
-    or ``("error", message)`` at any point.
-    """
-    import pickle
-
-    model = pickle.loads(frames.get())
-    model.vis.quality.offsamples = 0  # multisampling doubles a software-GL frame's cost
-    try:
-        renderer = mujoco.Renderer(model, *size)
-    except Exception as exc:  # no GL context: name the fix
-        status.send(("error", f"--video: cannot open an offscreen GL context ({exc}); set MUJOCO_GL=egl"))
-        return
-    try:
-        import imageio.v2 as imageio
-
-        writer = imageio.get_writer(path, fps=fps, macro_block_size=1)
-    except Exception as exc:
-        status.send(("error", f"--video {path}: cannot write: {exc}"))
-        return
-    status.send(("ready", None))
-    data, count = mujoco.MjData(model), 0
-    try:
-        while (state := frames.get()) is not None:
-            data.qpos[:], data.mocap_pos[:], data.mocap_quat[:], points = state
-            mujoco.mj_kinematics(model, data)
-            mujoco.mj_camlight(model, data)
-            renderer.update_scene(data, camera=camera)
-            for flag in FAST_FLAGS:
-                renderer.scene.flags[flag] = False
-            draw_markers(renderer.scene, points)
-            writer.append_data(renderer.render())
-            count += 1
-        writer.close()
-        status.send(("done", count))
-    except Exception as exc:
-        status.send(("error", f"{type(exc).__name__}: {exc}"))
-
-
-class VideoRecorder:
-    """Renders the run headless at ``fps`` into an MP4 (set ``MUJOCO_GL=egl`` on a machine without display).
-
-    Rendering and encoding run in a process of their own, fed the joint state and the marker positions of each
-    frame, so that on a machine with two cores they overlap the simulation instead of adding to it (a software-GL
-    frame costs about as much as 0.7 s of simulated time in the control loop).
-    """
-
-    QUEUE = 64
-    """Frames in flight: when rendering falls behind, the run waits for it rather than holding every frame."""
-
-    def __init__(self, runner: Runner, path: Path, *, fps: int = 25, size: tuple[int, int] = (480, 640),
-                 camera: str = "workspace") -> None:
-        import multiprocessing
-        import pickle
-
-        path.parent.mkdir(parents=True, exist_ok=True)
-        ctx = multiprocessing.get_context("spawn")
-        self.frames = ctx.Queue(self.QUEUE)
-        self.status, child = ctx.Pipe(duplex=False)
-        self.process = ctx.Process(target=video_process, daemon=True, name="nextage-qp-video",
-                                   args=(str(path), fps, size, camera, self.frames, child))
-        self.process.start()
-        self.frames.put(pickle.dumps(runner.robot.model))  # through the queue's feeder thread: never blocks here
-        kind, message = self._wait(120.0)
-        if kind != "ready":
-            self.frames.cancel_join_thread()  # the model may still sit in the pipe: do not wait at exit
-            self.process.join(timeout=5.0)
-            raise ConfigError(message)
-        self.period, self.next_t = 1.0 / fps, 0.0
-        self.starts = {f: runner.view.frame_pose(f).pos for f in _tool_frames(runner)}
-
-    def _wait(self, timeout: float) -> tuple[str, Any]:
-        """The video process's next report, or an error if it died or did not answer within ``timeout`` s."""
-        import time
-
-        end = time.monotonic() + timeout
-        while not self.status.poll(0.2):
-            if not self.process.is_alive() and not self.status.poll(0.2):
-                return "error", f"--video: the renderer process exited with code {self.process.exitcode}"
-            if time.monotonic() > end:
-                self.process.kill()
-                return "error", f"--video: the renderer did not answer within {timeout:.0f} s"
-        kind, value = self.status.recv()
-        return str(kind), value
-
-    def on_tick(self, runner: Runner, phase: Any) -> None:
-        """Tick callback: send a frame's state when one is due."""
-        if runner.sim.time + 1e-9 < self.next_t:
-            return
-        self.next_t += self.period
-        d = runner.sim.data
-        self.frames.put((d.qpos.copy(), d.mocap_pos.copy(), d.mocap_quat.copy(), marker_points(runner, self.starts)))
-
-    def close(self) -> int:
-        """Finish the file; returns the number of frames written, raises OSError if the video could not be made."""
-        self.frames.put(None)
-        kind, value = self._wait(600.0)
-        self.process.join(timeout=10.0)
-        if kind != "done":
-            self.frames.cancel_join_thread()
-            raise OSError(value)
-        return int(value)
-
-
-def _display_check() -> None:
-    """Raise a one-line ConfigError when no window can open (before GLFW prints its own text or exits)."""
-    import os
-
-    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise ConfigError("--viewer: no display (DISPLAY is not set); run under a display or "
-                          "'xvfb-run -a nextage-qp run ...', or write a video with --video instead")
-    try:
-        import glfw
-    except ImportError as exc:
-        raise ConfigError(f"--viewer: GLFW is not available ({exc}); install the 'glfw' package") from None
-    glfw.ERROR_REPORTING = "ignore"  # its failures become the one line below, not warnings on stderr
-    if not glfw.init():
-        raise ConfigError(f"--viewer: cannot open the display {os.environ.get('DISPLAY', '')!r}; "
-                          "check that the X server runs, or use --video")
-
-
-def workspace_view(runner: Runner, camera: str = "workspace") -> tuple[np.ndarray, float, float, float]:
-    """Free-camera ``(lookat, distance, azimuth_deg, elevation_deg)`` looking as the scene's ``camera`` does.
-
-    It is aimed at the point of the camera's optical axis nearest the object, so that the table, the object, the
-    target and the hands are in view and the user can orbit about the object.
-    """
-    m, d = runner.robot.model, runner.sim.data
-    cam = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, camera)
-    obj = np.asarray(runner.view.body_pose(runner.cfg.object).pos, dtype=float)
-    if cam < 0:  # a scene without that camera: look at the object from the front, above
-        return obj, 1.6, 180.0, -30.0
-    pos, forward = d.cam_xpos[cam].copy(), -d.cam_xmat[cam].reshape(3, 3)[:, 2]
-    distance = float(max(np.dot(obj - pos, forward), 0.3))
-    azimuth = float(np.degrees(np.arctan2(forward[1], forward[0])))
-    elevation = float(np.degrees(np.arcsin(np.clip(forward[2], -1.0, 1.0))))
-    return pos + distance * forward, distance, azimuth, elevation
-
-
-class LiveViewer:
-    """The passive MuJoCo viewer with the debug markers, paced to real time and framed on the workspace.
-
-    Every ~1/60 s of simulated time it syncs the window and, if the simulation runs ahead of the wall clock,
-    waits, so the motion plays at real time. Closing the window lets the run finish at full speed. ``close``
-    ends the viewer's thread before the process exits (GLFW torn down under a live window segfaults).
-    """
-
-    def __init__(self, runner: Runner, speed: float = 1.0) -> None:
-        import threading
-
-        import mujoco.viewer
-
-        _display_check()
-        before = set(threading.enumerate())
-        try:
-            self.handle = mujoco.viewer.launch_passive(runner.robot.model, runner.sim.data)
-        except Exception as exc:
-            raise ConfigError(f"--viewer: cannot open a window ({exc}); use --video on a headless machine") from None
-        self.threads = [t for t in threading.enumerate() if t not in before]
-        lookat, distance, azimuth, elevation = workspace_view(runner)
-        with self.handle.lock():
-            self.handle.cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-            self.handle.cam.lookat[:] = lookat
-            self.handle.cam.distance, self.handle.cam.azimuth, self.handle.cam.elevation = distance, azimuth, elevation
-        self.starts = {f: runner.view.frame_pose(f).pos for f in _tool_frames(runner)}
-        self.speed, self.next_t = speed, 0.0
-        self.t0: tuple[float, float] | None = None  # (simulated, wall) time of the first frame
-
-    def on_tick(self, runner: Runner, phase: Any) -> None:
-        """Tick callback: sync the window, redraw the markers, wait for the wall clock."""
-        import time
-
-        if runner.sim.time < self.next_t or not self.handle.is_running():
-            return
-        self.next_t = runner.sim.time + 1.0 / 60.0
-        with self.handle.lock():
-            self.handle.user_scn.ngeom = 0
-            add_markers(self.handle.user_scn, runner, self.starts)
-        self.handle.sync()
-        now = time.perf_counter()
-        if self.t0 is None:
-            self.t0 = (runner.sim.time, now)
-        ahead = (runner.sim.time - self.t0[0]) / self.speed - (now - self.t0[1])
-        if ahead > 0:
-            time.sleep(ahead)
-
-    def close(self) -> None:
-        """Close the window and wait for the viewer's thread to finish."""
-        self.handle.close()
-        for thread in self.threads:
-            thread.join(timeout=10.0)
 
 
 def plot_run(runner: Runner, path: Path) -> None:
@@ -277,7 +81,7 @@ def plot_run(runner: Runner, path: Path) -> None:
     ax1.legend(fontsize=8, loc="lower left")
     ax1.grid(alpha=0.3, which="both")
     ax2.plot(obj[:, 0], obj[:, 1], color="k", lw=2, label=runner.cfg.object)
-    for frame in _tool_frames(runner):
+    for frame in tool_frames(runner):
         key = f"frame_{frame}"
         if key in rec:
             ax2.plot(rec[key][:, 0], rec[key][:, 1], lw=1, label=frame)
