@@ -139,14 +139,22 @@ def format_validation_error(source: str, exc: ValidationError, root: type[BaseMo
     loc = tuple(first["loc"])
     key = _dotted(root, loc) or "<top level>"
     msg = first["msg"].removeprefix("Value error, ")
-    if first["type"] == "extra_forbidden":
+    if first["type"] == "missing":
+        msg = "required, but missing"
+    elif first["type"] == "extra_forbidden":
         msg = f"unknown key; valid: {', '.join(valid_keys(root, loc[:-1]))}"
+    elif first["type"] == "union_tag_not_found":  # e.g. a phase without its ``kind``
+        field = str(first.get("ctx", {}).get("discriminator", "kind")).strip("'")
+        tags = [t for m in _walk(root, loc)[0] if (t := _tag(m)) is not None]
+        key = f"{key}.{field}"
+        msg = f"missing; valid: {', '.join(tags)}" if tags else "missing"
     elif first["type"] == "union_tag_invalid":
         tags = str(first.get("ctx", {}).get("expected_tags", "")).replace("'", "")
         msg = f"unknown {first.get('ctx', {}).get('discriminator', 'kind').strip(chr(39))}; valid: {tags}"
     got = first.get("input")
-    shown = "" if first["type"] in ("missing", "extra_forbidden") or isinstance(got, dict) else f" (got {got!r})"
-    more = f" [+{len(errors) - 1} more]" if len(errors) > 1 else ""
+    quiet = ("missing", "extra_forbidden", "union_tag_not_found")
+    shown = "" if first["type"] in quiet or isinstance(got, dict) else f" (got {got!r})"
+    more = f" (and {len(errors) - 1} more problem{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
     return f"{source}: {key}: {msg}{shown}{more}"
 
 

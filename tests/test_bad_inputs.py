@@ -128,6 +128,7 @@ SET_CASES = [
     "scene.masses.cube=-2", "scene.masses.cube=.inf", "object=nope", "phases.0.kind=shove", "phases.0.speed=0",
     "ik.velocity_limit=.nan", "trajectory.max_velocity=-1", "task={a: 1}", "timing={x: 1}", "scene.file=nope",
     "phases.0=3", "scene.poses=3", "ik.solver=nope", "timing.settle.x=1", "scene.masses.table=2",
+    "phases[0]={name: x}", "phases[0].kind=joints", "phases[9].timeout=1", "phases[0].timeout=.nan",
 ]
 for item in SET_CASES:
     CASES.append((f"--set {item}", ["run", "{push}", "--set", item], {}))
@@ -202,3 +203,14 @@ def test_bad_input_gives_one_line_and_a_failure_code(tmp_path, monkeypatch, caps
 
 def test_corpus_is_large():
     assert len(CASES) >= 150
+
+
+@pytest.mark.parametrize(("item", "expected"), [
+    ("phases[0]={name: x}", "phases[0].kind: missing; valid: move, push"),
+    ("phases[0].kind=joints", "phases[0].positions: required, but missing"),
+    ("phases[0].timeout=.nan", "phases[0].timeout: Input should be a finite number"),
+])
+def test_messages_name_the_key_without_pydantic_internals(item, expected, capsys):
+    assert main(["run", str(ROOT / "configs" / "push_cube.yaml"), "--set", item]) == 2
+    err = capsys.readouterr().err
+    assert expected in err and "discriminator" not in err and "[+" not in err, err

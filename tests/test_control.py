@@ -86,7 +86,7 @@ def test_unknown_joint_rejected_with_valid_list(tmp_path):
     ("entry", "match"),
     [
         ("{kp: -1.0, kd: 1.0}", "joints.CHEST_JOINT0.kp: Input should be greater than or equal to 0 (got -1.0)"),
-        ("{kp: 1.0}", "joints.CHEST_JOINT0.kd: Field required"),
+        ("{kp: 1.0}", "joints.CHEST_JOINT0.kd: required, but missing"),
         ("{kp: x, kd: 1}", "joints.CHEST_JOINT0.kp: Input should be a valid number"),
         ("{kp: .inf, kd: 1}", "joints.CHEST_JOINT0.kp: Input should be a finite number"),
         ("{kp: yes, kd: 1}", "joints.CHEST_JOINT0.kp: Input should be a valid number"),

@@ -9,6 +9,7 @@ runner once the scene is loaded, with the same kind of message.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
@@ -109,6 +110,8 @@ def config_model() -> type[ManipulationConfig]:
 def apply_override(doc: dict[str, Any], assignment: str, source: str = "--set") -> None:
     """Apply one ``dotted.key=value`` override (value parsed as YAML; list items by index) in place.
 
+    A list item is addressed as ``phases.0.timeout`` or ``phases[0].timeout``.
+
     Raises:
         ConfigError: Malformed assignment or a path through something that is not a mapping or list.
     """
@@ -121,7 +124,7 @@ def apply_override(doc: dict[str, Any], assignment: str, source: str = "--set") 
     except yaml.YAMLError as exc:
         raise ConfigError(f"{source} {assignment!r}: the value is not valid YAML: {yaml_error_line(exc)}; "
                           "quote strings, write lists as [a, b]") from None
-    parts = key.split(".")
+    parts = re.sub(r"\[(\d+)\]", r".\1", key).split(".")
     node: Any = doc
     for i, part in enumerate(parts):
         last = i == len(parts) - 1
