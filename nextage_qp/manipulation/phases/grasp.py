@@ -43,6 +43,8 @@ APPROACH_TOL = 0.006
 millimetres short, and the close moves the pads in anyway."""
 KNOCKED = 0.3
 """Tilt of the object [rad] during the approach at which the grasp fails: the arms have knocked it over."""
+OFF_CENTRE_STEP = 0.0175
+"""Spacing of the clamp points tried along the faces, from the centre out to ``off_centre`` [m]."""
 PLACE_HOVER = 0.02
 """Height over the resting pose at which the clamp must reach ``place_at`` [m]."""
 """The first pad sits on the +y side of the object's heading, the second on the -y side."""
@@ -122,12 +124,13 @@ class Grasp(Phase):
         """Plan the approach at the current heading: (gap, rolls fit the placement), or None when out of reach.
 
         The pads clamp the faces' centre or, when the arms cannot reach that (at the object or at the placement),
-        a point up to ``off_centre`` along the faces: first those towards the robot, then the others; at each, a
-        grip that also reaches the placement first, then any.
+        a point up to ``off_centre`` along the faces (every ``OFF_CENTRE_STEP``, and ``off_centre`` itself): first
+        those towards the robot, then the others; at each, a grip that also reaches the placement first, then any.
         """
         c = self.spec
         towards = -float(np.sign(self.rz[:2, 0] @ obj[:2]) or 1.0)  # along the faces, towards the chest axis
-        near = [towards * c.off_centre * k for k in (0.0, 0.5, 1.0)]
+        steps = [*np.arange(0.0, c.off_centre - 1e-9, OFF_CENTRE_STEP), c.off_centre]
+        near = [towards * float(d) for d in steps]
         shifts = list(dict.fromkeys([*near, *(-s for s in near)]))
         fitting = ((shift, grip) for shift in shifts for grip in self._placements(view, shift))  # lazily
         for shift, (rolls, place_q) in chain(fitting, ((shift, (None, None)) for shift in dict.fromkeys(near))):
