@@ -145,9 +145,9 @@ def format_validation_error(source: str, exc: ValidationError, root: type[BaseMo
         msg = f"unknown key; valid: {', '.join(valid_keys(root, loc[:-1]))}"
     elif first["type"] == "union_tag_not_found":  # e.g. a phase without its ``kind``
         field = str(first.get("ctx", {}).get("discriminator", "kind")).strip("'")
-        tags = [t for m in _walk(root, loc)[0] if (t := _tag(m)) is not None]
+        kinds = [t for m in _walk(root, loc)[0] if (t := _tag(m)) is not None]
         key = f"{key}.{field}"
-        msg = f"missing; valid: {', '.join(tags)}" if tags else "missing"
+        msg = f"missing; valid: {', '.join(kinds)}" if kinds else "missing"
     elif first["type"] == "union_tag_invalid":
         tags = str(first.get("ctx", {}).get("expected_tags", "")).replace("'", "")
         msg = f"unknown {first.get('ctx', {}).get('discriminator', 'kind').strip(chr(39))}; valid: {tags}"

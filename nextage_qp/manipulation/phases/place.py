@@ -9,7 +9,12 @@ The object's setpoint :math:`(p, \psi)` goes
 3. down to ``hover`` above its resting height, where it waits for the sway to settle and corrects its planar
    position and yaw from the live pose (the average over ``settle`` seconds, so the correction does not chase
    the swing), up to ``corrections`` times;
-4. slowly down until the object stands on the table (its height within 1 mm of its resting height).
+4. slowly down until the object stands on the table (its height within 1 mm of its resting height), the setpoint
+   drifting against the live planar error at ``descend_gain`` until the object touches.
+
+The planar error is that of the object's *footprint*, the centre of its lowest face: a held object tilted by
+:math:`\theta` lands on an edge and drops flat when the pads open, which moves its origin by about
+:math:`h \sin\theta` (``h`` its origin's height over that face) but leaves the footprint where it touched.
 
 The pads follow the setpoint through the grip's offsets and keep squeezing at the grip's force
 (:class:`~nextage_qp.manipulation.context.Clamp`).
@@ -30,6 +35,8 @@ from nextage_qp.servo import Command
 
 CONTACT = 0.001
 """The object counts as set down when its height is this close to its resting height [m]."""
+TOUCH = 0.003
+"""Height over its resting height [m] below which the descent stops steering (the object may touch)."""
 HOVER_TOL = 0.006
 """Position error [m] within which the planner's clamp at the hover counts as reached (the hover corrects it)."""
 STALL = 3.0
@@ -58,6 +65,8 @@ class PlaceSpec(Spec):
     corrections: int = Field(default=4, ge=0, le=20, description="Corrections allowed at the hover.")
     settle: float = Field(default=0.4, gt=0, le=MAX_SECONDS, description="Time the live pose is averaged [s].")
     relative_cost: float = Field(default=10.0, ge=0, le=1e4, description="Weight of the pads' relative pose.")
+    descend_gain: float = Field(default=1.0, ge=0, le=20, description=(
+        "Gain [1/s] with which the setpoint drifts against the footprint's planar error while descending (0: off)."))
     level_gain: float = Field(default=2.0, ge=0, le=20, description=(
         "Gain [1/s] of the loop that rolls the pads to keep the object upright (0: off)."))
 
@@ -125,9 +134,12 @@ class Place(Phase):
         elif self.stage == "hover":
             self._hover(view)
         elif self.stage == "descend":
+            height = view.body_pose(c.object).pos[2]
+            if height > self.rest + TOUCH:  # not yet on the table: steer the footprint onto the target
+                self.sp.pos[:2] -= c.descend_gain * view.dt * self._footprint_error(view)
             if self.sp.advance(np.array([*self.sp.pos[:2], self.rest - 0.005]), c.descend_speed, view.dt):
                 self._check_stall(view)
-            down = view.body_pose(c.object).pos[2] <= self.rest + CONTACT
+            down = height <= self.rest + CONTACT
             done = down and view.settled()
             if down:
                 self.sp.jump(np.array([*self.sp.pos[:2], max(self.sp.pos[2], self.rest)]))
@@ -152,6 +164,13 @@ class Place(Phase):
                              f"{(obj[2] - self.rest) * 1e3:.0f} mm over its resting height, tilted {tilt:.0f} deg, "
                              f"{STALL:g} s after the clamp's setpoint reached the bottom of its descent (a pad "
                              f"{lag * 1e3:.0f} mm above its target)")
+
+    def _footprint_error(self, view: View) -> np.ndarray:
+        """Planar offset [m] of the object's footprint (the centre of its lowest face) from the target."""
+        obj, rot = view.body_pose(self.spec.object)
+        down = -rot[:, 2]
+        foot = obj + down * view.extent(self.spec.object, down)
+        return np.asarray(foot[:2] - view.body_pose(self.spec.target).pos[:2])
 
     def _hover(self, view: View) -> None:
         """Wait for the sway to settle, then correct the setpoint by the averaged planar and yaw error."""

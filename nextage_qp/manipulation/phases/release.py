@@ -1,4 +1,4 @@
-"""``release``: hand a set-down object's weight to the table, open the pads along the clamp axis, then lift them."""
+"""``release``: hand a set-down object's weight to the table, ease the squeeze, open the pads, then lift them."""
 
 from __future__ import annotations
 
@@ -10,13 +10,19 @@ from pydantic import Field
 from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.context import Grip, Setpoint, View
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
-from nextage_qp.manipulation.phases.grasp import PADS, SIDES
+from nextage_qp.manipulation.phases.grasp import PADS, SIDES, squeeze_force
 from nextage_qp.servo import Command
 
 UNLOAD_SPEED = 0.005
 """Speed [m/s] at which the pads go down to hand the object's weight to the table."""
 UNLOADED = 0.3
 """Vertical load [N] on the pads below which the table carries the object."""
+EASE_SPEED = 0.002
+"""Speed [m/s] at which a pad still squeezing backs off before the pads open."""
+EASED = 0.5
+"""Squeeze force [N] below which a pad has let go (it then holds still until the other has too)."""
+MAX_EASE_TRAVEL = 0.005
+"""Farthest a pad backs off while easing [m]; past it the pads open anyway."""
 
 
 class ReleaseSpec(Spec):
@@ -36,8 +42,10 @@ class ReleaseSpec(Spec):
 class Release(Phase):
     """Open along the clamp axis, then lift; the clamp ends as the pads start to open.
 
-    The pads first go down (at most ``unload``) until the table carries the object's whole weight, then each backs
-    away by ``gap`` at ``open_speed`` and rises by ``lift``.
+    The pads first go down (at most ``unload``) until the table carries the object's whole weight; then each pad
+    still squeezing backs off slowly until its own force sensor reads no squeeze (so neither pad drags the object
+    by friction, nor pushes it across once the other has let go); then each backs away by ``gap`` at
+    ``open_speed`` and rises by ``lift``.
     """
 
     spec: ReleaseSpec
@@ -55,8 +63,9 @@ class Release(Phase):
         self.lowered = [sp.pos - np.array([0.0, 0.0, c.unload]) for sp in self.points]
         self.stage = 0
         self.stages: list[tuple[list[np.ndarray], float]] = []
+        self.eased = [0.0 for _ in self.frames]
         if c.unload <= 0:
-            self._open()
+            self.stage = -1
 
     def _open(self) -> None:
         """Stages from where the pads are now: back away along the clamp axis, then rise."""
@@ -71,6 +80,9 @@ class Release(Phase):
         if self.stage == 0:  # hand the object's weight to the table
             if self._unloaded(view) or all([sp.advance(g, UNLOAD_SPEED, view.dt)
                                             for sp, g in zip(self.points, self.lowered, strict=True)]):
+                self.stage = -1
+        elif self.stage == -1:  # ease the squeeze, pad by pad, on each pad's own force
+            if self._ease(view):
                 self._open()
         elif self.stage - 1 < len(self.stages):
             goals, speed = self.stages[self.stage - 1]
@@ -78,9 +90,21 @@ class Release(Phase):
                 self.stage += 1
         targets = tuple(FrameTarget(f, pos=sp.pos, rot=r) for f, sp, r in zip(self.frames, self.points, self.rots,
                                                                                strict=True))
-        allow = frozenset({self.spec.object}) if self.stage <= 1 else frozenset()  # touching it, down and opening
+        allow = frozenset({self.spec.object}) if self.stage <= 1 else frozenset()  # touching it: down, easing, opening
         done = self.stage == 1 + len(self.stages) and view.settled()
         return Command(targets, allow=allow, done=done)
+
+    def _ease(self, view: View) -> bool:
+        """Back off each pad that still squeezes; True once none does (or the travel allowed is used up)."""
+        squeezing = False
+        for i, (frame, side) in enumerate(zip(self.frames, SIDES, strict=False)):
+            if squeeze_force(view, frame, side, self.lateral) > EASED and self.eased[i] < MAX_EASE_TRAVEL:
+                squeezing = True
+                step = EASE_SPEED * view.dt
+                self.points[i].pos = self.points[i].pos + side * step * self.lateral
+                self.eased[i] += step
+        self.info["eased_mm"] = [round(e * 1e3, 2) for e in self.eased]
+        return not squeezing
 
     def _unloaded(self, view: View) -> bool:
         """True once the pads no longer hold the object up (their contact forces no longer point down)."""
