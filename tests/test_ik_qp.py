@@ -187,6 +187,35 @@ def test_travel_and_sphere_filters_miss_no_pair_within_detection(robot: Robot) -
     assert seen > 300, seen  # pairs were within detection distance along the walk
 
 
+def test_rows_equal_minks_contact_normal_jacobian(robot: Robot) -> None:
+    """Every row (static sides skipped) is mink's contact normal Jacobian, sign-flipped as mink does."""
+    from mink.limits.collision_avoidance_limit import compute_contact_normal_jacobian
+
+    pairs = tuple(CollisionPairConfig(a=a, b=b, min_distance=0.005, detection_distance=0.06)
+                  for a, b in (("left_arm", "table"), ("right_arm", "torso"), ("left_arm", "right_arm"),
+                               ("left_arm", "dumbbell")))
+    ik = QPIK(robot, IKConfig(collision_pairs=pairs))
+    limit = ik.collision
+    assert limit is not None
+    limit.box = None
+    rng, q = np.random.default_rng(7), robot.keyframe_q("home")
+    model, data, nv = ik.model, ik.configuration.data, ik.model.nv
+    checked = 0
+    for _ in range(200):
+        q = np.clip(q + rng.normal(0.0, 0.05, robot.nq), robot.lower, robot.upper)
+        ik.configuration.update(q)
+        cons = limit.compute_qp_inequalities(ik.configuration, 0.004)
+        for row, (idx, dist) in zip(cons.G if cons.G is not None else (), limit.active, strict=True):
+            g1, g2 = int(limit.geom1[idx]), int(limit.geom2[idx])
+            fromto = np.empty(6)
+            mujoco.mj_geomDistance(model, data, g1, g2, float(limit.detection_distance[idx]) + 0.05, fromto)
+            ref = compute_contact_normal_jacobian(model, data, g1, g2, fromto, np.empty(3), np.empty((3, nv)),
+                                                  np.empty((3, nv)))
+            assert row == pytest.approx(-ref if dist >= 0 else ref, abs=1e-12)
+            checked += 1
+    assert checked > 100, checked
+
+
 def test_scene_overrides_reach_the_ik_collision_model() -> None:
     """An obstacle moved by a scene override is where the IK's collision avoidance sees it."""
     moved = Robot.from_scene("dock_dumbbell", SceneOverrides(poses={"obstacle": BodyPose(pos=(0.45, 0.1, 0.9))}))

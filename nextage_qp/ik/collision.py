@@ -24,11 +24,19 @@ from mink.limits.collision_avoidance_limit import (
     _are_geom_bodies_parent_child,
     _is_pass_contype_conaffinity_check,
     _is_welded_together,
-    compute_contact_normal_jacobian,
 )
 from mink.limits.limit import Constraint
 
 from nextage_qp.ik.limits import JointBoxLimit
+
+
+def _moved_by_a_joint(model: mujoco.MjModel, body: int) -> bool:
+    """Whether any joint on the chain from the world to ``body`` moves it (its points have a Jacobian)."""
+    while body > 0:
+        if model.body_dofnum[body] > 0:
+            return True
+        body = int(model.body_parentid[body])
+    return False
 
 
 class ActiveCollisionLimit(mink.Limit):
@@ -96,6 +104,9 @@ class ActiveCollisionLimit(mink.Limit):
                        self.min_distance.tolist())  # fmt: skip
         self._fromto, self._normal = np.empty(6), np.empty(3)
         self._jac1, self._jac2 = np.empty((3, model.nv)), np.empty((3, model.nv))
+        # Body of each geom, or -1 where no joint moves it (welded to the world, or a mocap object): its witness
+        # point has a zero Jacobian, so that side of a row costs nothing.
+        self._body = [int(b) if _moved_by_a_joint(model, int(b)) else -1 for b in model.geom_bodyid]
         self.enabled = np.ones(len(keys), dtype=bool)
         """Pairs watched at the next call (see :meth:`allow`)."""
         self.active: list[tuple[int, float]] = []
@@ -210,13 +221,33 @@ class ActiveCollisionLimit(mink.Limit):
             if reach is not None and bound > reach[k]:
                 self.slack += 1
                 continue
-            row = compute_contact_normal_jacobian(model, data, g1, g2, fromto, self._normal, self._jac1, self._jac2)
-            rows.append(-row if dist >= 0 else row)
+            rows.append(self._row(data, g1, g2, dist))
             bounds.append(bound)
             self.active.append((idx, dist))
         if not rows:
             return Constraint()
         return Constraint(G=np.vstack(rows), h=np.array(bounds))
+
+    def _row(self, data: mujoco.MjData, g1: int, g2: int, dist: float) -> np.ndarray:
+        """The row :math:`-n^T (J_2 - J_1)` of a pair whose witness points are in ``self._fromto``.
+
+        As mink's ``compute_contact_normal_jacobian`` (sign flipped for a penetrating pair), without the
+        Jacobian of a side no joint moves.
+        """
+        fromto, normal = self._fromto, self._normal
+        normal[:] = fromto[3:] - fromto[:3]
+        mujoco.mju_normalize3(normal)
+        b1, b2 = self._body[g1], self._body[g2]
+        if b2 >= 0:
+            mujoco.mj_jac(self.model, data, self._jac2, None, fromto[3:], b2)
+            if b1 >= 0:
+                mujoco.mj_jac(self.model, data, self._jac1, None, fromto[:3], b1)
+                self._jac2 -= self._jac1
+            row = normal @ self._jac2
+        else:
+            mujoco.mj_jac(self.model, data, self._jac1, None, fromto[:3], b1)
+            row = -(normal @ self._jac1)
+        return -row if dist >= 0 else row
 
     def violated(self, model: mujoco.MjModel) -> list[str]:
         """One line per pair at or below its minimum distance at the last call."""
