@@ -145,11 +145,15 @@ class ActiveCollisionLimit(mink.Limit):
         """Number of geom pairs watched."""
         return len(self.geom1)
 
-    def candidates(self, data: mujoco.MjData) -> np.ndarray:
-        """Indices of the watched pairs whose bounding spheres are within detection distance (broadphase only)."""
+    @property
+    def lever(self) -> np.ndarray:
+        """Lever-arm bounds (ngeom, nv) [m]: a joint step ``dq`` moves geom ``g`` by at most ``lever[g] @ |dq|``."""
+        return self._lever
+
+    def sphere_gaps(self, data: mujoco.MjData) -> np.ndarray:
+        """Lower bounds [m] on the distance of every watched pair: centre distance less both bounding radii."""
         delta = data.geom_xpos[self.geom1] - data.geom_xpos[self.geom2]
-        reach = self._rsum + self.detection_distance
-        return np.flatnonzero((np.einsum("ij,ij->i", delta, delta) < reach**2) & self.enabled)
+        return np.sqrt(np.einsum("ij,ij->i", delta, delta)) - self._rsum
 
     def distances(self, data: mujoco.MjData, indices: Sequence[int] | np.ndarray) -> np.ndarray:
         """Signed distances [m] of the given pairs, capped at their detection distance."""

@@ -230,21 +230,26 @@ class QPIK:
         """Q + dq inside the joint limits, halving dq while a collision pair would drop below its minimum.
 
         A pair already below its minimum distance may not get closer; every other pair must stay at or above it.
+        Only pairs whose distance before the step, less how far their geoms can approach in it (lever bounds),
+        is not already above that floor are measured after it: the others cannot have dropped below.
         """
         watch, data = self.collision, self.configuration.data
-        floor: dict[int, float] = {}
-        if watch is not None:
-            idx = watch.candidates(data)
-            dist = np.minimum(watch.distances(data, idx), watch.min_distance[idx])
-            floor = dict(zip(idx.tolist(), dist.tolist(), strict=True))
-        for _ in range(8):
+        if watch is None:
             q_new = np.clip(q + dq, self.box.lower, self.box.upper)
             self.configuration.update(q_new)
-            if watch is None:
-                return q_new
-            idx = watch.candidates(data)
-            need = np.array([floor.get(i, watch.min_distance[i]) for i in idx.tolist()])
-            if np.all(watch.distances(data, idx) >= need - 1e-6):
+            return q_new
+        before = watch.sphere_gaps(data)  # lower bounds; exact (capped at detection) where within detection
+        near = np.flatnonzero((before < watch.detection_distance) & watch.enabled)
+        before[near] = watch.distances(data, near)
+        floor = np.minimum(before, watch.min_distance)
+        for _ in range(8):
+            q_new = np.clip(q + dq, self.box.lower, self.box.upper)
+            with np.errstate(invalid="ignore"):  # inf lever x 0 step: NaN, never skips a pair
+                approach = watch.lever @ np.abs(q_new - q)
+                safe = before - (approach[watch.geom1] + approach[watch.geom2]) >= floor
+            check = np.flatnonzero(~safe & watch.enabled)
+            self.configuration.update(q_new)
+            if np.all(watch.distances(data, check) >= floor[check] - 1e-6):
                 return q_new
             dq = dq * 0.5
         self.configuration.update(q)
