@@ -61,37 +61,37 @@ class Release(Phase):
         self.lateral = lateral
         self.start_z = [float(sp.pos[2]) for sp in self.points]
         self.lowered = [sp.pos - np.array([0.0, 0.0, c.unload]) for sp in self.points]
-        self.stage = 0
-        self.stages: list[tuple[list[np.ndarray], float]] = []
+        self.stage = "unload" if c.unload > 0 else "ease"
+        self.legs: list[tuple[list[np.ndarray], float]] = []  # the moves of the "open" stage: (goals, speed)
+        self.leg = 0
         self.eased = [0.0 for _ in self.frames]
-        if c.unload <= 0:
-            self.stage = -1
 
     def _open(self) -> None:
-        """Stages from where the pads are now: back away along the clamp axis, then rise."""
+        """The open stage's moves from where the pads are now: back away along the clamp axis, then rise."""
         c = self.spec
         opened = [sp.pos + s * c.gap * self.lateral for sp, s in zip(self.points, SIDES, strict=False)]
-        self.stages = [(opened, c.open_speed), ([p + np.array([0.0, 0.0, c.lift]) for p in opened], c.speed)]
-        self.stage = 1
+        self.legs = [(opened, c.open_speed), ([p + np.array([0.0, 0.0, c.lift]) for p in opened], c.speed)]
+        self.stage = "open"
         self.info["unloaded_m"] = round(max(z - float(sp.pos[2]) for z, sp in zip(self.start_z, self.points,
                                                                                      strict=True)), 4)
 
     def update(self, view: View) -> Command:  # noqa: D102
-        if self.stage == 0:  # hand the object's weight to the table
+        if self.stage == "unload":  # hand the object's weight to the table
             if self._unloaded(view) or all([sp.advance(g, UNLOAD_SPEED, view.dt)
                                             for sp, g in zip(self.points, self.lowered, strict=True)]):
-                self.stage = -1
-        elif self.stage == -1:  # ease the squeeze, pad by pad, on each pad's own force
+                self.stage = "ease"
+        elif self.stage == "ease":  # ease the squeeze, pad by pad, on each pad's own force
             if self._ease(view):
                 self._open()
-        elif self.stage - 1 < len(self.stages):
-            goals, speed = self.stages[self.stage - 1]
+        elif self.leg < len(self.legs):
+            goals, speed = self.legs[self.leg]
             if all([sp.advance(g, speed, view.dt) for sp, g in zip(self.points, goals, strict=True)]):
-                self.stage += 1
+                self.leg += 1
         targets = tuple(FrameTarget(f, pos=sp.pos, rot=r) for f, sp, r in zip(self.frames, self.points, self.rots,
                                                                                strict=True))
-        allow = frozenset({self.spec.object}) if self.stage <= 1 else frozenset()  # touching it: down, easing, opening
-        done = self.stage == 1 + len(self.stages) and view.settled()
+        touching = self.stage != "open" or self.leg == 0  # down, easing, opening: the pads may touch the object
+        allow = frozenset({self.spec.object}) if touching else frozenset()
+        done = self.stage == "open" and self.leg == len(self.legs) and view.settled()
         return Command(targets, allow=allow, done=done)
 
     def _ease(self, view: View) -> bool:
