@@ -96,17 +96,21 @@ def test_divergence_is_caught_and_partial_log_written(robot, tmp_path):
         assert 0 < len(z["t"]) < 2000 and np.all(np.isfinite(z["q"][:4]))
 
 
+def nan_velocity_from(t: float, dof: int):
+    """A simulation hook that sets ``qvel[dof]`` to NaN from simulated time ``t`` on."""
+
+    def corrupt(s):
+        if s.time >= t:
+            s.data.qvel[dof] = np.nan
+
+    return corrupt
+
+
 def test_nan_state_is_caught_with_time_and_joint(robot, gains, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT in the working directory
     sim = Simulation(robot, gains, frames=())
     sim.reset(robot.keyframe_q())
-    dof = robot.dof_idx[JOINT_NAMES.index("RARM_JOINT2")]
-
-    def corrupt(s):
-        if s.time >= 0.1:
-            s.data.qvel[dof] = np.nan
-
-    sim.hooks.append(corrupt)
+    sim.hooks.append(nan_velocity_from(0.1, robot.dof_idx[JOINT_NAMES.index("RARM_JOINT2")]))
     with pytest.raises(SimulationError, match=r"t=0\.100 s: joint RARM_JOINT2 state is not finite"):
         sim.run(1.0)
     sim.recorder.save(tmp_path / "nan.npz")
@@ -190,13 +194,7 @@ def test_object_nan_fails_with_mujocos_warning_and_writes_no_log_file(gains, tmp
         robot = Robot.from_scene("push_cube")
         sim = Simulation(robot, gains, frames=())
         sim.reset(robot.keyframe_q())
-        cube = robot.model.jnt_dofadr[robot.model.body("cube").jntadr[0]]
-
-        def corrupt(s):
-            if s.time >= 0.05:
-                s.data.qvel[cube] = np.nan
-
-        sim.hooks.append(corrupt)
+        sim.hooks.append(nan_velocity_from(0.05, robot.model.jnt_dofadr[robot.model.body("cube").jntadr[0]]))
         with pytest.raises(SimulationError, match=r"not finite.*\(MuJoCo: Nan, Inf or huge value in QVEL"):
             sim.run(0.5)
     finally:

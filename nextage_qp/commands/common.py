@@ -55,12 +55,12 @@ def parse_joint_assignments(robot: Robot, items: list[str], base: np.ndarray) ->
     return robot.q_from_names(values, base=base)
 
 
-def out_console() -> Any:
-    """A rich console on stdout that does not truncate when stdout is a pipe or a file (200 columns there)."""
+def out_console(width: int = 200) -> Any:
+    """A rich console on stdout that does not truncate when stdout is a pipe or a file (``width`` columns there)."""
     from rich.console import Console
 
     console = Console()
-    return console if console.is_terminal else Console(width=200)
+    return console if console.is_terminal else Console(width=width)
 
 
 def number(lo: float, hi: float, *, lo_open: bool = False, integer: bool = False) -> Callable[[str], float]:

@@ -15,7 +15,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
-from nextage_qp.commands.common import PLAIN_PROGRESS_S, PLOT_SUFFIXES, SEED, output_file
+from nextage_qp.commands.common import PLAIN_PROGRESS_S, PLOT_SUFFIXES, SEED, out_console, output_file
 from nextage_qp.errors import ConfigError
 from nextage_qp.json_out import dumps
 from nextage_qp.sweep.episode import Episode
@@ -150,9 +150,7 @@ def run(args: argparse.Namespace) -> int:
         from nextage_qp.viz.sweep import plot_sweep
 
         plot_sweep(spec, episodes, args.plot)
-    console = Console()
-    if not console.is_terminal:
-        console = Console(width=120)
+    console = out_console(width=120)
     _print_summary(summary, console, only=args.only is not None, episodes=episodes)
     return 0
 

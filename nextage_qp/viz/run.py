@@ -25,6 +25,11 @@ def tool_frames(runner: Runner) -> list[str]:
     return [f for f in TOOL_SITES if f in runner.robot.site_names]
 
 
+def marker_starts(runner: Runner) -> dict[str, np.ndarray]:
+    """Where each tool frame is now: the yellow markers' positions for the rest of the run."""
+    return {f: runner.view.frame_pose(f).pos for f in tool_frames(runner)}
+
+
 Marker = tuple[np.ndarray, tuple[float, float, float, float], float]
 """A marker sphere: position, RGBA colour, radius."""
 

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 import mujoco
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.viz.run import FAST_FLAGS, draw_markers, marker_points, tool_frames
+from nextage_qp.viz.run import FAST_FLAGS, draw_markers, marker_points, marker_starts
 
 if TYPE_CHECKING:
     from nextage_qp.manipulation.runner import Runner
@@ -86,7 +86,7 @@ class VideoRecorder:
             self.process.join(timeout=5.0)
             raise ConfigError(message)
         self.period, self.next_t = 1.0 / fps, 0.0
-        self.starts = {f: runner.view.frame_pose(f).pos for f in tool_frames(runner)}
+        self.starts = marker_starts(runner)
 
     def _wait(self, timeout: float) -> tuple[str, Any]:
         """The video process's next report, or an error if it died or did not answer within ``timeout`` s."""

@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.viz.run import add_markers, tool_frames
+from nextage_qp.viz.run import add_markers, marker_starts
 
 if TYPE_CHECKING:
     from nextage_qp.manipulation.runner import Runner
@@ -57,7 +57,7 @@ class LiveViewer:
     ends the viewer's thread before the process exits (GLFW torn down under a live window segfaults).
     """
 
-    def __init__(self, runner: Runner, speed: float = 1.0) -> None:
+    def __init__(self, runner: Runner) -> None:
         import threading
 
         import mujoco.viewer
@@ -74,8 +74,8 @@ class LiveViewer:
             self.handle.cam.type = mujoco.mjtCamera.mjCAMERA_FREE
             self.handle.cam.lookat[:] = lookat
             self.handle.cam.distance, self.handle.cam.azimuth, self.handle.cam.elevation = distance, azimuth, elevation
-        self.starts = {f: runner.view.frame_pose(f).pos for f in tool_frames(runner)}
-        self.speed, self.next_t = speed, 0.0
+        self.starts = marker_starts(runner)
+        self.next_t = 0.0
         self.t0: tuple[float, float] | None = None  # (simulated, wall) time of the first frame
 
     def on_tick(self, runner: Runner, phase: Any) -> None:
@@ -92,7 +92,7 @@ class LiveViewer:
         now = time.perf_counter()
         if self.t0 is None:
             self.t0 = (runner.sim.time, now)
-        ahead = (runner.sim.time - self.t0[0]) / self.speed - (now - self.t0[1])
+        ahead = (runner.sim.time - self.t0[0]) - (now - self.t0[1])
         if ahead > 0:
             time.sleep(ahead)
 
