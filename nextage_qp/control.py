@@ -204,12 +204,13 @@ class PDController:
         return c
 
     def count(self, force: np.ndarray) -> None:
-        """Count one physics step's applied actuator force [N·m] (15,) in the saturation counters."""
-        self.ticks += 1
+        """Count physics steps' applied actuator forces [N·m], (15,) or (steps, 15), in the saturation counters."""
+        force = np.atleast_2d(force)
+        self.ticks += force.shape[0]
         sat = np.abs(force) >= self.torque_limit - 1e-9
         if sat.any():
-            self.saturated_ticks += sat
-            self.any_saturated_ticks += 1
+            self.saturated_ticks += sat.sum(axis=0)
+            self.any_saturated_ticks += int(sat.any(axis=1).sum())
 
     def reset_counters(self) -> None:
         """Zero the tick and saturation counters."""

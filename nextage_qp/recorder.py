@@ -1,4 +1,4 @@
-"""The log of a simulated run: every physics step's joint state, reference, torque and chosen poses.
+"""The log of a simulated run: every control tick's joint state, reference, torque and chosen poses.
 
 Saved as ``.npz`` (arrays) plus a ``.json`` summary (duration, peak torques and tracking errors, final state).
 """
@@ -17,7 +17,7 @@ from nextage_qp.json_out import dumps
 
 
 class Recorder:
-    """Per-physics-step log of the loop, growing in chunks; saved as ``.npz`` plus a ``.json`` summary.
+    """Per-control-tick log of the loop, growing in chunks; saved as ``.npz`` plus a ``.json`` summary.
 
     Arrays in the ``.npz``: ``t`` [s] (k,), ``q``, ``qd``, ``q_ref``, ``qd_ref`` [rad, rad/s] and ``tau``
     [N·m] (k, 15), ``frame_<name>`` and ``object_<name>`` (k, 7: position [m], quaternion w x y z), and for
@@ -85,7 +85,7 @@ class Recorder:
         values.append(np.asarray(value, dtype=float))
 
     def recent(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The last ``n`` steps' time [s], q [rad] and qd [rad/s] (views, no copy)."""
+        """The last ``n`` rows' time [s], q [rad] and qd [rad/s] (views, no copy)."""
         lo = max(0, self._n - n)
         b = self._buf
         return b["t"][lo : self._n, 0], b["q"][lo : self._n], b["qd"][lo : self._n]
@@ -128,6 +128,33 @@ class Recorder:
         js = path.with_suffix(".json")
         js.write_text(dumps(self.summary()) + "\n")
         return js
+
+
+class FrameRows:
+    """Reads the world poses of sites and bodies as one (n_frames, 12) array (a reused buffer).
+
+    Args:
+        frames: ``(kind, id)`` pairs, kind ``"site"`` or ``"body"``.
+        data: The MuJoCo state to read.
+    """
+
+    def __init__(self, frames: Sequence[tuple[str, int]], data: Any) -> None:
+        self.data, self._out = data, np.zeros((len(frames), 12))
+        self._site_rows = np.array([i for i, (k, _) in enumerate(frames) if k == "site"], dtype=int)
+        self._site_ids = np.array([fid for k, fid in frames if k == "site"], dtype=int)
+        self._body_rows = np.array([i for i, (k, _) in enumerate(frames) if k != "site"], dtype=int)
+        self._body_ids = np.array([fid for k, fid in frames if k != "site"], dtype=int)
+
+    def __call__(self) -> np.ndarray:
+        """Position and row-major rotation matrix of every frame, (n_frames, 12)."""
+        d, out = self.data, self._out
+        if self._site_ids.size:
+            out[self._site_rows, :3] = d.site_xpos[self._site_ids]
+            out[self._site_rows, 3:] = d.site_xmat[self._site_ids]
+        if self._body_ids.size:
+            out[self._body_rows, :3] = d.xpos[self._body_ids]
+            out[self._body_rows, 3:] = d.xmat[self._body_ids]
+        return out
 
 
 class StageTimer:

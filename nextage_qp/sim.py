@@ -1,22 +1,25 @@
 r"""The control loop: Ruckig references at ``ctrl_dt``, PD torques at every ``sim_dt`` physics step, a recorder.
 
 One :meth:`Simulation.tick` is one control period (default 4 ms = 250 Hz): Ruckig advances the joint
-reference towards the latest target, then ``n_substeps = ctrl_dt / sim_dt`` MuJoCo steps follow, each
-with a fresh torque from the PD law evaluated on the measured state at that step and the Ruckig reference
-sampled at the same instant:
+reference to the end of the period, then ``n_substeps = ctrl_dt / sim_dt`` MuJoCo steps follow, each with a
+fresh torque from the PD law evaluated inside MuJoCo on the state of that step:
 
-.. math:: u_k = \operatorname{clip}(K_p(q^{ref}(t_k) - q_k) + K_d(\dot q^{ref}(t_k) - \dot q_k) + b(q_k, \dot q_k))
+.. math:: u_k = \operatorname{clip}(K_p(q^{ref}(t_k) - q_k) + K_d(\dot q^{ref}(t_k) - \dot q_k) + b)
 
 The law runs in MuJoCo's actuators (:meth:`~nextage_qp.control.PDController.install`): Python sets one control
-vector per step and ``mj_step`` applies the feedback and the clamp; under the ``implicitfast`` integrator the
-damping term is integrated implicitly, so stiff ``kd`` does not destabilise the loop.
+vector per step, ramped linearly from the reference at the start of the period to the one at its end (the
+first-order hold of Ruckig's smooth profile; the bias :math:`b` is sampled once per period), and ``mj_step``
+applies the feedback and the clamp; under the ``implicitfast`` integrator the damping term is integrated
+implicitly, so stiff ``kd`` does not destabilise the loop.
 
 What the controller sees passes through one seam, :class:`Sensors`: the joint state the PD law uses and the
 :class:`Measurement` (joints and free-object poses) the phases read after every tick. The default sensors are
 perfect; noise, delay or an estimator plug in there without touching the loop.
 
-Every physics step is recorded (:class:`~nextage_qp.recorder.Recorder`). A NaN or a joint faster than
-``max_speed`` stops the loop with a :class:`~nextage_qp.errors.SimulationError` naming the time and joint.
+Every control tick is recorded (:class:`~nextage_qp.recorder.Recorder`: the state at the start of the period,
+its reference and the torque of its first physics step); the saturation counters and the ``substep_hooks`` see
+every physics step. A NaN or a joint faster than ``max_speed`` stops the loop with a
+:class:`~nextage_qp.errors.SimulationError` naming the time and joint.
 """
 
 from __future__ import annotations
@@ -27,9 +30,9 @@ import mujoco
 import numpy as np
 
 from nextage_qp.control import Gains, PDController
-from nextage_qp.errors import SimulationError
+from nextage_qp.errors import ConfigError, SimulationError
 from nextage_qp.mj_warnings import MUJOCO_WARNINGS
-from nextage_qp.recorder import Recorder, StageTimer
+from nextage_qp.recorder import FrameRows, Recorder, StageTimer
 from nextage_qp.robot import Robot
 from nextage_qp.sensors import Measurement, PerfectSensors, Pose, Sensors, WrenchSensor
 from nextage_qp.timing import Timing
@@ -39,6 +42,14 @@ __all__ = ["Hook", "Simulation", "StageTimer", "Timing"]
 
 Hook = Callable[["Simulation"], None]
 _BAD = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
+
+
+def _view(idx: np.ndarray) -> slice | np.ndarray:
+    """A slice for a contiguous index array (numpy then returns views, not copies), else the array."""
+    idx = np.asarray(idx, dtype=int)
+    if idx.size and np.array_equal(idx, np.arange(idx[0], idx[0] + idx.size)):
+        return slice(int(idx[0]), int(idx[0]) + idx.size)
+    return idx
 
 
 class Simulation:
@@ -92,11 +103,7 @@ class Simulation:
         self.sensors: Sensors = sensors or PerfectSensors()
         self._perfect = sensors is None or isinstance(sensors, PerfectSensors)
         self.frames = tuple(robot.frame(f) for f in frames)
-        self._frame_rows = np.zeros((len(self.frames), 12))
-        self._site_rows = np.array([i for i, (k, _) in enumerate(self.frames) if k == "site"], dtype=int)
-        self._site_ids = np.array([fid for k, fid in self.frames if k == "site"], dtype=int)
-        self._body_rows = np.array([i for i, (k, _) in enumerate(self.frames) if k != "site"], dtype=int)
-        self._body_ids = np.array([fid for k, fid in self.frames if k != "site"], dtype=int)
+        self._frame_poses = FrameRows(self.frames, self.data)
         self.wrench_sensors = WrenchSensor.of_model(self.model)
         self.objects = tuple((name, robot.object_qpos_slice(name), robot.model.body(name).id)
                              for name in robot.object_names)
@@ -105,6 +112,15 @@ class Simulation:
         self.hooks: list[Hook] = []
         self.substep_hooks: list[Hook] = []
         self.timer: StageTimer | None = None
+        # Views into MjData (the robot's joints and actuators are contiguous in every bundled scene; an index
+        # array otherwise) and per-tick buffers, so the loop allocates little.
+        self._qi, self._di = _view(robot.qpos_idx), _view(robot.dof_idx)
+        ai = _view(robot.actuator_ids)
+        self._ctrl, self._act_force = self.data.ctrl[ai], self.data.actuator_force[ai]
+        if not isinstance(ai, slice):
+            raise ConfigError("the robot's actuators must be contiguous in the model")
+        self._fractions = np.arange(self.n_substeps) / self.n_substeps
+        self._force = np.zeros((self.n_substeps, robot.nq))
         self._raw: RefState | None = None
         self._step = 0
         self.reset(robot.keyframe_q("home"))
@@ -174,43 +190,43 @@ class Simulation:
             SimulationError: The state became NaN or a joint exceeded ``max_speed``.
             TrajectoryError: Ruckig rejected the target.
         """
-        m, d, r, rec, timer = self.model, self.data, self.robot, self.recorder, self.timer
-        qi, di, ai = r.qpos_idx, r.dof_idx, r.actuator_ids
-        raw = self._raw
+        m, d, r, timer, n = self.model, self.data, self.robot, self.timer, self.n_substeps
         if timer:
             timer.start()
-        if raw is None:
-            self.traj.update()
-        pd, perfect, hooks = self.pd, self._perfect, self.substep_hooks
-        for k in range(self.n_substeps):
-            ref = raw if raw is not None else self.traj.interpolate(k * self.sim_dt)
-            if timer:
-                timer.lap("ruckig")
-            mujoco.mj_step1(m, d)
+        raw = self._raw
+        start = raw if raw is not None else self.traj.state
+        end = raw if raw is not None else self.traj.update()
+        if timer:
+            timer.lap("ruckig")
+        q, qd = d.qpos[self._qi], d.qvel[self._di]
+        bias = d.qfrc_bias[self._di]
+        if self._perfect:
+            offsets: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
+        else:
+            qm, qdm = self.sensors.joints(self.time, q.copy(), qd.copy())
+            offsets = (q - qm, qd - qdm)
+        # The actuators' control ramps linearly from the reference at the start of the tick to the one at its
+        # end (Ruckig's profile is smooth: within 4 ms the ramp is its first-order hold); bias and sensor offsets
+        # are held over the tick.
+        c0 = self.pd.ctrl(start.q, start.qd, bias, *offsets)
+        c1 = c0 if end is start else self.pd.ctrl(end.q, end.qd, bias, *offsets)
+        ramp = np.multiply.outer(self._fractions, c1 - c0)
+        ramp += c0
+        self.recorder.record(self.time, q, qd, start.q, start.qd, None, self._frame_poses(), self._object_rows())
+        if timer:
+            timer.lap("pd+record")
+        ctrl, force, hooks = self._ctrl, self._force, self.substep_hooks
+        for k in range(n):
+            ctrl[:] = ramp[k]
+            mujoco.mj_step(m, d)
+            force[k] = self._act_force
+            self._step += 1
             for hook in hooks:
                 hook(self)
-            if timer:
-                timer.lap("physics")
-            q, qd = d.qpos[qi], d.qvel[di]
-            if perfect:
-                d.ctrl[ai] = pd.ctrl(ref.q, ref.qd, d.qfrc_bias[di])
-            else:
-                qm, qdm = self.sensors.joints(self.time, q.copy(), qd.copy())
-                d.ctrl[ai] = pd.ctrl(ref.q, ref.qd, d.qfrc_bias[di], q - qm, qd - qdm)
-            if timer:
-                timer.lap("pd")
-            rec.record(self.time, q, qd, ref.q, ref.qd, None, self._frame_poses(), self._object_rows())
-            if timer:
-                timer.lap("record")
-            mujoco.mj_step2(m, d)  # the actuators apply the PD law to this state (clamped to the torque limits)
-            self._step += 1
-            if timer:
-                timer.lap("physics")
-            tau = d.actuator_force[ai]
-            pd.count(tau)
-            rec.set_last("tau", tau)
-            if timer:
-                timer.lap("pd")
+        if timer:
+            timer.lap("physics")
+        self.pd.count(force)
+        self.recorder.set_last("tau", force[0])
         self._check()
         self._measure()
         for hook in self.hooks:
@@ -223,17 +239,6 @@ class Simulation:
         end = self._step + round(duration / self.sim_dt)
         while self._step < end:
             self.tick()
-
-    def _frame_poses(self) -> np.ndarray:
-        """Position and row-major rotation matrix of every recorded frame, (n_frames, 12) (a reused buffer)."""
-        d, out = self.data, self._frame_rows
-        if self._site_ids.size:
-            out[self._site_rows, :3] = d.site_xpos[self._site_ids]
-            out[self._site_rows, 3:] = d.site_xmat[self._site_ids]
-        if self._body_ids.size:
-            out[self._body_rows, :3] = d.xpos[self._body_ids]
-            out[self._body_rows, 3:] = d.xmat[self._body_ids]
-        return out
 
     def _object_rows(self) -> list[np.ndarray]:
         return [self.data.qpos[s] for _, s, _ in self.objects]
@@ -249,11 +254,10 @@ class Simulation:
         fast = np.abs(np.nan_to_num(qd, nan=np.inf)) > self.max_speed
         names, t = self.robot.joint_names, self.time
         if not finite.all():
-            # NaN spreads to every joint within a step: name the first joint that went bad in this tick.
-            ts, qs, qds = self.recorder.recent(self.n_substeps)
-            bad_rows = np.flatnonzero(~(np.isfinite(qs) & np.isfinite(qds)).all(axis=1))
-            if bad_rows.size:
-                t, q, qd = float(ts[bad_rows[0]]), qs[bad_rows[0]], qds[bad_rows[0]]
+            # NaN spreads to every joint within a step: name the joint already bad at the start of the tick.
+            ts, qs, qds = self.recorder.recent(1)
+            if qs.size and not (np.isfinite(qs[0]).all() and np.isfinite(qds[0]).all()):
+                t, q, qd = float(ts[0]), qs[0], qds[0]
                 finite = np.isfinite(q) & np.isfinite(qd)
             j = int(np.flatnonzero(~finite)[0])
             what = f"joint {names[j]} state is not finite (q={q[j]}, qd={qd[j]})"

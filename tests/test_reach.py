@@ -22,9 +22,10 @@ def test_reach_within_2mm_with_limited_references(robot, pos):
     assert res.time_to_1mm_s is not None
     a = sim.recorder.arrays()
     v, acc, jerk = LIMITS.arrays()
-    dt = sim.sim_dt
-    qdd = np.diff(a["qd_ref"], axis=0) / dt  # mean acceleration over each 1 ms step
-    jrk = np.diff(a["qd_ref"], n=2, axis=0) / dt**2  # mean jerk over each 2 ms window
+    dt = sim.ctrl_dt  # one log row per control tick
+    np.testing.assert_allclose(np.diff(a["t"]), dt)
+    qdd = np.diff(a["qd_ref"], axis=0) / dt  # mean acceleration over each tick
+    jrk = np.diff(a["qd_ref"], n=2, axis=0) / dt**2  # mean jerk over each two-tick window
     assert np.all(np.abs(a["qd_ref"]) <= v + 1e-9)
     assert np.all(np.abs(qdd) <= acc + 1e-6)
     assert np.all(np.abs(jrk) <= jerk * (1 + 1e-6) + 1e-6)
