@@ -65,5 +65,9 @@ class SimulationError(NextageQPError):
     """The simulation diverged (NaN or runaway state) or MuJoCo raised a warning."""
 
 
+class SensorError(SimulationError):
+    """A sensor failed: it returned NaN or froze."""
+
+
 class PhaseError(NextageQPError):
     """A manipulation phase failed (timeout or unreachable target)."""

@@ -14,6 +14,7 @@ from typing import NamedTuple, Protocol
 import mujoco
 import numpy as np
 
+from nextage_qp.errors import SensorError
 from nextage_qp.geometry import Pose
 
 
@@ -78,6 +79,36 @@ class Measurement:
     qd: np.ndarray
     objects: Mapping[str, Pose] = field(default_factory=dict)
     wrenches: Mapping[str, Wrench] = field(default_factory=dict)
+
+
+class SensorWatch:
+    """Fails the run when a force/torque sensor returns NaN or freezes (the same reading for ``frozen_s``).
+
+    A working sensor never repeats a reading exactly: noise, and in simulation the arm's own micro-motion, change
+    it at every tick.
+    """
+
+    def __init__(self, frozen_s: float = 0.2) -> None:
+        self.frozen_s = frozen_s
+        self._last: dict[str, tuple[np.ndarray, float]] = {}  # site -> (reading, since when)
+
+    def check(self, t: float, wrenches: Mapping[str, Wrench]) -> None:
+        """Raise :class:`~nextage_qp.errors.SensorError` for a NaN or frozen reading at ``t`` [s]."""
+        for name, w in wrenches.items():
+            reading = np.concatenate([w.force, w.torque])
+            if not np.all(np.isfinite(reading)):
+                raise SensorError(f"t={t:.3f} s: force/torque sensor {name} returned {reading[:3].tolist()} "
+                                  f"(not finite); the sensor failed")
+            last = self._last.get(name)
+            if last is None or not np.array_equal(last[0], reading):
+                self._last[name] = (reading, t)
+            elif t - last[1] >= self.frozen_s - 1e-9:
+                raise SensorError(f"t={t:.3f} s: force/torque sensor {name} has read the same value "
+                                  f"{np.round(reading[:3], 4).tolist()} N since t={last[1]:.3f} s; the sensor froze")
+
+    def reset(self) -> None:
+        """Forget the readings seen."""
+        self._last.clear()
 
 
 class Sensors(Protocol):

@@ -34,7 +34,7 @@ from nextage_qp.errors import ConfigError, SimulationError
 from nextage_qp.mj_warnings import MUJOCO_WARNINGS
 from nextage_qp.recorder import FrameRows, Recorder, StageTimer
 from nextage_qp.robot import Robot
-from nextage_qp.sensors import Measurement, PerfectSensors, Pose, Sensors, WrenchSensor
+from nextage_qp.sensors import Measurement, PerfectSensors, Pose, Sensors, SensorWatch, WrenchSensor
 from nextage_qp.timing import Timing
 from nextage_qp.trajectory import JointTrajectory, RefState, TrajectoryLimits
 
@@ -105,6 +105,7 @@ class Simulation:
         self.frames = tuple(robot.frame(f) for f in frames)
         self._frame_poses = FrameRows(self.frames, self.data)
         self.wrench_sensors = WrenchSensor.of_model(self.model)
+        self.watch = SensorWatch()
         self.objects = tuple((name, robot.object_qpos_slice(name), robot.model.body(name).id)
                              for name in robot.object_names)
         self.recorder = Recorder(robot.joint_names, tuple(frames), tuple(n for n, _, _ in self.objects),
@@ -153,8 +154,9 @@ class Simulation:
     def _measure(self) -> None:
         t, sensors = self.time, self.sensors
         q, qd = sensors.joints(t, self.q, self.qd)
-        wrenches = {w.name: w.read(self.data) for w in self.wrench_sensors}
-        self.measured = Measurement(t, q, qd, sensors.objects(t, self.object_poses()), sensors.wrenches(t, wrenches))
+        wrenches = sensors.wrenches(t, {w.name: w.read(self.data) for w in self.wrench_sensors})
+        self.watch.check(t, wrenches)
+        self.measured = Measurement(t, q, qd, sensors.objects(t, self.object_poses()), wrenches)
 
     def reset(self, q0: np.ndarray) -> None:
         """Robot at rest at ``q0`` [rad], objects at their scene start poses, empty log, reference = ``q0``."""
@@ -164,6 +166,7 @@ class Simulation:
         mujoco.mj_forward(self.model, self.data)
         self.traj.reset(q0)
         self.pd.reset_counters()
+        self.watch.reset()
         self.recorder.clear()
         self._raw, self._step = None, 0
         self._measure()
@@ -190,7 +193,7 @@ class Simulation:
             SimulationError: The state became NaN or a joint exceeded ``max_speed``.
             TrajectoryError: Ruckig rejected the target.
         """
-        m, d, r, timer, n = self.model, self.data, self.robot, self.timer, self.n_substeps
+        m, d, timer, n = self.model, self.data, self.timer, self.n_substeps
         if timer:
             timer.start()
         raw = self._raw

@@ -176,6 +176,12 @@ def _print_summary(s: dict[str, Any], console: Console, *, only: bool, episodes:
         q = s[key]
         table.add_row(label, _mm(q["median"]), _mm(q["p90"]), _mm(q["p99"]), _mm(q["max"]))
     console.print(table)
+    if (est := s.get("estimation")) is not None:
+        ratios = ", ".join(f"{est[f'estimate_over_{k}']:.2f} of {k}" for k in ("raw", "held")
+                           if est.get(f"estimate_over_{k}") is not None)
+        console.print(f"object estimate RMS {_mm(est['estimate_rms_m'])} mm ({ratios}); raw {_mm(est['raw_rms_m'])} "
+                      f"mm, held {_mm(est['held_rms_m'])} mm; {est['dropouts']}/{est['measurements']} measurements "
+                      f"dropped; {est['shoves']} shoves", markup=False)
     for row in s["by_target_clearance"]:
         lo, hi = row["success_rate_ci95"]
         rate = "-" if row["success_rate"] is None else f"{100 * row['success_rate']:.1f} %"

@@ -18,6 +18,7 @@ import yaml
 from pydantic import BaseModel, Field, create_model
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.faults import EstimationConfig, FaultsConfig
 from nextage_qp.ik import IKConfig
 from nextage_qp.manipulation.phases import REGISTRY, Spec
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, name_field
@@ -85,6 +86,8 @@ class ManipulationConfig(_Strict):
     trajectory: TrajectoryLimits = Field(default_factory=TrajectoryLimits)
     timing: RunTiming = Field(default_factory=RunTiming)
     seed: int = Field(default=0, ge=0, description="Seed of the run's own random draws (a sweep sets one per episode).")
+    faults: FaultsConfig | None = Field(default=None, description="Sensor faults and shoves (none: perfect sensors).")
+    estimation: EstimationConfig = Field(default_factory=EstimationConfig)
     phases: list[Spec] = Field(min_length=1)
 
     def phase_name(self, index: int) -> str:

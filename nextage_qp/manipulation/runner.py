@@ -22,6 +22,7 @@ from nextage_qp.manipulation.phases import Phase, build, names_in
 from nextage_qp.manipulation.placement import check_placement
 from nextage_qp.manipulation.sim_view import SimView
 from nextage_qp.nextage import TOOL_SITES
+from nextage_qp.perception import log_estimates, perception_of
 from nextage_qp.robot import Robot
 from nextage_qp.scene import BodyPose, SceneOverrides
 from nextage_qp.servo import HOLD, Command, Servo
@@ -81,7 +82,8 @@ class Runner:
         except UnknownNameError as exc:
             raise ConfigError(f"{source}: ik: {exc}") from None
         frames = [f for f in TOOL_SITES if f in self.robot.site_names]
-        self.sim = Simulation(self.robot, gains, cfg.trajectory, timing=cfg.timing, frames=frames)
+        self.sensors, self.shoves = perception_of(cfg, self.robot, source)
+        self.sim = Simulation(self.robot, gains, cfg.trajectory, timing=cfg.timing, frames=frames, sensors=self.sensors)
         q0 = self.robot.keyframe_q(cfg.start)
         self.placement = check_placement(self.robot, cfg.object, cfg.target, q0, source)
         self.sim.reset(q0)
@@ -93,9 +95,12 @@ class Runner:
         self.error: str | None = None
         self.wall_s = 0.0
         self.current: Phase | None = None
+        self._phase: tuple[str, str, float] | None = None  # (name, kind, start [s]) of the running phase
 
     def tick(self, command: Command) -> None:
         """One control tick: the servo applies ``command``, the simulation runs, the clamp is watched."""
+        if self.shoves is not None:
+            self.shoves.update(self.sim.data, self.sim.time, self._phase)
         objects = {name: (pose.pos, pose.quat) for name, pose in self.sim.measured.objects.items()}
         self.servo.step(command, objects)
         self.sim.tick()
@@ -113,6 +118,7 @@ class Runner:
                 self.current = phase
                 rec.start_s, rec.status = self.sim.time, "running"
                 phase.t0 = self.sim.time
+                self._phase = (rec.name, spec.kind, self.sim.time)
                 phase.start(view)
                 view.grip = phase.grip(view.grip)
                 while True:
@@ -128,7 +134,7 @@ class Runner:
                         raise PhaseError(f"phase {rec.name!r} ({spec.kind}) timed out after {spec.timeout:g} s "
                                          f"of simulated time; last state: {_brief(phase.info)}")
                 rec.status, rec.duration_s, rec.info = "done", self.sim.time - rec.start_s, dict(phase.info)
-            self.current = None
+            self.current, self._phase = None, None
             end = self.sim.time + self.cfg.timing.settle
             while self.sim.time < end:
                 self.tick(HOLD)
@@ -143,6 +149,8 @@ class Runner:
                         rec.info = dict(self.current.info)
         finally:
             self.wall_s = time.perf_counter() - wall0
+            if self.sensors is not None:
+                log_estimates(self.sensors, self.sim.recorder)
         return self.summary()
 
     def summary(self) -> dict[str, Any]:
@@ -150,7 +158,9 @@ class Runner:
         c = self.cfg
         return summarize(task=c.task, robot=self.robot, sim=self.sim, monitor=self.monitor, records=self.records,
                          obj=c.object, target=c.target, criteria=c.success, error=self.error, wall_s=self.wall_s,
-                         extra={"target_clearance_m": self.placement.target_clearance_m})
+                         extra={"target_clearance_m": self.placement.target_clearance_m,
+                                "estimation": self.sensors.report() if self.sensors is not None else None,
+                                "shoves": self.shoves.applied if self.shoves is not None else []})
 
 
 def _brief(info: dict[str, Any]) -> str:

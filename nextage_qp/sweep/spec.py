@@ -18,6 +18,7 @@ the config rejects) is a one-line :class:`~nextage_qp.errors.ConfigError` naming
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Annotated, Any
@@ -91,6 +92,13 @@ class Distribution(_Strict):
         return u.tolist() if u.ndim else float(u)
 
 
+def _flow(value: Any) -> str:
+    """A YAML flow literal of a ``set:`` value (mappings and lists as JSON, which YAML reads back as they were)."""
+    if isinstance(value, (dict, list)):
+        return json.dumps(value, allow_nan=False)
+    return yaml_scalar(value)
+
+
 class SweepFile(_Strict):
     """The schema of a sweep file (see the module docstring)."""
 
@@ -98,6 +106,8 @@ class SweepFile(_Strict):
     description: str | None = None
     wall_limit: float = Field(default=300.0, gt=0, le=86400, allow_inf_nan=False,
                               description="Wall time after which an episode is stopped and failed [s].")
+    set: dict[str, Any] = Field(default_factory=dict,
+                                description="Dotted key -> value applied to the base config in every episode.")
     randomize: dict[str, Distribution] = Field(min_length=1)
 
 
@@ -120,7 +130,11 @@ class SweepSpec:
         self.base_path = (self.path.parent / self.file.base).resolve()
         if not self.base_path.is_file():
             raise ConfigError(f"{self.path}: base: {self.file.base!r} is not a file (resolved to {self.base_path})")
-        self.base = load_config(self.base_path)
+        self.fixed = [f"{key}={_flow(value)}" for key, value in self.file.set.items()]
+        try:
+            self.base = load_config(self.base_path, self.fixed)
+        except ConfigError as exc:
+            raise ConfigError(f"{self.path}: set: {exc}") from None
         self.distributions = dict(self.file.randomize)
         if "seed" in self.distributions:
             raise self._fail("seed", "the sweep sets each episode's run seed itself; remove this key")
@@ -169,7 +183,7 @@ class SweepSpec:
             values = dist.choice if dist.choice is not None else [self.value_at(key, b) for b in dist.bounds or ()]
             for value in values:
                 try:
-                    cfg = load_config(self.base_path, [f"{key}={yaml_scalar(value)}"])
+                    cfg = load_config(self.base_path, [*self.fixed, f"{key}={yaml_scalar(value)}"])
                     if dist.choice is not None:
                         self._build(cfg)
                 except ConfigError as exc:
@@ -214,4 +228,4 @@ class SweepSpec:
 
     def overrides(self, params: dict[str, Any], run_seed: int) -> list[str]:
         """``--set`` strings that turn the base config into the episode's config (exact round trip)."""
-        return [f"{key}={yaml_scalar(value)}" for key, value in params.items()] + [f"seed={run_seed}"]
+        return [*self.fixed, *(f"{key}={yaml_scalar(value)}" for key, value in params.items()), f"seed={run_seed}"]

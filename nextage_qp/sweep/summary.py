@@ -127,6 +127,30 @@ def by_target_clearance(episodes: Sequence[Episode]) -> list[dict[str, Any]]:
     return rows
 
 
+def estimation(episodes: Sequence[Episode]) -> dict[str, Any] | None:
+    """Object-estimation errors over the episodes that ran with faults (None when none did).
+
+    Per error kind (``estimate``, ``raw``, ``held``: see ``FaultySensors.report``) the RMS over episodes of
+    each episode's RMS [m], and the estimate's ratio to the raw and held errors.
+    """
+    rows = [o for e in episodes if e.result and e.result.get("estimation")
+            for o in e.result["estimation"]["objects"].values()]
+    if not rows:
+        return None
+    out: dict[str, Any] = {"episodes": len(rows)}
+    for kind in ("estimate", "raw", "held"):
+        values = [r[f"{kind}_rms_m"] for r in rows if r.get(f"{kind}_rms_m") is not None]
+        out[f"{kind}_rms_m"] = float(np.sqrt(np.mean(np.square(values)))) if values else None
+    if out["estimate_rms_m"] is not None:
+        for kind in ("raw", "held"):
+            ref = out[f"{kind}_rms_m"]
+            out[f"estimate_over_{kind}"] = out["estimate_rms_m"] / ref if ref else None
+    out["dropouts"] = int(sum(r["dropouts"] for r in rows))
+    out["measurements"] = int(sum(r["measurements"] for r in rows))
+    out["shoves"] = int(sum(len(e.result.get("shoves", [])) for e in episodes if e.result))
+    return out
+
+
 def summarize(spec: SweepSpec, seed: int, episodes: Sequence[Episode], *, session_episodes: int,
               session_wall_s: float) -> dict[str, Any]:
     """The sweep summary printed on the terminal and written by ``--json`` (see ``docs/sweep.md``)."""
@@ -160,6 +184,7 @@ def summarize(spec: SweepSpec, seed: int, episodes: Sequence[Episode], *, sessio
         "failures_by_criterion": dict(by_criterion.most_common()),
         "by_parameter": by_parameter(spec, episodes),
         "by_target_clearance": by_target_clearance(episodes),
+        "estimation": estimation(ran),
         "episodes_per_minute": 60.0 * session_episodes / session_wall_s if session_wall_s > 0 else None,
         "session": {"episodes_run": session_episodes, "wall_time_s": session_wall_s},
         "failed": listed,

@@ -7,7 +7,7 @@ frames, red = the measured tool frames, yellow = where each tool started.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -74,7 +74,9 @@ def plot_run(runner: Runner, path: Path) -> None:
     t = rec["t"]
     obj = rec[f"object_{runner.cfg.object}"][:, :3]
     tgt = runner.view.body_pose(runner.cfg.target).pos
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
+    track = runner.sensors.history.get(runner.cfg.object) if runner.sensors is not None else None
+    fig, axes = plt.subplots(1, 3 if track else 2, figsize=(18 if track else 12, 4.5))
+    ax1, ax2 = axes[:2]
     ax1.semilogy(t, np.maximum(np.linalg.norm(obj - tgt, axis=1), 1e-5), label="3-D")
     ax1.semilogy(t, np.maximum(np.linalg.norm((obj - tgt)[:, :2], axis=1), 1e-5), label="x-y")
     ax1.axhline(runner.cfg.success.planar_error, color="k", ls="--", lw=0.8, label="success threshold (x-y)")
@@ -98,10 +100,28 @@ def plot_run(runner: Runner, path: Path) -> None:
     ax2.set(xlabel="x [m]", ylabel="y [m]", title="top view", aspect="equal")
     ax2.legend(fontsize=7)
     ax2.grid(alpha=0.3)
+    if track:
+        _plot_estimate(axes[2], t, obj, track, runner.cfg.object)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def _plot_estimate(ax: Any, t: np.ndarray, truth: np.ndarray, track: list[Any], name: str) -> None:
+    """Truth, raw measurements (as they arrived) and the estimate the phases saw, x and y against time."""
+    te = np.array([row[0] for row in track])
+    est = np.array([row[1][:3] for row in track])
+    meas = [(row[0], row[2][:3]) for row in track if row[2] is not None]
+    for axis, label in ((0, "x"), (1, "y")):
+        color = f"C{axis}"
+        ax.plot(t, truth[:, axis], color=color, lw=1.5, label=f"{label} truth")
+        ax.plot(te, est[:, axis], color=color, lw=1, ls="--", label=f"{label} estimate")
+        if meas:
+            ax.plot([m[0] for m in meas], [m[1][axis] for m in meas], ".", color=color, ms=2, label=f"{label} measured")
+    ax.set(xlabel="time [s]", ylabel=f"{name} position [m]", title="perception: truth, measurements, estimate")
+    ax.legend(fontsize=7, ncol=3)
+    ax.grid(alpha=0.3)
 
 
 def _box_footprint(runner: Runner, geom: int) -> np.ndarray:

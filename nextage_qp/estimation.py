@@ -1,0 +1,199 @@
+r"""Object pose estimation: constant-velocity Kalman filters on position and roll / pitch / yaw.
+
+A camera reports an object's pose late (``latency``), at its own rate, with noise, and now and then not at all.
+Each filter keeps six decoupled axes (x, y, z [m]; roll, pitch, yaw [rad]), each a position-velocity pair under
+white-noise acceleration of spectral density :math:`q`:
+
+.. math::
+
+    F = \begin{bmatrix}1 & \Delta t\\ 0 & 1\end{bmatrix},\quad
+    Q = q\begin{bmatrix}\Delta t^3/3 & \Delta t^2/2\\ \Delta t^2/2 & \Delta t\end{bmatrix},\quad
+    H = \begin{bmatrix}1 & 0\end{bmatrix},\quad R = \sigma^2
+
+An object mostly rests or moves smoothly, and now and then starts, stops or is shoved: :class:`PoseKalman` runs
+a *still* filter (small :math:`q`) and a *moving* one (``MOVING_GAIN`` times larger) as an interacting multiple
+model (IMM): each measurement re-weights them by their likelihood, and the estimate is their weighted mix.
+
+The state lives at the time the last measurement *describes* (arrival less latency): a measurement is applied
+at its own time stamp and :meth:`PoseKalman.estimate` predicts from there to now, which compensates the latency
+and bridges dropouts. A measurement whose normalised innovation :math:`\sum_i \nu_i^2 / S_i` (moving model)
+exceeds the gate (the 99.9 % point of :math:`\chi^2_6`) is rejected as an outlier; after ``reset_after``
+rejections in a row the object has really moved (a shove) and the filter restarts from the measurement.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from nextage_qp.geometry import Pose
+
+CHI2_6_999 = 22.458
+"""99.9 % point of the chi-square distribution with 6 degrees of freedom (the innovation gate)."""
+
+
+MOVING_GAIN = 1e4
+"""Process noise of the moving model relative to the still one."""
+STAY = 0.99
+"""Probability that the object keeps its mode (still or moving) from one measurement to the next."""
+
+
+def rpy_of(rot: np.ndarray) -> np.ndarray:
+    """Roll, pitch, yaw [rad] of a rotation matrix, ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
+    return np.array([np.arctan2(rot[2, 1], rot[2, 2]), np.arcsin(np.clip(-rot[2, 0], -1.0, 1.0)),
+                     np.arctan2(rot[1, 0], rot[0, 0])])
+
+
+def rot_of(rpy: np.ndarray) -> np.ndarray:
+    """Rotation matrix ``Rz(yaw) Ry(pitch) Rx(roll)`` of roll, pitch, yaw [rad]."""
+    (cr, cp, cy), (sr, sp, sy) = np.cos(rpy), np.sin(rpy)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def _wrap(angle: np.ndarray) -> np.ndarray:
+    return (angle + np.pi) % (2.0 * np.pi) - np.pi
+
+
+class _CV:
+    """Six decoupled constant-velocity Kalman filters (one per pose axis) with one process noise per axis."""
+
+    def __init__(self, q: np.ndarray, r: np.ndarray) -> None:
+        self.q, self.r = q, r
+        self.x = np.zeros((6, 2))
+        self.p = np.zeros((6, 2, 2))
+
+    def predicted(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """State and covariance ``dt`` [s] ahead."""
+        x = self.x.copy()
+        x[:, 0] += dt * x[:, 1]
+        p, q = self.p, self.q
+        out = np.empty_like(p)
+        out[:, 0, 0] = p[:, 0, 0] + dt * (p[:, 1, 0] + p[:, 0, 1]) + dt * dt * p[:, 1, 1] + q * dt**3 / 3.0
+        out[:, 0, 1] = out[:, 1, 0] = p[:, 0, 1] + dt * p[:, 1, 1] + q * dt**2 / 2.0
+        out[:, 1, 1] = p[:, 1, 1] + q * dt
+        return x, out
+
+    def update(self, dt: float, z: np.ndarray) -> tuple[float, float]:
+        """Predict by ``dt`` and apply ``z``; returns (normalised innovation squared, log-likelihood)."""
+        x, p = self.predicted(dt)
+        nu = z - x[:, 0]
+        nu[3:] = _wrap(nu[3:])
+        s = p[:, 0, 0] + self.r
+        nis = float(np.sum(nu * nu / s))
+        k = p[:, :, 0] / s[:, None]  # (6, 2): gain of each axis
+        self.x = x + k * nu[:, None]
+        self.p = p - k[:, :, None] * p[:, None, 0, :]  # (I - K H) P
+        return nis, -0.5 * (nis + float(np.sum(np.log(2.0 * np.pi * s))))
+
+
+class PoseKalman:
+    """Kalman estimate of one object's pose: two constant-velocity models mixed as an IMM (see the module doc).
+
+    An object mostly rests or moves smoothly, and now and then starts, stops or is shoved. One constant-velocity
+    filter cannot both average the noise of a resting object and follow a manoeuvre, so two run side by side
+    (interacting multiple models): *still*, with process noise ``accel_pos`` / ``accel_rot``, and *moving*, with
+    ``MOVING_GAIN`` times that; each measurement re-weights them by their likelihood and the estimate is their
+    probability-weighted mix.
+
+    Args:
+        noise_pos: Measurement noise per position axis [m] (standard deviation).
+        noise_rot: Measurement noise per rotation axis [rad].
+        accel_pos: Process noise of the still model, white acceleration spectral density [m²/s³].
+        accel_rot: The same for the rotation axes [rad²/s³].
+        gate: Innovation gate (normalised squared innovation over all six axes, of the moving model).
+        reset_after: Rejected measurements in a row after which the filter restarts from the measurement.
+
+    Attributes:
+        accepted, rejected, resets: Measurement counts.
+        mode: Probability of each model (still, moving).
+    """
+
+    def __init__(self, noise_pos: float, noise_rot: float, *, accel_pos: float = 1e-6, accel_rot: float = 1e-5,
+                 gate: float = CHI2_6_999, reset_after: int = 5) -> None:
+        floor_pos, floor_rot = 1e-4, 1e-3  # a noiseless camera still gets a small R, so S never vanishes
+        r = np.array([max(noise_pos, floor_pos) ** 2] * 3 + [max(noise_rot, floor_rot) ** 2] * 3)
+        q = np.array([accel_pos] * 3 + [accel_rot] * 3)
+        self.models = (_CV(q, r), _CV(q * MOVING_GAIN, r))
+        self.mode = np.array([0.5, 0.5])
+        self.gate, self.reset_after = gate, reset_after
+        self.t: float | None = None
+        self.accepted = self.rejected = self.resets = 0
+        self._misses = 0
+
+    @property
+    def initialised(self) -> bool:
+        """True once a first measurement has been applied."""
+        return self.t is not None
+
+    def reset(self, t: float, z: np.ndarray) -> None:
+        """Restart at measurement ``z`` (x, y, z, roll, pitch, yaw) taken at ``t`` [s], at rest, uncertain speed."""
+        for m in self.models:
+            m.x[:, 0], m.x[:, 1] = z, 0.0
+            m.p[:] = 0.0
+            m.p[:, 0, 0] = m.r
+            m.p[:, 1, 1] = np.array([0.05**2] * 3 + [0.5**2] * 3)  # objects start (nearly) at rest
+        self.mode[:] = 0.5
+        self.t, self._misses = t, 0
+
+    def update(self, t: float, z: np.ndarray) -> bool:
+        """Apply a measurement ``z`` (x, y, z, roll, pitch, yaw) describing time ``t`` [s]; False if gated out."""
+        z = np.asarray(z, dtype=float)
+        if self.t is None:
+            self.reset(t, z)
+            self.accepted += 1
+            return True
+        dt = max(t - self.t, 0.0)
+        moving = self.models[1]
+        x, p = moving.predicted(dt)
+        nu = z - x[:, 0]
+        nu[3:] = _wrap(nu[3:])
+        if float(np.sum(nu * nu / (p[:, 0, 0] + moving.r))) > self.gate:
+            self.rejected += 1
+            self._misses += 1
+            if self._misses >= self.reset_after:  # not an outlier: the object really is elsewhere (a shove)
+                self.resets += 1
+                self.reset(t, z)
+            return False
+        self._mix()
+        logl = np.array([m.update(dt, z)[1] for m in self.models])
+        w = self._prior * np.exp(logl - logl.max())
+        self.mode = w / w.sum()
+        self.t, self._misses = t, 0
+        self.accepted += 1
+        return True
+
+    def _mix(self) -> None:
+        """IMM mixing: each model restarts from the mixture its predecessors hand it."""
+        trans = np.array([[STAY, 1.0 - STAY], [1.0 - STAY, STAY]])
+        joint = trans * self.mode[:, None]  # [i, j]: from model i to model j
+        self._prior = joint.sum(axis=0)
+        weights = joint / self._prior
+        xs = [m.x for m in self.models]
+        ps = [m.p for m in self.models]
+        for j, m in enumerate(self.models):
+            x0 = sum(weights[i, j] * xs[i] for i in range(2))
+            p0 = sum(weights[i, j] * (ps[i] + _outer(xs[i] - x0)) for i in range(2))
+            m.x, m.p = x0, p0
+
+    def estimate(self, t: float) -> np.ndarray:
+        """Pose (x, y, z, roll, pitch, yaw) predicted to ``t`` [s] (the filter's state is left as it is)."""
+        if self.t is None:
+            raise RuntimeError("no measurement yet")
+        dt = max(t - self.t, 0.0)
+        return sum(w * m.predicted(dt)[0][:, 0] for w, m in zip(self.mode, self.models, strict=True))
+
+
+def _outer(d: np.ndarray) -> np.ndarray:
+    """Per-axis outer products (6, 2, 2) of state differences (6, 2)."""
+    return d[:, :, None] * d[:, None, :]
+
+
+def pose_vector(pose: Pose) -> np.ndarray:
+    """(x, y, z, roll, pitch, yaw) of a pose."""
+    return np.concatenate([pose.pos, rpy_of(pose.rot)])
+
+
+def vector_pose(v: np.ndarray) -> Pose:
+    """The pose of (x, y, z, roll, pitch, yaw)."""
+    return Pose(np.array(v[:3], dtype=float), rot_of(v[3:]))

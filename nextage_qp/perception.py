@@ -1,0 +1,285 @@
+"""Faulty sensors and external shoves: the :class:`~nextage_qp.sensors.Sensors` seam under a ``faults:`` block.
+
+:class:`FaultySensors` turns the true state into what the controller gets: object poses from a simulated camera
+(rate, latency, noise, dropouts) through a :class:`~nextage_qp.estimation.PoseKalman` per object (or the latest
+raw measurement), noisy joint states, noisy or failing force/torque sensors. It keeps the numbers the run
+reports: estimate and raw errors against the truth, dropouts, gated measurements. :class:`Shoves` applies the
+configured impulses through ``xfrc_applied``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from nextage_qp.errors import ConfigError
+from nextage_qp.estimation import PoseKalman, rpy_of, vector_pose
+from nextage_qp.faults import EstimationConfig, FaultsConfig, Shove
+from nextage_qp.geometry import Pose
+from nextage_qp.sensors import Wrench
+
+
+def _rotvec_matrix(w: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a rotation vector [rad] (Rodrigues)."""
+    angle = float(np.linalg.norm(w))
+    if angle < 1e-12:
+        return np.eye(3)
+    x, y, z = w / angle
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+
+
+class _Track:
+    """One object's camera stream, its filter and its error statistics."""
+
+    def __init__(self, kalman: PoseKalman | None) -> None:
+        self.kalman = kalman
+        self.pending: deque[tuple[float, float, np.ndarray]] = deque()  # (arrival, stamp, measured vector)
+        self.raw: np.ndarray | None = None  # latest raw measurement delivered
+        self.taken = self.dropped = 0
+        self.raw_sq: list[float] = []
+        self.raw_yaw: list[float] = []
+        self.est_sq: list[float] = []
+        self.est_yaw: list[float] = []
+        self.held_sq: list[float] = []  # the latest raw measurement against the truth now (no filter)
+
+
+class FaultySensors:
+    """Sensors under a ``faults:`` block (see the module doc).
+
+    Args:
+        faults: The config's faults.
+        estimation: The config's estimation block.
+        seed: The run's seed (every noise stream derives from it).
+        wrench_sites: Names of the force/torque sensor sites (to check ``wrench.fail.site``).
+        source: Where the config came from (for messages).
+
+    Raises:
+        ConfigError: ``wrench.fail.site`` is not a force/torque sensor of the scene.
+    """
+
+    def __init__(self, faults: FaultsConfig, estimation: EstimationConfig, seed: int,
+                 wrench_sites: Sequence[str] = (), source: str = "<config>") -> None:
+        self.faults, self.estimation = faults, estimation
+        self.rng = {k: np.random.default_rng([seed, i]) for i, k in enumerate(("objects", "joints", "wrench"))}
+        fail = faults.wrench.fail if faults.wrench else None
+        if fail is not None and fail.site not in wrench_sites:
+            raise ConfigError(f"{source}: faults.wrench.fail.site: {fail.site!r} is not a force/torque sensor; "
+                              f"valid: {', '.join(wrench_sites) or '(none in this scene)'}")
+        self._tracks: dict[str, _Track] = {}
+        self._next_sample = 0.0
+        self._joint_cache: tuple[float, np.ndarray, np.ndarray] | None = None
+        self._frozen: Wrench | None = None
+        self.history: dict[str, list[tuple[float, np.ndarray, np.ndarray | None]]] = {}
+        """Per object: (t, estimate vector, raw measurement delivered this tick or None), for logs and plots."""
+
+    # -- objects --------------------------------------------------------------------------------------------
+
+    def _track(self, name: str) -> _Track:
+        if name not in self._tracks:
+            cam = self.faults.object_pose
+            kalman = None
+            if self.estimation.object_filter == "kalman":
+                noise = (cam.noise_pos_m, cam.noise_rot_rad) if cam else (0.0, 0.0)
+                kalman = PoseKalman(*noise, accel_pos=self.estimation.accel_pos, accel_rot=self.estimation.accel_rot)
+            self._tracks[name] = _Track(kalman)
+        return self._tracks[name]
+
+    def _measure(self, pose: Pose) -> np.ndarray:
+        cam, rng = self.faults.object_pose, self.rng["objects"]
+        assert cam is not None
+        pos = pose.pos + rng.normal(0.0, cam.noise_pos_m, 3) if cam.noise_pos_m else pose.pos.copy()
+        rot = _rotvec_matrix(rng.normal(0.0, cam.noise_rot_rad, 3)) @ pose.rot if cam.noise_rot_rad else pose.rot
+        return np.concatenate([pos, rpy_of(rot)])
+
+    def objects(self, t: float, true: Mapping[str, Pose]) -> Mapping[str, Pose]:
+        """Estimated (or latest raw) object poses at ``t`` [s]; measurements sampled, delayed, dropped here."""
+        cam = self.faults.object_pose
+        if cam is None:  # no camera faults: exact poses (still through the filter's bookkeeping-free path)
+            return true
+        sample = t + 1e-9 >= self._next_sample
+        if sample:
+            self._next_sample += 1.0 / cam.rate_hz
+        out: dict[str, Pose] = {}
+        for name, pose in true.items():
+            tr = self._track(name)
+            first = tr.raw is None and not tr.pending
+            if sample or first:
+                tr.taken += 1
+                if not first and self.rng["objects"].random() < cam.dropout:
+                    tr.dropped += 1
+                else:
+                    z = self._measure(pose)
+                    # The camera sees the object as it is now; the controller gets it latency_s later (the very
+                    # first measurement is taken to exist before the run starts).
+                    tr.pending.append((t if first else t + cam.latency_s, t, z))
+                    err = z[:3] - pose.pos
+                    tr.raw_sq.append(float(err @ err))
+                    tr.raw_yaw.append(abs(_wrap(z[5] - rpy_of(pose.rot)[2])))
+            delivered = None
+            while tr.pending and tr.pending[0][0] <= t + 1e-9:
+                _, stamp, z = tr.pending.popleft()
+                tr.raw = delivered = z
+                if tr.kalman is not None:
+                    tr.kalman.update(stamp, z)
+            assert tr.raw is not None
+            held = tr.raw[:3] - pose.pos
+            tr.held_sq.append(float(held @ held))
+            est = tr.kalman.estimate(t) if tr.kalman is not None else tr.raw
+            err = est[:3] - pose.pos
+            tr.est_sq.append(float(err @ err))
+            tr.est_yaw.append(abs(_wrap(est[5] - rpy_of(pose.rot)[2])))
+            self.history.setdefault(name, []).append((t, est.copy(), delivered))
+            out[name] = vector_pose(est)
+        return out
+
+    # -- joints and wrenches --------------------------------------------------------------------------------
+
+    def joints(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Noisy joint state; one draw per time stamp (the PD law and the phases see the same values)."""
+        js = self.faults.joint_sensors
+        if js is None:
+            return q, qd
+        if self._joint_cache is not None and self._joint_cache[0] == t:
+            return self._joint_cache[1], self._joint_cache[2]
+        rng = self.rng["joints"]
+        qm = q + rng.normal(0.0, js.noise_rad, q.shape) if js.noise_rad else q.copy()
+        qdm = qd + rng.normal(0.0, js.noise_rad_s, qd.shape) if js.noise_rad_s else qd.copy()
+        self._joint_cache = (t, qm, qdm)
+        return qm, qdm
+
+    def wrenches(self, t: float, true: Mapping[str, Wrench]) -> Mapping[str, Wrench]:
+        """Noisy wrenches; a failed sensor freezes at its last reading or returns NaN from ``fail.at_s`` on."""
+        wf = self.faults.wrench
+        if wf is None:
+            return true
+        rng, out = self.rng["wrench"], {}
+        for name, w in true.items():
+            force = w.force + rng.normal(0.0, wf.noise_n, 3) if wf.noise_n else w.force
+            torque = w.torque + rng.normal(0.0, wf.noise_nm, 3) if wf.noise_nm else w.torque
+            reading = Wrench(force, torque)
+            if wf.fail is not None and name == wf.fail.site and t + 1e-9 >= wf.fail.at_s:
+                if wf.fail.mode == "nan":
+                    reading = Wrench(np.full(3, np.nan), np.full(3, np.nan))
+                else:
+                    self._frozen = self._frozen or reading
+                    reading = self._frozen
+            out[name] = reading
+        return out
+
+    # -- report ---------------------------------------------------------------------------------------------
+
+    def report(self) -> dict[str, Any]:
+        """Estimation errors against the truth per object.
+
+        ``estimate_*``: the pose the phases saw, every tick; ``raw_*``: each measurement against the pose it
+        describes (the camera's noise); ``held_*``: the latest measurement against the truth at every tick (what
+        the phases would see without a filter: noise, latency and the wait for the next measurement).
+        """
+        objects = {}
+        for name, tr in self._tracks.items():
+            k = tr.kalman
+            objects[name] = {
+                "estimate_rms_m": _rms(tr.est_sq), "estimate_max_m": _max_sqrt(tr.est_sq),
+                "estimate_yaw_rms_rad": _rms([y * y for y in tr.est_yaw]),
+                "raw_rms_m": _rms(tr.raw_sq), "raw_max_m": _max_sqrt(tr.raw_sq),
+                "raw_yaw_rms_rad": _rms([y * y for y in tr.raw_yaw]),
+                "held_rms_m": _rms(tr.held_sq), "held_max_m": _max_sqrt(tr.held_sq),
+                "measurements": tr.taken, "dropouts": tr.dropped,
+                "rejected": k.rejected if k else 0, "filter_resets": k.resets if k else 0,
+            }
+        return {"object_filter": self.estimation.object_filter, "objects": objects}
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _rms(squares: list[float]) -> float | None:
+    return math.sqrt(sum(squares) / len(squares)) if squares else None
+
+
+def _max_sqrt(squares: list[float]) -> float | None:
+    return math.sqrt(max(squares)) if squares else None
+
+
+class Shoves:
+    """Applies a config's shoves through ``xfrc_applied`` (force = impulse / window, over whole control ticks).
+
+    Args:
+        shoves: The config's shoves.
+        body_ids: Body name -> MuJoCo body id.
+        ctrl_dt: The control period [s] (the window is rounded to whole ticks).
+    """
+
+    def __init__(self, shoves: Sequence[Shove], body_ids: Mapping[str, int], ctrl_dt: float) -> None:
+        self.shoves, self.body_ids, self.ctrl_dt = list(shoves), body_ids, ctrl_dt
+        self._left = [0 for _ in self.shoves]  # ticks of force still to apply (-1: done)
+        self.applied: list[dict[str, Any]] = []
+
+    def update(self, data: Any, t: float, phase: tuple[str, str, float] | None) -> None:
+        """Before a tick at ``t`` [s]: start due shoves and set the force of the running ones.
+
+        ``phase`` is the current phase's (name, kind, start time [s]), or None.
+        """
+        for i, s in enumerate(self.shoves):
+            bid = self.body_ids[s.body]
+            if self._left[i] == 0 and self._due(s, t, phase):
+                ticks = max(1, round(s.duration_s / self.ctrl_dt))
+                self._left[i] = ticks
+                self.applied.append({"body": s.body, "t_s": round(t, 6), "impulse_ns": list(s.impulse_ns),
+                                     "phase": phase[0] if phase else None})
+            if self._left[i] > 0:
+                ticks = max(1, round(s.duration_s / self.ctrl_dt))
+                data.xfrc_applied[bid, :3] = np.asarray(s.impulse_ns) / (ticks * self.ctrl_dt)
+                self._left[i] -= 1
+                if self._left[i] == 0:
+                    self._left[i] = -1
+            elif self._left[i] == -1:
+                data.xfrc_applied[bid, :3] = 0.0
+                self._left[i] = -2
+
+    @staticmethod
+    def _due(s: Shove, t: float, phase: tuple[str, str, float] | None) -> bool:
+        if s.at_s is not None:
+            return t + 1e-9 >= s.at_s
+        return phase is not None and s.phase in phase[:2] and t + 1e-9 >= phase[2] + s.after_s
+
+
+def perception_of(cfg: Any, robot: Any, source: str) -> tuple[FaultySensors | None, Shoves | None]:
+    """The faulty sensors and the shoves of a manipulation config (None, None without a ``faults`` block).
+
+    Raises:
+        ConfigError: A shove names a phase the config does not have, or a sensor the scene does not have.
+    """
+    faults = cfg.faults
+    if faults is None:
+        return None, None
+    phases = {cfg.phase_name(i) for i in range(len(cfg.phases))} | {p.kind for p in cfg.phases}
+    for i, s in enumerate(faults.shoves):
+        if s.phase is not None and s.phase not in phases:
+            raise ConfigError(f"{source}: faults.shoves[{i}].phase: {s.phase!r} is not a phase of this config; "
+                              f"valid: {', '.join(sorted(phases))}")
+    sites = [robot.model.site(int(robot.model.sensor_objid[k])).name for k in range(robot.model.nsensor)
+             if int(robot.model.sensor_type[k]) == int(mujoco.mjtSensor.mjSENS_FORCE)]
+    sensors = FaultySensors(faults, cfg.estimation, cfg.seed, sites, source)
+    bodies = {name: robot.model.body(name).id for name in robot.object_names}
+    return sensors, Shoves(faults.shoves, bodies, cfg.timing.ctrl_dt)
+
+
+def log_estimates(sensors: FaultySensors, recorder: Any) -> None:
+    """Add each object's estimate (every tick) and raw measurements (on arrival) to a run's log.
+
+    Arrays ``extra_estimate_<object>`` and ``extra_measurement_<object>`` (k, 6): x, y, z [m], roll, pitch,
+    yaw [rad], with their times in ``..._t``.
+    """
+    for name, rows in sensors.history.items():
+        for t, est, raw in rows:
+            recorder.add(f"estimate_{name}", t, est)
+            if raw is not None:
+                recorder.add(f"measurement_{name}", t, raw)

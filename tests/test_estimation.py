@@ -1,0 +1,92 @@
+"""The object filter: converges, tracks, bridges dropouts, rejects outliers, restarts after a real jump."""
+
+import numpy as np
+import pytest
+
+from nextage_qp.estimation import PoseKalman, pose_vector, rot_of, rpy_of, vector_pose
+
+SIGMA_POS, SIGMA_ROT, RATE = 0.002, 0.0175, 30.0
+
+
+def measure(rng, truth):
+    return truth + np.r_[rng.normal(0, SIGMA_POS, 3), rng.normal(0, SIGMA_ROT, 3)]
+
+
+def test_rpy_round_trip():
+    rng = np.random.default_rng(1)
+    for rpy in rng.uniform([-0.5, -0.5, -3.0], [0.5, 0.5, 3.0], (20, 3)):
+        np.testing.assert_allclose(rpy_of(rot_of(rpy)), rpy, atol=1e-12)
+    pose = vector_pose(np.array([0.1, 0.2, 0.3, 0.05, -0.02, 1.0]))
+    np.testing.assert_allclose(pose_vector(pose), [0.1, 0.2, 0.3, 0.05, -0.02, 1.0], atol=1e-12)
+
+
+def test_converges_on_a_static_object():
+    rng = np.random.default_rng(0)
+    kf = PoseKalman(SIGMA_POS, SIGMA_ROT)
+    truth = np.array([0.33, 0.0, 0.91, 0.0, 0.0, 0.4])
+    errors = []
+    for i in range(int(5 * RATE)):
+        kf.update(i / RATE, measure(rng, truth))
+        errors.append(np.linalg.norm(kf.estimate(i / RATE)[:3] - truth[:3]))
+    late = np.sqrt(np.mean(np.square(errors[-60:])))  # the last 2 s
+    assert late < 0.5 * SIGMA_POS * np.sqrt(3)  # under half the raw 3-D noise
+    assert abs(kf.estimate(5.0)[5] - 0.4) < 0.01
+    assert kf.rejected == 0
+
+
+def test_tracks_a_moving_object_with_latency_and_bridges_half_a_second_of_dropouts():
+    rng = np.random.default_rng(2)
+    kf = PoseKalman(SIGMA_POS, SIGMA_ROT)
+    v, latency = np.array([0.08, -0.03, 0.0]), 0.02
+    start = np.array([0.3, 0.1, 0.9])
+
+    def truth(t):
+        return np.r_[start + v * np.clip(t - 1.0, 0.0, None), 0.0, 0.0, 0.2]  # at rest, then moving at v
+
+    errors = {}
+    for i in range(int(6 * RATE)):
+        t_sample = i / RATE
+        gap = 4.0 <= t_sample < 4.5  # half a second without a single measurement
+        if not gap:
+            kf.update(t_sample, measure(rng, truth(t_sample)))  # it arrives latency later: applied at its stamp
+        now = t_sample + latency
+        errors[round(now, 4)] = np.linalg.norm(kf.estimate(now)[:3] - truth(now)[:3])
+    moving = [e for t, e in errors.items() if 2.5 <= t < 4.0]
+    bridged = [e for t, e in errors.items() if 4.0 <= t < 4.5 + latency]
+    assert np.sqrt(np.mean(np.square(moving))) < 0.003
+    assert max(bridged) < 0.006  # predicted through the gap at the estimated velocity
+    np.testing.assert_allclose(kf.estimate(6.0)[:3], truth(6.0)[:3], atol=0.005)
+
+
+def test_an_outlier_is_gated_and_a_real_jump_restarts_the_filter():
+    rng = np.random.default_rng(3)
+    kf = PoseKalman(SIGMA_POS, SIGMA_ROT)
+    truth = np.array([0.5, 0.0, 0.92, 0.0, 0.0, 0.0])
+    for i in range(60):
+        kf.update(i / RATE, measure(rng, truth))
+    before = kf.estimate(2.0).copy()
+    assert not kf.update(2.0, truth + np.r_[0.05, 0, 0, 0, 0, 0])  # one 5 cm outlier
+    np.testing.assert_allclose(kf.estimate(2.0), before, atol=1e-9)
+    moved = truth + np.r_[0.0, 0.08, 0, 0, 0, 0]  # shoved 8 cm: every measurement from now on says so
+    for i in range(10):
+        kf.update(2.0 + (i + 1) / RATE, measure(rng, moved))
+    assert kf.resets == 1
+    np.testing.assert_allclose(kf.estimate(2.4)[:3], moved[:3], atol=0.006)
+
+
+def test_yaw_wraps_across_pi():
+    rng = np.random.default_rng(4)
+    kf = PoseKalman(SIGMA_POS, SIGMA_ROT)
+    for i in range(90):
+        yaw = np.pi - 0.01 + 0.02 * (i % 2)  # measurements alternate either side of +-pi
+        z = np.r_[0.3, 0.0, 0.9, 0.0, 0.0, (yaw + np.pi) % (2 * np.pi) - np.pi]
+        kf.update(i / RATE, z + np.r_[rng.normal(0, 1e-4, 3), 0, 0, 0])
+    assert kf.rejected == 0
+    assert abs(np.cos(kf.estimate(3.0)[5]) + 1.0) < 1e-3
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.002])
+def test_noiseless_and_noisy_cameras_both_accepted(noise):
+    kf = PoseKalman(noise, 0.0)
+    kf.update(0.0, np.zeros(6))
+    assert kf.update(1 / RATE, np.zeros(6)) and kf.initialised
