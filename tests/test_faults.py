@@ -117,3 +117,45 @@ def test_fault_sweep_files_apply_their_fixed_keys():
         cfg = load_config(spec.base_path, spec.overrides(params, seed))
         assert cfg.faults is not None and cfg.faults.object_pose.rate_hz == 30
         assert cfg.faults.shoves[0].after_s == params["faults.shoves.0.after_s"]
+
+
+class FakeView:
+    """Just enough of a View for the force-sensing helpers: time, period and one wrench."""
+
+    def __init__(self, force):
+        from nextage_qp.sensors import Wrench
+
+        self.t, self.dt, self._wrench = 0.0, 0.004, Wrench(np.asarray(force, float), np.zeros(3))
+
+    def wrench(self, site):
+        return self._wrench
+
+
+def test_push_contact_onset_and_loss_from_the_wrist_force():
+    from nextage_qp.manipulation.contact import PushContact
+
+    contact, view = PushContact("left_tool"), FakeView([-2.0, 0.0, 0.0])  # the cube pushes back along -x
+    d = np.array([1.0, 0.0])
+    felt = []
+    for k in range(200):
+        view.t = k * view.dt
+        if k == 100:
+            view._wrench = view._wrench._replace(force=np.zeros(3))  # the cube slipped off the tool
+        felt.append(contact.update(view, d))
+    assert not felt[0] and felt[60] and not felt[-1]
+    assert contact.onsets == 1 and contact.losses == 1
+
+
+def test_a_clamp_whose_pads_no_longer_feel_the_object_fails_the_phase():
+    from nextage_qp.errors import PhaseError
+    from nextage_qp.ik import RelativeTarget
+    from nextage_qp.manipulation.clamp import Clamp
+    from nextage_qp.manipulation.context import Grip
+
+    tie = RelativeTarget("left_pad", "right_pad", np.zeros(3), np.eye(3))
+    grip = Grip("dumbbell", ("left_pad", "right_pad"), {}, {}, tie, force=20.0)
+    clamp = Clamp(grip, relative_cost=1.0)
+    clamp.check_hold()  # felt starts at the grip force
+    clamp.felt = [3.0, 1.0]
+    with pytest.raises(PhaseError, match=r"the clamp lost dumbbell: the pads feel 3\.0 N and 1\.0 N of the 20 N"):
+        clamp.check_hold()

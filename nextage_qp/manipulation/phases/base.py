@@ -14,7 +14,8 @@ from typing import Any, ClassVar, Literal
 from pydantic import BaseModel, Field
 
 from nextage_qp.errors import PhaseError
-from nextage_qp.manipulation.context import Clamp, Grip, View
+from nextage_qp.manipulation.clamp import Clamp
+from nextage_qp.manipulation.context import Grip, View
 from nextage_qp.servo import Command
 from nextage_qp.yaml_file import STRICT
 

@@ -25,6 +25,7 @@ from pydantic import Field, model_validator
 from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import rot_z, rotate2, turn2, unit2, yaw_of
 from nextage_qp.ik import FrameTarget
+from nextage_qp.manipulation.contact import PushContact
 from nextage_qp.manipulation.context import Setpoint, View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
 from nextage_qp.manipulation.push_approach import plan_approach
@@ -105,8 +106,8 @@ class Push(Phase):
         pos, rot = view.commanded_pose(self.spec.frame)
         self.sp = Setpoint(pos)
         self.tool_yaw = yaw_of(rot)
-        self.approaches = 0
-        self.info.update(attempts=0, nudges=0)
+        self.approaches, self.contact = 0, PushContact(self.spec.frame)
+        self.info.update(attempts=0, nudges=0, contact_onsets=0, contact_losses=0)
         obj, tgt, _ = self._planar(view)
         self._approach(view, unit2((tgt - obj)[:2]))
         if self.plan_failed:
@@ -141,8 +142,7 @@ class Push(Phase):
         c, s = np.cos(self.spec.pitch), np.sin(self.spec.pitch)
         return rot_z(yaw) @ np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
-    def _turn_tool(self, view: View) -> None:
-        """Turn the commanded tool yaw towards the goal at the turn rate."""
+    def _turn_tool(self, view: View) -> None:  # towards the goal at the turn rate
         step = self.spec.turn_rate * view.dt
         self.tool_yaw += float(np.clip(np.angle(np.exp(1j * (self.goal_yaw - self.tool_yaw))), -step, step))
 
@@ -203,7 +203,8 @@ class Push(Phase):
         along, lateral = float(rel @ d), float(rel @ n)
         gap = max(-half - along, 0.0)  # the setpoint's distance to the object's face before contact
         wanted = float(np.clip(c.push_speed * (remaining + gap) / c.slow_down, c.creep_speed, c.push_speed))
-        self.touched = self.touched or gap < 1e-3
+        self.touched = self.touched or gap < 1e-3 or self.contact.update(view, d)  # geometry or the wrist's sensor
+        self.info.update(contact_onsets=self.contact.onsets, contact_losses=self.contact.losses)
         if not self.touched:
             wanted = min(wanted, max(c.creep_speed, gap / GAP_TIME))  # touch the object slowly
         self.v = min(wanted, self.v + PUSH_ACCEL * view.dt)
