@@ -41,7 +41,8 @@ class Approach(NamedTuple):
 
 def routes(view: View, spec, tool: np.ndarray, d: np.ndarray) -> list[list[np.ndarray]]:
     """Transit routes (lift point first) from ``tool`` to behind ``spec.object`` for push direction ``d``."""
-    obj = view.body_pose(spec.object).pos
+    obj = view.body_pose(spec.object).pos.copy()
+    obj[2] = view.rest_height(spec.object)  # a pushed object stands on the table: its height is known, not seen
     d3, n3 = np.array([*d, 0.0]), np.array([-d[1], d[0], 0.0])
     behind = obj - d3 * (view.extent(spec.object, d3) + spec.approach)
     behind[2] = obj[2] + spec.height
