@@ -9,7 +9,8 @@ import pytest
 from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import Pose, rot_z, yaw_of
 from nextage_qp.ik import FrameTarget, RelativeTarget
-from nextage_qp.manipulation.context import Clamp, Grip
+from nextage_qp.manipulation.clamp import Clamp
+from nextage_qp.manipulation.context import Grip
 from nextage_qp.manipulation.phases import REGISTRY, build
 from nextage_qp.manipulation.route import PlannedRoute
 from nextage_qp.sensors import Wrench

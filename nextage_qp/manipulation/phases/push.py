@@ -17,84 +17,28 @@ A small state machine, every step driven by the live object pose:
 
 from __future__ import annotations
 
-from typing import Literal
-
 import numpy as np
-from pydantic import Field, model_validator
 
 from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import rot_z, rotate2, turn2, unit2, yaw_of
 from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.contact import PushContact
 from nextage_qp.manipulation.context import Setpoint, View
-from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
+from nextage_qp.manipulation.phases.base import Phase
+from nextage_qp.manipulation.phases.push_spec import (
+    GAP_TIME,
+    HEIGHT_GAIN,
+    LOST_GAP,
+    MAX_BIAS,
+    MAX_HEIGHT_BIAS,
+    MIN_STEER_SPEED,
+    PUSH_ACCEL,
+    STEER_GAIN,
+    VELOCITY_WINDOW,
+    PushSpec,
+)
 from nextage_qp.manipulation.push_approach import plan_approach
 from nextage_qp.servo import Command
-
-PUSH_ACCEL = 0.1
-"""Acceleration of the push speed [m/s²]."""
-STEER_GAIN = 0.5
-"""Integral gain of the push's heading bias per radian of object-motion error [1/s]."""
-MAX_BIAS = 0.35
-"""Largest heading bias between the push and the object's bearing to the target [rad]."""
-MIN_STEER_SPEED = 0.005
-"""Object speed above which its motion direction is trusted for steering [m/s]."""
-VELOCITY_WINDOW = 0.2
-"""Time constant of the object's velocity estimate [s]."""
-HEIGHT_GAIN = 5.0
-"""Integral gain of the tool-height hold while pushing [1/s]."""
-MAX_HEIGHT_BIAS = 0.01
-"""Largest correction of the commanded tool height while pushing [m]."""
-GAP_TIME = 0.5
-"""Before contact the tool closes the gap to the object in about this time [s] (slowly at the touch)."""
-
-
-class PushSpec(Spec):
-    """Push an object onto a target with one tool frame, steering from the object's live pose."""
-
-    kind: Literal["push"]
-    frame: str = name_field("frame", description="Tool frame that pushes, e.g. left_tool.")
-    object: str = name_field("object", description="Free body to push, e.g. cube.")
-    target: str = name_field("body", description="Body marking where the object should end, e.g. cube_target.")
-    height: float = Field(default=0.0, ge=-0.2, le=0.2, description="Tool height over the object centre [m].")
-    approach: float = Field(default=0.04, gt=0, le=0.3, description="Gap behind the object before a push [m].")
-    clearance: float = Field(default=0.07, gt=0, le=0.5, description="Height over the object's top in transit [m].")
-    tolerance: float = Field(default=0.002, gt=0, le=0.1, description="Planar error that ends the phase [m].")
-    accept: float = Field(default=0.005, gt=0, le=0.2, description="Error accepted when no try is left [m].")
-    attempts: int = Field(default=4, ge=1, le=20, description="Approaches (the first push and re-approaches).")
-    nudges: int = Field(default=3, ge=0, le=20, description="Resumed pushes on the same line per approach.")
-    speed: float = Field(default=0.15, gt=0, le=1.0, description="Transit speed [m/s].")
-    push_speed: float = Field(default=0.05, gt=0, le=0.5, description="Top speed in contact [m/s].")
-    creep_speed: float = Field(default=0.005, gt=0, le=0.1, description="Speed at the target [m/s].")
-    slow_down: float = Field(default=0.04, gt=0, le=0.5, description="Distance over which the push slows [m].")
-    preload: float = Field(default=0.012, gt=0, le=0.05, description="Lead of the tool into the object [m].")
-    turn_rate: float = Field(default=0.5, gt=0, le=5.0, description="Turn rate of the push direction [rad/s].")
-    freeze: float = Field(default=0.04, ge=0, le=0.2, description="Distance inside which the direction is kept [m].")
-    centre_band: float = Field(default=0.01, ge=0, le=0.1,
-                               description="Offset of the object along the tool face left alone [m].")
-    max_tilt: float = Field(default=0.07, gt=0, le=1.0,
-                            description="Object tilt above which the push pauses until it is flat again [rad].")
-    settle: float = Field(default=0.3, ge=0, le=MAX_SECONDS, description="Rest before the error is judged [s].")
-    yaw: float = Field(default=0.0, ge=-np.pi, le=np.pi, description="Tool yaw relative to the push [rad].")
-    pitch: float = Field(default=0.0, ge=-0.8, le=0.8,
-                         description="Tool pitch [rad]; > 0 tilts the push face's normal down.")
-    standoff: float = Field(default=0.004, ge=0, le=0.05,
-                            description="The first push stops this short of the target; a short push aimed from "
-                                        "the side the error then points to finishes the job [m].")
-    correction_fan: float = Field(default=0.53, ge=0, le=1.6,
-                                  description="Largest deviation from the error's direction for a correction [rad].")
-    fan: tuple[float, ...] = Field(
-        default=(0.0, 0.2618, 0.5236, 0.7854, 1.0472), min_length=1,
-        description="Deviations from the line to the target tried, each way, when its approach is out of reach [rad].",
-    )
-
-    @model_validator(mode="after")
-    def _accept_covers_tolerance(self) -> PushSpec:
-        if self.accept < self.tolerance:
-            raise ValueError(f"accept ({self.accept} m) must be >= tolerance ({self.tolerance} m)")
-        if self.creep_speed > self.push_speed:
-            raise ValueError(f"creep_speed ({self.creep_speed}) must be <= push_speed ({self.push_speed})")
-        return self
 
 
 class Push(Phase):
@@ -202,6 +146,10 @@ class Push(Phase):
         rel = self.sp.pos[:2] - obj[:2]
         along, lateral = float(rel @ d), float(rel @ n)
         gap = max(-half - along, 0.0)  # the setpoint's distance to the object's face before contact
+        if gap > c.approach + LOST_GAP or abs(lateral) > half + LOST_GAP:  # knocked away from the tool's line
+            self.info["knocked_away"] = self.info.get("knocked_away", 0) + 1
+            self.next_d = unit2((tgt - obj)[:2])
+            return self._start_retreat(final=False) if self.approaches < c.attempts else self._finish(dist)
         wanted = float(np.clip(c.push_speed * (remaining + gap) / c.slow_down, c.creep_speed, c.push_speed))
         self.touched = self.touched or gap < 1e-3 or self.contact.update(view, d)  # geometry or the wrist's sensor
         self.info.update(contact_onsets=self.contact.onsets, contact_losses=self.contact.losses)
