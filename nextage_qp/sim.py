@@ -104,8 +104,7 @@ class Simulation:
         self._perfect = sensors is None or isinstance(sensors, PerfectSensors)
         self.frames = tuple(robot.frame(f) for f in frames)
         self._frame_poses = FrameRows(self.frames, self.data)
-        self.wrench_sensors = WrenchSensor.of_model(self.model)
-        self.watch = SensorWatch()
+        self.wrench_sensors, self.watch = WrenchSensor.of_model(self.model), SensorWatch()
         self.objects = tuple((name, robot.object_qpos_slice(name), robot.model.body(name).id)
                              for name in robot.object_names)
         self.recorder = Recorder(robot.joint_names, tuple(frames), tuple(n for n, _, _ in self.objects),
