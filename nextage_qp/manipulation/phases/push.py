@@ -50,7 +50,7 @@ class Push(Phase):
         pos, rot = view.commanded_pose(self.spec.frame)
         self.sp = Setpoint(pos)
         self.tool_yaw = yaw_of(rot)
-        self.approaches, self.contact = 0, PushContact(self.spec.frame)
+        self.approaches, self.recoveries, self.full, self.contact = 0, 0, False, PushContact(self.spec.frame)
         self.info.update(attempts=0, nudges=0, contact_onsets=0, contact_losses=0)
         obj, tgt, _ = self._planar(view)
         self._approach(view, unit2((tgt - obj)[:2]))
@@ -62,13 +62,17 @@ class Push(Phase):
         obj, tgt = view.body_pose(self.spec.object).pos, view.body_pose(self.spec.target).pos
         return obj, tgt, float(np.linalg.norm((tgt - obj)[:2]))
 
-    def _approach(self, view: View, d_goal: np.ndarray) -> None:
-        """Plan the next approach: the direction closest to ``d_goal`` with a route the arm can reach."""
+    def _approach(self, view: View, d_goal: np.ndarray, full: bool = False) -> None:
+        """Plan the next approach: the direction closest to ``d_goal`` with a route the arm can reach.
+
+        The first approach (and ``full``) may deviate by the whole ``fan``, a correction by ``correction_fan``.
+        """
         c = self.spec
         self.approaches += 1
         self.nudges = 0
-        fan = c.fan if self.approaches == 1 else tuple(a for a in c.fan if a <= c.correction_fan)
+        fan = c.fan if self.approaches == 1 or full else tuple(a for a in c.fan if a <= c.correction_fan)
         plan = plan_approach(view, c, self.sp.pos, d_goal, fan, self._rot)
+        self.planned_at = view.body_pose(c.object).pos[:2].copy()
         tried = plan.tried if plan else sum(1 + (a != 0) for a in fan)
         self.info.update(attempts=self.approaches, directions_tried=tried)
         self.plan_failed = plan is None
@@ -96,6 +100,16 @@ class Push(Phase):
     def _transit(self, view: View) -> Command:
         """Lift straight up, then move through the planned joints of the route (the wrist turns once lifted)."""
         c = self.spec
+        obj, tgt, dist = self._planar(view)
+        moved = float(np.linalg.norm(obj[:2] - self.planned_at)) > LOST_GAP
+        if moved and self.recoveries < c.recoveries:  # knocked away during the transit: plan for where it is now
+            self.recoveries, self.approaches = self.recoveries + 1, self.approaches - 1
+            self.info["knocked_away"] = self.info.get("knocked_away", 0) + 1
+            pos, rot = view.commanded_pose(c.frame)
+            self.sp.jump(pos)
+            self.tool_yaw = yaw_of(rot)
+            self._approach(view, unit2((tgt - obj)[:2]), full=True)
+            return self._command(allow=False) if not self.plan_failed else self._finish(dist)
         if self.lifting:
             self.lifting = not self.sp.advance(self.lift, c.speed, view.dt)
             return self._command(allow=False)
@@ -148,7 +162,9 @@ class Push(Phase):
         gap = max(-half - along, 0.0)  # the setpoint's distance to the object's face before contact
         if gap > c.approach + LOST_GAP or abs(lateral) > half + LOST_GAP:  # knocked away from the tool's line
             self.info["knocked_away"] = self.info.get("knocked_away", 0) + 1
-            self.next_d = unit2((tgt - obj)[:2])
+            self.next_d, self.full = unit2((tgt - obj)[:2]), True
+            if self.recoveries < c.recoveries:  # a recovery does not use up one of the precision attempts
+                self.recoveries, self.approaches = self.recoveries + 1, self.approaches - 1
             return self._start_retreat(final=False) if self.approaches < c.attempts else self._finish(dist)
         wanted = float(np.clip(c.push_speed * (remaining + gap) / c.slow_down, c.creep_speed, c.push_speed))
         self.touched = self.touched or gap < 1e-3 or self.contact.update(view, d)  # geometry or the wrist's sensor
@@ -156,7 +172,8 @@ class Push(Phase):
         if not self.touched:
             wanted = min(wanted, max(c.creep_speed, gap / GAP_TIME))  # touch the object slowly
         self.v = min(wanted, self.v + PUSH_ACCEL * view.dt)
-        tilted = float(np.arccos(np.clip(obj_pose.rot[2, 2], -1.0, 1.0))) > c.max_tilt
+        # tipping: no face of the box is down (a box that rolled onto another face is flat again)
+        tilted = float(np.arccos(np.clip(np.abs(obj_pose.rot[2]).max(), -1.0, 1.0))) > c.max_tilt
         lead = 0.0 if tilted else c.preload  # a tipping object gets no push until it is flat again
         self.info["tilt_pauses"] = self.info.get("tilt_pauses", 0) + int(tilted)
         along = min(along + self.v * view.dt, -half + lead)
@@ -215,7 +232,11 @@ class Push(Phase):
             return self._command(allow=self.leg == 0)
         if self.final:
             return self._command(allow=False, done=view.settled())
-        self._approach(view, self.next_d)
+        self._approach(view, self.next_d, full=self.full)
+        if self.plan_failed and not self.full:  # no reachable side within the correction fan: try the whole fan
+            self.approaches -= 1
+            self._approach(view, self.next_d, full=True)
+        self.full = False
         if self.plan_failed:  # no reachable side to correct from
             self.info["unreachable_corrections"] = self.info.get("unreachable_corrections", 0) + 1
             _, _, err = self._planar(view)
