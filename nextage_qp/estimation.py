@@ -110,7 +110,7 @@ class PoseKalman:
     """
 
     def __init__(self, noise_pos: float, noise_rot: float, *, accel_pos: float = 1e-6, accel_rot: float = 1e-5,
-                 gate: float = CHI2_6_999, reset_after: int = 5) -> None:
+                 gate: float = CHI2_6_999, reset_after: int = 2) -> None:
         floor_pos, floor_rot = 1e-4, 1e-3  # a noiseless camera still gets a small R, so S never vanishes
         r = np.array([max(noise_pos, floor_pos) ** 2] * 3 + [max(noise_rot, floor_rot) ** 2] * 3)
         q = np.array([accel_pos] * 3 + [accel_rot] * 3)
