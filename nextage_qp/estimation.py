@@ -74,8 +74,8 @@ class _CV:
         out[:, 1, 1] = p[:, 1, 1] + q * dt
         return x, out
 
-    def update(self, dt: float, z: np.ndarray) -> tuple[float, float]:
-        """Predict by ``dt`` and apply ``z``; returns (normalised innovation squared, log-likelihood)."""
+    def update(self, dt: float, z: np.ndarray) -> float:
+        """Predict by ``dt`` and apply ``z``; returns the measurement's log-likelihood under the prediction."""
         x, p = self.predicted(dt)
         nu = z - x[:, 0]
         nu[3:] = _wrap(nu[3:])
@@ -84,7 +84,7 @@ class _CV:
         k = p[:, :, 0] / s[:, None]  # (6, 2): gain of each axis
         self.x = x + k * nu[:, None]
         self.p = p - k[:, :, None] * p[:, None, 0, :]  # (I - K H) P
-        return nis, -0.5 * (nis + float(np.sum(np.log(2.0 * np.pi * s))))
+        return -0.5 * (nis + float(np.sum(np.log(2.0 * np.pi * s))))
 
 
 class PoseKalman:
@@ -155,26 +155,27 @@ class PoseKalman:
                 self.resets += 1
                 self.reset(t, z)
             return False
-        self._mix()
-        logl = np.array([m.update(dt, z)[1] for m in self.models])
-        w = self._prior * np.exp(logl - logl.max())
+        prior = self._mix()
+        logl = np.array([m.update(dt, z) for m in self.models])
+        w = prior * np.exp(logl - logl.max())
         self.mode = w / w.sum()
         self.t, self._misses = t, 0
         self.accepted += 1
         return True
 
-    def _mix(self) -> None:
-        """IMM mixing: each model restarts from the mixture its predecessors hand it."""
+    def _mix(self) -> np.ndarray:
+        """IMM mixing: each model restarts from the mixture its predecessors hand it; returns the mode prior."""
         trans = np.array([[STAY, 1.0 - STAY], [1.0 - STAY, STAY]])
         joint = trans * self.mode[:, None]  # [i, j]: from model i to model j
-        self._prior = joint.sum(axis=0)
-        weights = joint / self._prior
+        prior = joint.sum(axis=0)
+        weights = joint / prior
         xs = [m.x for m in self.models]
         ps = [m.p for m in self.models]
         for j, m in enumerate(self.models):
             x0 = sum(weights[i, j] * xs[i] for i in range(2))
             p0 = sum(weights[i, j] * (ps[i] + _outer(xs[i] - x0)) for i in range(2))
             m.x, m.p = x0, p0
+        return prior
 
     def estimate(self, t: float) -> np.ndarray:
         """Pose (x, y, z, roll, pitch, yaw) predicted to ``t`` [s] (the filter's state is left as it is)."""

@@ -72,6 +72,13 @@ def yaw_of(rot: np.ndarray) -> float:
     return float(np.arctan2(rot[1, 0], rot[0, 0]))
 
 
+def axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rotation matrix of ``angle`` [rad] about the unit ``axis`` (Rodrigues)."""
+    x, y, z = axis
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+
+
 def wrap(angle: float, period: float = 2.0 * np.pi) -> float:
     """``angle`` wrapped into ``[-period/2, period/2)`` [rad]."""
     return float((angle + 0.5 * period) % period - 0.5 * period)

@@ -20,19 +20,9 @@ import numpy as np
 from nextage_qp.errors import ConfigError
 from nextage_qp.estimation import PoseKalman, rpy_of, vector_pose
 from nextage_qp.faults import EstimationConfig, FaultsConfig
-from nextage_qp.geometry import Pose
+from nextage_qp.geometry import Pose, axis_angle, wrap, yaw_of
 from nextage_qp.sensors import Wrench
 from nextage_qp.shoves import Shoves
-
-
-def _rotvec_matrix(w: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector [rad] (Rodrigues)."""
-    angle = float(np.linalg.norm(w))
-    if angle < 1e-12:
-        return np.eye(3)
-    x, y, z = w / angle
-    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
 
 
 class _Track:
@@ -92,23 +82,28 @@ class FaultySensors:
         return self._tracks[name]
 
     def _measure(self, pose: Pose) -> np.ndarray:
+        """A noisy reading (x, y, z, roll, pitch, yaw) of ``pose``: Gaussian position and rotation vector."""
         cam, rng = self.faults.object_pose, self.rng["objects"]
         assert cam is not None
         pos = pose.pos + rng.normal(0.0, cam.noise_pos_m, 3) if cam.noise_pos_m else pose.pos.copy()
-        rot = _rotvec_matrix(rng.normal(0.0, cam.noise_rot_rad, 3)) @ pose.rot if cam.noise_rot_rad else pose.rot
+        rot = pose.rot
+        if cam.noise_rot_rad:
+            w = rng.normal(0.0, cam.noise_rot_rad, 3)
+            angle = float(np.linalg.norm(w))
+            rot = axis_angle(w / angle, angle) @ rot if angle > 1e-12 else rot
         return np.concatenate([pos, rpy_of(rot)])
 
     def objects(self, t: float, true: Mapping[str, Pose]) -> Mapping[str, Pose]:
         """Estimated (or latest raw) object poses at ``t`` [s]; measurements sampled, delayed, dropped here."""
         cam = self.faults.object_pose
-        if cam is None:  # no camera faults: exact poses (still through the filter's bookkeeping-free path)
+        if cam is None:  # no camera faults: the exact poses, unfiltered
             return true
         sample = t + 1e-9 >= self._next_sample
         if sample:
             self._next_sample += 1.0 / cam.rate_hz
         out: dict[str, Pose] = {}
         for name, pose in true.items():
-            tr = self._track(name)
+            tr, true_yaw = self._track(name), yaw_of(pose.rot)
             first = tr.raw is None and not tr.pending
             if sample or first:
                 tr.taken += 1
@@ -121,7 +116,7 @@ class FaultySensors:
                     tr.pending.append((t if first else t + cam.latency_s, t, z))
                     err = z[:3] - pose.pos
                     tr.raw_sq.append(float(err @ err))
-                    tr.raw_yaw.append(abs(_wrap(z[5] - rpy_of(pose.rot)[2])))
+                    tr.raw_yaw.append(abs(wrap(z[5] - true_yaw)))
             delivered = None
             while tr.pending and tr.pending[0][0] <= t + 1e-9:
                 _, stamp, z = tr.pending.popleft()
@@ -134,7 +129,7 @@ class FaultySensors:
             est = tr.kalman.estimate(t) if tr.kalman is not None else tr.raw
             err = est[:3] - pose.pos
             tr.est_sq.append(float(err @ err))
-            tr.est_yaw.append(abs(_wrap(est[5] - rpy_of(pose.rot)[2])))
+            tr.est_yaw.append(abs(wrap(est[5] - true_yaw)))
             self.history.setdefault(name, []).append((t, est.copy(), delivered))
             out[name] = vector_pose(est)
         return out
@@ -195,10 +190,6 @@ class FaultySensors:
                 "rejected": k.rejected if k else 0, "filter_resets": k.resets if k else 0,
             }
         return {"object_filter": self.estimation.object_filter, "objects": objects}
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def _rms(squares: list[float]) -> float | None:

@@ -115,7 +115,7 @@ class Sensors(Protocol):
     """The seam between physics and controller (default: :class:`PerfectSensors`)."""
 
     def joints(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Measured joint positions [rad] and velocities [rad/s] at time ``t`` [s] (every physics step)."""
+        """Measured joint positions [rad] and velocities [rad/s] at time ``t`` [s] (every control tick)."""
 
     def objects(self, t: float, true: Mapping[str, Pose]) -> Mapping[str, Pose]:
         """Measured object poses at time ``t`` [s] (every control tick)."""

@@ -20,31 +20,32 @@ class Shoves:
     """
 
     def __init__(self, shoves: Sequence[Shove], body_ids: Mapping[str, int], ctrl_dt: float) -> None:
-        self.shoves, self.body_ids, self.ctrl_dt = list(shoves), body_ids, ctrl_dt
-        self._left = [0 for _ in self.shoves]  # ticks of force still to apply (-1: done)
+        self.shoves, self.body_ids = list(shoves), body_ids
+        self._ticks = [max(1, round(s.duration_s / ctrl_dt)) for s in self.shoves]
+        self._force = [np.asarray(s.impulse_ns) / (n * ctrl_dt) for s, n in zip(self.shoves, self._ticks, strict=True)]
+        self._left: list[int | None] = [None for _ in self.shoves]  # ticks of force still to apply; -1: done
         self.applied: list[dict[str, Any]] = []
 
     def update(self, data: Any, t: float, phase: tuple[str, str, float] | None) -> None:
-        """Before a tick at ``t`` [s]: start due shoves and set the force of the running ones.
+        """Before a tick at ``t`` [s]: start due shoves, set the force of the running ones, clear finished ones.
 
         ``phase`` is the current phase's (name, kind, start time [s]), or None.
         """
         for i, s in enumerate(self.shoves):
-            bid = self.body_ids[s.body]
-            if self._left[i] == 0 and self._due(s, t, phase):
-                ticks = max(1, round(s.duration_s / self.ctrl_dt))
-                self._left[i] = ticks
+            left = self._left[i]
+            if left is None:
+                if not self._due(s, t, phase):
+                    continue
+                left = self._ticks[i]
                 self.applied.append({"body": s.body, "t_s": round(t, 6), "impulse_ns": list(s.impulse_ns),
                                      "phase": phase[0] if phase else None})
-            if self._left[i] > 0:
-                ticks = max(1, round(s.duration_s / self.ctrl_dt))
-                data.xfrc_applied[bid, :3] = np.asarray(s.impulse_ns) / (ticks * self.ctrl_dt)
-                self._left[i] -= 1
-                if self._left[i] == 0:
-                    self._left[i] = -1
-            elif self._left[i] == -1:
+            bid = self.body_ids[s.body]
+            if left > 0:
+                data.xfrc_applied[bid, :3] = self._force[i]
+                self._left[i] = left - 1
+            elif left == 0:
                 data.xfrc_applied[bid, :3] = 0.0
-                self._left[i] = -2
+                self._left[i] = -1
 
     @staticmethod
     def _due(s: Shove, t: float, phase: tuple[str, str, float] | None) -> bool:

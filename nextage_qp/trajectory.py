@@ -173,16 +173,15 @@ class JointTrajectory:
             TrajectoryError: Ruckig rejected the input (the message names the joint) or failed.
         """
         prev = self._state
-        result = self._update()
-        new = (np.array(self._out.new_position), np.array(self._out.new_velocity), np.array(self._out.new_acceleration))
+        result = self._update(ruckig.Synchronization.Time)
+        new = self._output()
         if not all(np.isfinite(a).all() for a in new):
             # Ruckig can return a non-finite step for a rare synchronised profile; redo the step from the last
             # good state without synchronisation (each joint's own profile honours every limit).
             self._inp.current_position, self._inp.current_velocity = prev.q.tolist(), prev.qd.tolist()
             self._inp.current_acceleration = prev.qdd.tolist()
-            result = self._update(synchronized=False)
-            new = (np.array(self._out.new_position), np.array(self._out.new_velocity),
-                   np.array(self._out.new_acceleration))
+            result = self._update(ruckig.Synchronization.No)
+            new = self._output()
             if not all(np.isfinite(a).all() for a in new):
                 bad = int(np.flatnonzero(~(np.isfinite(new[0]) & np.isfinite(new[1]) & np.isfinite(new[2])))[0])
                 raise TrajectoryError(f"reference update: Ruckig returned a non-finite state for joint "
@@ -193,26 +192,29 @@ class JointTrajectory:
         self._state = RefState(*new)
         return self._state
 
-    def _update(self, synchronized: bool = True) -> ruckig.Result:
-        """One Ruckig step, retried unsynchronised when time synchronisation fails numerically."""
-        if not synchronized:
-            self._inp.synchronization = ruckig.Synchronization.No
+    def _output(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration of Ruckig's last step."""
+        out = self._out
+        return np.array(out.new_position), np.array(out.new_velocity), np.array(out.new_acceleration)
+
+    def _update(self, first: ruckig.Synchronization) -> ruckig.Result:
+        """One Ruckig step with synchronisation ``first``, retried unsynchronised when it fails numerically.
+
+        Time synchronisation of all joints can fail numerically for some states ("t sync"); each joint's own
+        time-optimal profile still honours every limit. The input is left time-synchronised.
+        """
+        modes = (first,) if first == ruckig.Synchronization.No else (first, ruckig.Synchronization.No)
         try:
-            result = self._otg.update(self._inp, self._out)
-        except ruckig.RuckigError as exc:
-            # Time synchronisation of all joints can fail numerically for some states ("t sync"); each joint's
-            # own time-optimal profile still honours every limit, so retry unsynchronised before giving up.
-            if self._inp.synchronization == ruckig.Synchronization.No:
-                self._inp.synchronization = ruckig.Synchronization.Time
-                raise joint_error(exc, "reference update", self.names) from None
-            self._inp.synchronization = ruckig.Synchronization.No
-            try:
-                result = self._otg.update(self._inp, self._out)
-            except ruckig.RuckigError as exc2:
-                raise joint_error(exc2, "reference update", self.names) from None
-            finally:
-                self._inp.synchronization = ruckig.Synchronization.Time
-        self._inp.synchronization = ruckig.Synchronization.Time
+            for i, mode in enumerate(modes):
+                self._inp.synchronization = mode
+                try:
+                    result = self._otg.update(self._inp, self._out)
+                    break
+                except ruckig.RuckigError as exc:
+                    if i == len(modes) - 1:
+                        raise joint_error(exc, "reference update", self.names) from None
+        finally:
+            self._inp.synchronization = ruckig.Synchronization.Time
         check_result(result, "reference update")
         return result
 

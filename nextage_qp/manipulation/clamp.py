@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from nextage_qp.errors import PhaseError
-from nextage_qp.geometry import rot_z
+from nextage_qp.geometry import axis_angle, rot_z
 from nextage_qp.ik import FrameTarget, RelativeTarget
 from nextage_qp.manipulation.context import Grip, View
 
@@ -21,13 +21,6 @@ MAX_ROLL = 0.3
 """Most the levelling loop rolls the pads [rad]."""
 LOST_FRACTION = 0.2
 """A clamp whose pads both feel less than this fraction of the grip force has lost the object."""
-
-
-def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
-    """Rotation of ``angle`` [rad] about the unit ``axis`` (Rodrigues)."""
-    x, y, z = axis
-    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
 
 
 class Clamp:
@@ -105,7 +98,7 @@ class Clamp:
         lateral = rz @ g.lateral
         points = [pos + rz @ g.offsets[f] - side * depth * lateral
                   for f, side, depth in zip(g.frames, self.SIDES, self.depth, strict=False)]
-        turn = _axis_angle(lateral, self.roll) @ rz
+        turn = axis_angle(lateral, self.roll) @ rz
         targets = tuple(FrameTarget(f, pos=p, rot=turn @ g.rotations[f])
                         for f, p in zip(g.frames, points, strict=False))
         rel = g.relative

@@ -103,8 +103,7 @@ class Push(Phase):
         obj, tgt, dist = self._planar(view)
         moved = float(np.linalg.norm(obj[:2] - self.planned_at)) > LOST_GAP
         if moved and self.recoveries < c.recoveries:  # knocked away during the transit: plan for where it is now
-            self.recoveries, self.approaches = self.recoveries + 1, self.approaches - 1
-            self.info["knocked_away"] = self.info.get("knocked_away", 0) + 1
+            self._knocked_away()
             pos, rot = view.commanded_pose(c.frame)
             self.sp.jump(pos)
             self.tool_yaw = yaw_of(rot)
@@ -121,6 +120,12 @@ class Push(Phase):
             self.z_bias = 0.0
             self._begin_push(touched=False)
         return command
+
+    def _knocked_away(self) -> None:
+        """Count a knock; while the recovery budget lasts, the next approach does not use up a precision attempt."""
+        self.info["knocked_away"] = self.info.get("knocked_away", 0) + 1
+        if self.recoveries < self.spec.recoveries:
+            self.recoveries, self.approaches = self.recoveries + 1, self.approaches - 1
 
     def _begin_push(self, touched: bool) -> None:
         self.stage, self.v, self.touched, self.bias = "push", 0.0, touched, 0.0
@@ -161,10 +166,8 @@ class Push(Phase):
         along, lateral = float(rel @ d), float(rel @ n)
         gap = max(-half - along, 0.0)  # the setpoint's distance to the object's face before contact
         if gap > c.approach + LOST_GAP or abs(lateral) > half + LOST_GAP:  # knocked away from the tool's line
-            self.info["knocked_away"] = self.info.get("knocked_away", 0) + 1
+            self._knocked_away()
             self.next_d, self.full = unit2((tgt - obj)[:2]), True
-            if self.recoveries < c.recoveries:  # a recovery does not use up one of the precision attempts
-                self.recoveries, self.approaches = self.recoveries + 1, self.approaches - 1
             return self._start_retreat(final=False) if self.approaches < c.attempts else self._finish(dist)
         wanted = float(np.clip(c.push_speed * (remaining + gap) / c.slow_down, c.creep_speed, c.push_speed))
         self.touched = self.touched or gap < 1e-3 or self.contact.update(view, d)  # geometry or the wrist's sensor
