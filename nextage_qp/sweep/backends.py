@@ -35,14 +35,26 @@ def _init_worker() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle: it stops the pool
 
 
-def run_local(tasks: Sequence[EpisodeTask], workers: int, on_done: OnDone, *, episode_fn: EpisodeFn = run_episode,
-              grace: float = GRACE_S) -> None:
-    """Run ``tasks`` on ``workers`` spawned processes; on Ctrl-C the workers are stopped and the error re-raised."""
+def local_pool(workers: int) -> Any:
+    """A pool of ``workers`` spawned processes, each with one numerical thread and ignoring Ctrl-C."""
     import pebble
 
     os.environ.update({k: os.environ.get(k, v) for k, v in THREAD_ENV.items()})  # inherited by spawned workers
-    pool = pebble.ProcessPool(max_workers=workers, context=multiprocessing.get_context("spawn"),
+    return pebble.ProcessPool(max_workers=workers, context=multiprocessing.get_context("spawn"),
                               initializer=_init_worker)
+
+
+def run_local(tasks: Sequence[EpisodeTask], workers: int, on_done: OnDone, *, episode_fn: EpisodeFn = run_episode,
+              grace: float = GRACE_S, pool: Any = None) -> None:
+    """Run ``tasks`` on ``workers`` spawned processes; on Ctrl-C the workers are stopped and the error re-raised.
+
+    ``pool`` (from :func:`local_pool`) reuses running workers across calls; it is left open, except on an error.
+    """
+    import pebble
+
+    own = pool is None
+    if own:
+        pool = local_pool(workers)
     try:
         futures: dict[concurrent.futures.Future[Episode], EpisodeTask] = {
             pool.schedule(episode_fn, args=(t,), timeout=t.wall_limit + grace): t for t in tasks
@@ -64,8 +76,31 @@ def run_local(tasks: Sequence[EpisodeTask], workers: int, on_done: OnDone, *, ep
         pool.stop()
         pool.join()
         raise
-    pool.close()
-    pool.join()
+    if own:
+        pool.close()
+        pool.join()
+
+
+def ray_init(workers: int | None, address: str | None = None) -> bool:
+    """Start or join Ray for a run; returns whether this call started it (then the caller shuts it down).
+
+    Raises:
+        ConfigError: Ray is not installed or the cluster cannot be reached.
+    """
+    try:
+        import ray
+    except ImportError:
+        raise ConfigError('--backend ray needs Ray: pip install -e ".[ray]"') from None
+    if ray.is_initialized():
+        return False
+    address = address or os.environ.get("RAY_ADDRESS") or None
+    try:
+        ray.init(address=address, num_cpus=None if address else workers, include_dashboard=False,
+                 log_to_driver=False, runtime_env={"env_vars": dict(THREAD_ENV)})
+    except Exception as exc:
+        raise ConfigError(f"--backend ray: cannot start or reach Ray at {address or 'a local instance'}: "
+                          f"{' '.join(str(exc).split())}") from None
+    return True
 
 
 def run_ray(tasks: Sequence[EpisodeTask], workers: int | None, on_done: OnDone, *, address: str | None = None,
@@ -78,20 +113,10 @@ def run_ray(tasks: Sequence[EpisodeTask], workers: int | None, on_done: OnDone, 
     Raises:
         ConfigError: Ray is not installed or the cluster cannot be reached.
     """
-    try:
-        import ray
-        from ray.exceptions import GetTimeoutError, RayError
-    except ImportError:
-        raise ConfigError('--backend ray needs Ray: pip install -e ".[ray]"') from None
-    address = address or os.environ.get("RAY_ADDRESS") or None
-    started = not ray.is_initialized()
-    if started:
-        try:
-            ray.init(address=address, num_cpus=None if address else workers, include_dashboard=False,
-                     log_to_driver=False, runtime_env={"env_vars": dict(THREAD_ENV)})
-        except Exception as exc:
-            raise ConfigError(f"--backend ray: cannot start or reach Ray at {address or 'a local instance'}: "
-                              f"{' '.join(str(exc).split())}") from None
+    started = ray_init(workers, address)
+    import ray
+    from ray.exceptions import GetTimeoutError, RayError
+
     remote = ray.remote(num_cpus=1, max_retries=0)(episode_fn)
     capacity = max(1, workers or int(ray.cluster_resources().get("CPU", 1)))
     pending: list[EpisodeTask] = list(tasks)

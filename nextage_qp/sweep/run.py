@@ -5,6 +5,7 @@ from __future__ import annotations
 import shlex
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
+from typing import Any
 
 from nextage_qp.sweep.backends import GRACE_S, run_local, run_ray
 from nextage_qp.sweep.episode import Episode, EpisodeTask, run_episode
@@ -34,8 +35,11 @@ def run_sweep(
     on_episode: Callable[[Episode], None] | None = None,
     episode_fn: Callable[[EpisodeTask], Episode] = run_episode,
     grace: float = GRACE_S,
+    pool: Any = None,
 ) -> list[Episode]:
     """Run every task not already in ``store``; each finished episode is stored before ``on_episode`` sees it.
+
+    ``pool`` (:func:`~nextage_qp.sweep.backends.local_pool`) keeps the local workers across calls.
 
     Returns:
         The episodes of ``tasks`` (resumed ones included), in index order.
@@ -54,7 +58,7 @@ def run_sweep(
         if backend == "ray":
             run_ray(todo, workers, finished, address=ray_address, episode_fn=episode_fn, grace=grace)
         else:
-            run_local(todo, workers, finished, episode_fn=episode_fn, grace=grace)
+            run_local(todo, workers, finished, episode_fn=episode_fn, grace=grace, pool=pool)
     return [done[t.index] for t in tasks if t.index in done]
 
 

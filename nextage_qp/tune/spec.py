@@ -1,0 +1,170 @@
+"""Study files: what a tuning study evaluates, the keys it searches, its objective, sampler and held-out set.
+
+A study evaluates either a sweep's episodes (a task config's keys are searched)::
+
+    sweep: {file: ../sweeps/dock_dumbbell.yaml, episodes: 16, seed: 1000}   # the objective's scenes
+    held_out: {episodes: 100, seed: 2000}       # best and base compared on these at the end
+    objective: failures_then_p95_error          # failure rate, ties broken by the p95 object error
+    space:
+      ik.posture_cost: {log: [0.001, 0.1]}
+      phases.0.force: {float: [5.0, 20.0]}
+
+or step responses of every joint (a gains file's keys are searched)::
+
+    steps: {gains: ../gains/default.yaml, amplitude_deg: 45, relative: [LARM_JOINT1, RARM_JOINT1]}
+    held_out: {amplitude_deg: 30}
+    objective: settling_time                    # mean 2 % settling time; steps missing a criterion are penalised
+    space:
+      joints.LARM_JOINT0.kp: {log: [300, 3000], also: [joints.RARM_JOINT0.kp]}
+
+Every problem is a one-line :class:`~nextage_qp.errors.ConfigError` naming the file and the key.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, Field, model_validator
+
+from nextage_qp.errors import ConfigError
+from nextage_qp.yaml_file import STRICT, read_yaml_mapping, validate
+
+Number = Annotated[float, Field(allow_inf_nan=False)]
+OBJECTIVES = {"sweep": ("failures_then_p95_error",), "steps": ("settling_time",)}
+SAMPLERS = ("tpe", "cmaes")
+
+
+class _Strict(BaseModel):
+    model_config = STRICT
+
+
+class Param(_Strict):
+    """One searched key and its range.
+
+    Exactly one of ``float: [lo, hi]``, ``log: [lo, hi]`` (lo > 0), ``int: [lo, hi]``, ``choice: [a, b, ...]``;
+    ``also`` lists further keys that take the same value (e.g. the other arm's twin joint).
+    """
+
+    uniform: tuple[Number, Number] | None = Field(default=None, alias="float")
+    log: tuple[Number, Number] | None = None
+    integer: tuple[int, int] | None = Field(default=None, alias="int")
+    choice: list[Any] | None = Field(default=None, min_length=1)
+    also: list[str] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> Param:
+        given = [k for k in ("float", "log", "int", "choice") if self.get(k) is not None]
+        if len(given) != 1:
+            raise ValueError(f"give exactly one of float, log, int, choice; got {', '.join(given) or 'none'}")
+        bounds = self.bounds
+        if bounds is not None and bounds[0] > bounds[1]:
+            raise ValueError(f"lo > hi in [{bounds[0]}, {bounds[1]}]")
+        if self.log is not None and self.log[0] <= 0:
+            raise ValueError(f"log needs lo > 0, got {self.log[0]}")
+        for value in self.choice or ():
+            if isinstance(value, float) and not math.isfinite(value):
+                raise ValueError(f"choice values must be finite, got {value}")
+        return self
+
+    def get(self, kind: str) -> Any:
+        """The bounds or choices given under ``kind`` (``float``, ``log``, ``int``, ``choice``)."""
+        return {"float": self.uniform, "log": self.log, "int": self.integer, "choice": self.choice}[kind]
+
+    @property
+    def kind(self) -> str:
+        """``float``, ``log``, ``int`` or ``choice``."""
+        return next(k for k in ("float", "log", "int", "choice") if self.get(k) is not None)
+
+    @property
+    def bounds(self) -> tuple[float, float] | None:
+        """``(lo, hi)``, None for a choice."""
+        return self.uniform or self.log or self.integer
+
+
+class SweepEval(_Strict):
+    """Episodes ``0..episodes-1`` of a sweep file drawn with ``seed``: the objective's scenes."""
+
+    file: str = Field(description="Sweep file, relative to the study file.")
+    episodes: int = Field(ge=1, le=100_000)
+    seed: int = Field(default=0, ge=0, lt=2**32)
+
+
+class StepsEval(_Strict):
+    """Raw steps of every joint from ``home`` to +-``amplitude_deg`` (relative to home for ``relative`` joints)."""
+
+    gains: str = Field(description="Base gains file: a bundled name or a path relative to the study file.")
+    amplitude_deg: Number = Field(gt=0, le=180)
+    relative: list[str] = Field(default_factory=list, description="Joints whose absolute target is blocked.")
+    joints: list[str] | None = Field(default=None, description="Joints stepped (default: all 15).")
+    duration_s: Number = Field(default=1.0, gt=0, le=30)
+    final_error_rad: Number = Field(default=0.005, gt=0)
+    overshoot_pct: Number = Field(default=5.0, ge=0)
+    scene: str = "scene"
+
+
+class HeldOut(_Strict):
+    """Where best and base are compared after the search: other sweep episodes, or steps of another amplitude."""
+
+    episodes: int | None = Field(default=None, ge=1, le=100_000)
+    seed: int | None = Field(default=None, ge=0, lt=2**32)
+    amplitude_deg: Number | None = Field(default=None, gt=0, le=180)
+
+
+class StudyFile(_Strict):
+    """The schema of a study file (see the module docstring)."""
+
+    description: str | None = None
+    sweep: SweepEval | None = None
+    steps: StepsEval | None = None
+    held_out: HeldOut | None = None
+    objective: str | None = Field(default=None, description="Default: the first of its kind.")
+    sampler: Literal["tpe", "cmaes"] = "tpe"
+    startup_trials: int = Field(default=10, ge=0, le=10_000, description="Random trials before TPE models.")
+    seed: int = Field(default=0, ge=0, lt=2**32)
+    trials: int = Field(default=30, ge=1, le=100_000, description="Complete trials (default of --trials).")
+    workers: int | None = Field(default=None, ge=1, le=1024)
+    wall_limit: Number | None = Field(default=None, gt=0, le=86400, description="Per episode [s] (steps: 60).")
+    space: dict[str, Param] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> StudyFile:
+        if (self.sweep is None) == (self.steps is None):
+            raise ValueError("give exactly one of 'sweep' (evaluate a sweep's episodes) or 'steps' (step responses)")
+        kind = self.kind
+        if self.objective is not None and self.objective not in OBJECTIVES[kind]:
+            raise ValueError(f"objective {self.objective!r} does not apply to a {kind} study; "
+                             f"valid: {', '.join(OBJECTIVES[kind])}")
+        held = self.held_out
+        if held is not None:
+            if kind == "sweep" and (held.amplitude_deg is not None or held.episodes is None):
+                raise ValueError("held_out of a sweep study: give episodes (and seed), not amplitude_deg")
+            if kind == "steps" and (held.amplitude_deg is None or held.episodes is not None or held.seed is not None):
+                raise ValueError("held_out of a steps study: give amplitude_deg, not episodes or seed")
+        return self
+
+    @property
+    def kind(self) -> str:
+        """``sweep`` or ``steps``."""
+        return "sweep" if self.sweep is not None else "steps"
+
+
+def read_study(path: str | Path) -> StudyFile:
+    """Read and validate a study file's schema.
+
+    Raises:
+        ConfigError: Missing file, invalid YAML or a schema violation (one line).
+    """
+    file = Path(path)
+    if file.is_dir():
+        raise ConfigError(f"{file}: is a directory; give a study file, e.g. configs/studies/pd_gains.yaml")
+    if not file.is_file():
+        raise ConfigError(f"{file}: no such study file")
+    doc = read_yaml_mapping(file, "a mapping with 'sweep' or 'steps', and 'space'")
+    study: StudyFile = validate(StudyFile, doc, str(file))
+    for key, param in study.space.items():
+        for other in param.also:
+            if other == key or other in study.space:
+                raise ConfigError(f"{file}: space.{key}.also: {other!r} is searched itself; a key is tied once")
+    return study
