@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -63,7 +64,8 @@ def finish(study: Study, s: Any, out: Path, storage_url: str, *, workers: int, b
             else f"\nheld-out set: base {held_base.line}\n              best {held_best.line}")
     header = (f"Tuned by: nextage-qp tune {study.path} (study {study.name!r}, {study.file.sampler}, "
               f"{states['complete']} complete trials)\nbest trial {best.number}: value {best.value:.6g}; "
-              f"{best.user_attrs.get('line')}" + held + "\ntuned keys: " + ", ".join(sorted(tuned)))
+              f"{best.user_attrs.get('line')}" + held + "\n"
+              + textwrap.fill("tuned keys: " + ", ".join(sorted(tuned)), 112))
     (out / "best.yaml").write_text(dump_yaml(study.evaluator.tuned_doc(tuned, out), header))
     summary["best_yaml"] = str(out / "best.yaml")
     summary["plots"] = [str(p) for p in (plot_history(summary, out / "history.png"),
