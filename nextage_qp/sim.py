@@ -13,8 +13,7 @@ applies the feedback and the clamp; under the ``implicitfast`` integrator the da
 implicitly, so stiff ``kd`` does not destabilise the loop.
 
 What the controller sees passes through one seam, :class:`Sensors`: the joint state the PD law uses and the
-:class:`Measurement` (joints and free-object poses) the phases read after every tick. The default sensors are
-perfect; noise, delay or an estimator plug in there without touching the loop.
+:class:`Measurement` the phases read after every tick; noise, delay or an estimator plug in there.
 
 Every control tick is recorded (:class:`~nextage_qp.recorder.Recorder`: the state at the start of the period,
 its reference and the torque of its first physics step); the saturation counters and the ``substep_hooks`` see
@@ -117,6 +116,7 @@ class Simulation:
         self._qi, self._di = _view(robot.qpos_idx), _view(robot.dof_idx)
         ai = _view(robot.actuator_ids)
         self._ctrl, self._act_force = self.data.ctrl[ai], self.data.actuator_force[ai]
+        self._bad_warnings = [self.data.warning[w] for w in _BAD]  # views into the data
         if not isinstance(ai, slice):
             raise ConfigError("the robot's actuators must be contiguous in the model")
         self._fractions = np.arange(self.n_substeps) / self.n_substeps
@@ -248,7 +248,7 @@ class Simulation:
     def _check(self) -> None:
         d = self.data
         q, qd = d.qpos[self.robot.qpos_idx], d.qvel[self.robot.dof_idx]
-        bad_warn = any(d.warning[w].number for w in _BAD)
+        bad_warn = any(w.number for w in self._bad_warnings)
         # Fast path: a NaN fails both comparisons below, so only a healthy state returns here.
         if not bad_warn and np.abs(qd).max() <= self.max_speed and np.isfinite(d.qpos).all():
             return

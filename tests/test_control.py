@@ -43,7 +43,7 @@ def test_torque_is_clamped_and_saturation_counted():
     assert pd.saturated_ticks[3] == 2 and pd.saturated_ticks.sum() == 2 and pd.any_saturated_ticks == 2
 
 
-@pytest.mark.parametrize("name", ["default", "report"])
+@pytest.mark.parametrize("name", ["default", "report", "stiff_wrist", "tuned"])
 def test_bundled_gains_load(name):
     g = load_gains(name)
     assert g.kp.shape == g.kd.shape == (N,)

@@ -214,3 +214,20 @@ def test_ray_backend_gives_the_same_trials_as_the_local_pool(tmp_path):
         summary = json.loads((out / "summary.json").read_text())
         values[backend] = [(h["number"], h["value"], h["params"]) for h in summary["history"]]
     assert values["ray"] == values["local"] and len(values["local"]) == 2
+
+
+@pytest.mark.slow
+def test_shipped_tuned_gains_meet_the_step_criteria_and_settle_sooner_than_the_defaults():
+    import dataclasses
+
+    from nextage_qp.tune.steps import run_step_task
+
+    ev = Study(ROOT / "configs" / "studies" / "pd_gains.yaml").evaluator
+    scores = {}
+    for name in ("default", "tuned"):
+        tasks = [dataclasses.replace(t, gains=load_gains(name)) for t in ev.tasks({})]
+        scores[name] = ev.score([run_step_task(t) for t in tasks])
+    default, tuned = scores["default"].details, scores["tuned"].details
+    assert tuned["met"] == tuned["steps"] == 29  # every joint, both directions (HEAD_JOINT1 -45 deg out of range)
+    assert all(r["final_error_rad"] <= 0.005 and r["overshoot_pct"] <= 5.0 for r in tuned["per_step"])
+    assert tuned["mean_settling_time_s"] < 0.8 * default["mean_settling_time_s"]
