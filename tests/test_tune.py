@@ -231,3 +231,15 @@ def test_shipped_tuned_gains_meet_the_step_criteria_and_settle_sooner_than_the_d
     assert tuned["met"] == tuned["steps"] == 29  # every joint, both directions (HEAD_JOINT1 -45 deg out of range)
     assert all(r["final_error_rad"] <= 0.005 and r["overshoot_pct"] <= 5.0 for r in tuned["per_step"])
     assert tuned["mean_settling_time_s"] < 0.8 * default["mean_settling_time_s"]
+
+
+@pytest.mark.slow
+def test_cmaes_sampler_starts_from_the_base_and_stays_in_bounds(tmp_path):
+    path = write_study(tmp_path, steps_study(sampler="cmaes", trials=5, startup_trials=1, held_out=None))
+    out = tmp_path / "out"
+    assert main(["tune", str(path), "--workers", "2", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["sampler"] == "cmaes" and summary["trials"]["complete"] == 5
+    assert summary["history"][0]["params"] == {"joints.LARM_JOINT3.kp": 77.0, "joints.LARM_JOINT3.kd": 3.9}
+    for h in summary["history"]:
+        assert 40 <= h["params"]["joints.LARM_JOINT3.kp"] <= 200 and 2 <= h["params"]["joints.LARM_JOINT3.kd"] <= 8

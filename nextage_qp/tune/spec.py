@@ -121,7 +121,7 @@ class StudyFile(_Strict):
     held_out: HeldOut | None = None
     objective: str | None = Field(default=None, description="Default: the first of its kind.")
     sampler: Literal["tpe", "cmaes"] = "tpe"
-    startup_trials: int = Field(default=10, ge=0, le=10_000, description="Random trials before TPE models.")
+    startup_trials: int = Field(default=10, ge=0, le=10_000, description="Random trials before the sampler models.")
     seed: int = Field(default=0, ge=0, lt=2**32)
     trials: int = Field(default=30, ge=1, le=100_000, description="Complete trials (default of --trials).")
     workers: int | None = Field(default=None, ge=1, le=1024)

@@ -129,10 +129,8 @@ def sampler(study: Study, n_existing: int) -> Any:
 
     f = study.file
     seed = f.seed + n_existing
-    if f.sampler == "cmaes":
-        x0 = ({k: v for k, v in study.base_params.items() if f.space[k].choice is None}
-              if study.base_params else None)
-        return optuna.samplers.CmaEsSampler(x0=x0, seed=seed, n_startup_trials=0 if x0 else 1,
+    if f.sampler == "cmaes":  # starts from the middle of the ranges; the base values are trial 0 anyway
+        return optuna.samplers.CmaEsSampler(seed=seed, n_startup_trials=f.startup_trials,
                                             warn_independent_sampling=False)
     return optuna.samplers.TPESampler(seed=seed, n_startup_trials=f.startup_trials)
 
