@@ -79,6 +79,11 @@ def axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
     return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
 
 
+def clamp(x: float, lo: float, hi: float) -> float:
+    """``x`` limited to ``[lo, hi]`` (a scalar ``np.clip``, without numpy's per-call overhead)."""
+    return min(max(x, lo), hi)
+
+
 def wrap(angle: float, period: float = 2.0 * np.pi) -> float:
     """``angle`` wrapped into ``[-period/2, period/2)`` [rad]."""
     return float((angle + 0.5 * period) % period - 0.5 * period)

@@ -5,8 +5,8 @@ in front of the narrow phase, each exact (a filtered pair could not have produce
 
 1. **Travel bound.** Every narrow-phase distance is kept as a lower bound; each geom's travel since then
    (centre shift + bounding radius × rotation chord, summed over the configurations seen) is subtracted from
-   it. A pair whose bound still exceeds its detection distance is skipped without any per-pair work beyond
-   one vectorised subtraction.
+   it. A pair whose bound still exceeds its detection distance is skipped with one vectorised subtraction
+   (:meth:`ActiveCollisionLimit.lower_bounds` gives these bounds to the planner's collision-safe steps).
 2. **Bounding spheres** for the rest, as in mink's broadphase.
 3. **Reach bound.** With the joint box of the same QP, a pair within detection distance whose gap bound
    exceeds how far its two geoms can approach in one step of the box gets no row: it could never bind.
@@ -101,7 +101,7 @@ class ActiveCollisionLimit(mink.Limit):
         self._base = np.full(len(keys), -np.inf)
         self._lever = self._lever_bounds(model)
         self._lists = (self.geom1.tolist(), self.geom2.tolist(), self.detection_distance.tolist(),
-                       self.min_distance.tolist())  # fmt: skip
+                       self.min_distance.tolist())
         self._fromto, self._normal = np.empty(6), np.empty(3)
         self._jac1, self._jac2 = np.empty((3, model.nv)), np.empty((3, model.nv))
         # Body of each geom, or -1 where no joint moves it (welded to the world, or a mocap object): its witness
@@ -145,15 +145,12 @@ class ActiveCollisionLimit(mink.Limit):
         """Number of geom pairs watched."""
         return len(self.geom1)
 
-    @property
-    def lever(self) -> np.ndarray:
-        """Lever-arm bounds (ngeom, nv) [m]: a joint step ``dq`` moves geom ``g`` by at most ``lever[g] @ |dq|``."""
-        return self._lever
-
-    def sphere_gaps(self, data: mujoco.MjData) -> np.ndarray:
-        """Lower bounds [m] on the distance of every watched pair: centre distance less both bounding radii."""
+    def lower_bounds(self, data: mujoco.MjData) -> np.ndarray:
+        """Lower bounds [m] on the distance of every watched pair now: the travel bound or the spheres' gap."""
+        travel = self._update_travel(data)
         delta = data.geom_xpos[self.geom1] - data.geom_xpos[self.geom2]
-        return np.sqrt(np.einsum("ij,ij->i", delta, delta)) - self._rsum
+        sphere = np.sqrt(np.einsum("ij,ij->i", delta, delta)) - self._rsum
+        return np.maximum(self._base - travel[self.geom1] - travel[self.geom2], sphere)
 
     def distances(self, data: mujoco.MjData, indices: Sequence[int] | np.ndarray) -> np.ndarray:
         """Signed distances [m] of the given pairs, capped at their detection distance."""
@@ -163,20 +160,24 @@ class ActiveCollisionLimit(mink.Limit):
             out[k] = mujoco.mj_geomDistance(self.model, data, int(self.geom1[idx]), int(self.geom2[idx]), dmax, None)
         return out
 
-    def _near(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-        """Pairs that may be within detection distance, with a lower bound [m] on their distance.
-
-        The travel bound goes first; the bounding spheres then check the pairs it cannot rule out.
-        """
-        pos, mat = data.geom_xpos, data.geom_xmat
-        dpos, dmat = pos - self._last_pos, mat - self._last_mat
-        moved = np.sqrt(np.einsum("ij,ij->i", dpos, dpos))
-        moved += self._rbound_chord * np.sqrt(np.einsum("ij,ij->i", dmat, dmat))
+    def _update_travel(self, data: mujoco.MjData) -> np.ndarray:
+        """Add every geom's motion since the last call to its travel; returns the travel (ngeom,) [m]."""
+        moved = self.moved(data, self._last_pos, self._last_mat)
         if self._first:  # no pose stored yet (NaN), and no bound to void
             moved[:], self._first = 0.0, False
         self._travel += moved
-        self._last_pos[:], self._last_mat[:] = pos, mat
-        travel = self._travel
+        self._last_pos[:], self._last_mat[:] = data.geom_xpos, data.geom_xmat
+        return self._travel
+
+    def moved(self, data: mujoco.MjData, pos0: np.ndarray, mat0: np.ndarray) -> np.ndarray:
+        """How far [m] any point of each geom moved from ``pos0``, ``mat0``: centre shift + radius x chord."""
+        dpos, dmat = data.geom_xpos - pos0, data.geom_xmat - mat0
+        chord = np.sqrt(np.einsum("ij,ij->i", dmat, dmat))
+        return np.sqrt(np.einsum("ij,ij->i", dpos, dpos)) + self._rbound_chord * chord
+
+    def _near(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+        """Pairs that may be within detection distance, with a lower bound [m]: travel bound, then spheres."""
+        travel, pos = self._update_travel(data), data.geom_xpos
         lower = self._base - travel[self.geom1] - travel[self.geom2]
         idx = np.flatnonzero(lower < self.detection_distance)
         if not idx.size:

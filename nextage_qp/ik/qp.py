@@ -230,25 +230,26 @@ class QPIK:
         """Q + dq inside the joint limits, halving dq while a collision pair would drop below its minimum.
 
         A pair already below its minimum distance may not get closer; every other pair must stay at or above it.
-        Only pairs whose distance before the step, less how far their geoms can approach in it (lever bounds),
-        is not already above that floor are measured after it: the others cannot have dropped below.
+        Only pairs whose distance bound before the step, less how far their geoms moved in it, is not already
+        above that floor are measured after it: the others cannot have dropped below.
         """
         watch, data = self.collision, self.configuration.data
         if watch is None:
             q_new = np.clip(q + dq, self.box.lower, self.box.upper)
             self.configuration.update(q_new)
             return q_new
-        before = watch.sphere_gaps(data)  # lower bounds; exact (capped at detection) where within detection
-        near = np.flatnonzero((before < watch.detection_distance) & watch.enabled)
-        before[near] = watch.distances(data, near)
+        # Bounds before the step: travel since the last measurement or bounding spheres (measured where a pair may
+        # be below its minimum); after it, how far each geom moved.
+        before = watch.lower_bounds(data)
+        low = np.flatnonzero((before < watch.min_distance) & watch.enabled)
+        before[low] = watch.distances(data, low)
         floor = np.minimum(before, watch.min_distance)
+        pos0, mat0 = data.geom_xpos.copy(), data.geom_xmat.copy()
         for _ in range(8):
             q_new = np.clip(q + dq, self.box.lower, self.box.upper)
-            with np.errstate(invalid="ignore"):  # inf lever x 0 step: NaN, never skips a pair
-                approach = watch.lever @ np.abs(q_new - q)
-                safe = before - (approach[watch.geom1] + approach[watch.geom2]) >= floor
-            check = np.flatnonzero(~safe & watch.enabled)
             self.configuration.update(q_new)
+            moved = watch.moved(data, pos0, mat0)
+            check = np.flatnonzero(~(before - moved[watch.geom1] - moved[watch.geom2] >= floor) & watch.enabled)
             if np.all(watch.distances(data, check) >= floor[check] - 1e-6):
                 return q_new
             dq = dq * 0.5

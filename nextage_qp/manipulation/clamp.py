@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from nextage_qp.errors import PhaseError
-from nextage_qp.geometry import axis_angle, rot_z
+from nextage_qp.geometry import axis_angle, clamp, rot_z
 from nextage_qp.ik import FrameTarget, RelativeTarget
 from nextage_qp.manipulation.context import Grip, View
 
@@ -51,8 +51,8 @@ class Clamp:
         rot = view.body_pose(self.grip.object).rot
         lateral = rot_z(yaw) @ self.grip.lateral
         z = rot[:, 2]
-        tilt = float(np.arcsin(np.clip(z[0] * lateral[1] - z[1] * lateral[0], -1.0, 1.0)))  # (e_z x z) . lateral
-        self.roll = float(np.clip(self.roll - self.level_gain * tilt * view.dt, -MAX_ROLL, MAX_ROLL))
+        tilt = float(np.arcsin(clamp(float(z[0] * lateral[1] - z[1] * lateral[0]), -1.0, 1.0)))  # (e_z x z) . lateral
+        self.roll = clamp(self.roll - self.level_gain * tilt * view.dt, -MAX_ROLL, MAX_ROLL)
         return tilt
 
     def targets(self, view: View, pos: np.ndarray, yaw: float) -> tuple[tuple[FrameTarget, ...], RelativeTarget]:
@@ -68,8 +68,8 @@ class Clamp:
             for i, (frame, side) in enumerate(zip(g.frames, self.SIDES, strict=False)):
                 felt = float(side * (view.wrench(frame).force @ lateral))
                 self.felt[i] += alpha * (felt - self.felt[i])
-                step = float(np.clip(g.force_gain * (g.force - self.felt[i]), -0.01, 0.01)) * view.dt
-                self.depth[i] = float(np.clip(self.depth[i] + step, -MAX_EASE, MAX_DEEPEN))
+                step = clamp(float(g.force_gain * (g.force - self.felt[i])), -0.01, 0.01) * view.dt
+                self.depth[i] = clamp(self.depth[i] + step, -MAX_EASE, MAX_DEEPEN)
             self.check_hold()
         if self.level_gain > 0:
             self.level(view, yaw)

@@ -28,7 +28,7 @@ import numpy as np
 from pydantic import Field
 
 from nextage_qp.errors import PhaseError
-from nextage_qp.geometry import wrap, yaw_of
+from nextage_qp.geometry import clamp, wrap, yaw_of
 from nextage_qp.manipulation.context import Setpoint, View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
 from nextage_qp.servo import Command
@@ -126,7 +126,7 @@ class Place(Phase):
             goal = self.legs[self.leg]
             arrived = self.sp.advance(goal, c.speed, view.dt)
             if self.leg >= 1:  # turn once lifted
-                self.yaw += float(np.clip(self.goal_yaw - self.yaw, -c.turn_rate * view.dt, c.turn_rate * view.dt))
+                self.yaw += clamp(float(self.goal_yaw - self.yaw), -c.turn_rate * view.dt, c.turn_rate * view.dt)
             if arrived and (self.leg < 1 or abs(self.goal_yaw - self.yaw) < 1e-9):
                 self.leg += 1
                 if self.leg == len(self.legs):
@@ -144,7 +144,7 @@ class Place(Phase):
             if down:
                 self.sp.jump(np.array([*self.sp.pos[:2], max(self.sp.pos[2], self.rest)]))
         targets, relative = self.clamp.targets(view, self.sp.pos, self.yaw)
-        blend = float(np.clip((view.t - self.t0) / BLEND, 0.0, 1.0))
+        blend = clamp((view.t - self.t0) / BLEND, 0.0, 1.0)
         posture = self.posture_from + blend * blend * (3.0 - 2.0 * blend) * (self.posture - self.posture_from)
         return Command(targets, (relative,), allow=frozenset({c.object}), posture=posture, done=done)
 

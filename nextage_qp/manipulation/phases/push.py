@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from nextage_qp.errors import PhaseError
-from nextage_qp.geometry import rot_z, rotate2, turn2, unit2, yaw_of
+from nextage_qp.geometry import clamp, rot_z, rotate2, turn2, unit2, yaw_of
 from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.contact import PushContact
 from nextage_qp.manipulation.context import Setpoint, View
@@ -92,7 +92,7 @@ class Push(Phase):
 
     def _turn_tool(self, view: View) -> None:  # towards the goal at the turn rate
         step = self.spec.turn_rate * view.dt
-        self.tool_yaw += float(np.clip(np.angle(np.exp(1j * (self.goal_yaw - self.tool_yaw))), -step, step))
+        self.tool_yaw += clamp(float(np.angle(np.exp(1j * (self.goal_yaw - self.tool_yaw)))), -step, step)
 
     def update(self, view: View) -> Command:  # noqa: D102
         return getattr(self, f"_{self.stage}")(view)  # _transit, _push, _hold or _retreat
@@ -151,7 +151,7 @@ class Push(Phase):
             if speed > MIN_STEER_SPEED:  # integral steering: aim the push so the object moves at the target
                 moving = self.obj_v / speed
                 error = float(np.arctan2(moving[0] * bearing[1] - moving[1] * bearing[0], moving @ bearing))
-                self.bias = float(np.clip(self.bias + STEER_GAIN * error * view.dt, -MAX_BIAS, MAX_BIAS))
+                self.bias = clamp(self.bias + STEER_GAIN * error * view.dt, -MAX_BIAS, MAX_BIAS)
             self.d = turn2(self.d, rotate2(bearing, self.bias), c.turn_rate * view.dt)
             self.goal_yaw = float(np.arctan2(self.d[1], self.d[0])) + c.yaw
         self._turn_tool(view)
@@ -169,26 +169,26 @@ class Push(Phase):
             self._knocked_away()
             self.next_d, self.full = unit2((tgt - obj)[:2]), True
             return self._start_retreat(final=False) if self.approaches < c.attempts else self._finish(dist)
-        wanted = float(np.clip(c.push_speed * (remaining + gap) / c.slow_down, c.creep_speed, c.push_speed))
+        wanted = clamp(c.push_speed * (remaining + gap) / c.slow_down, c.creep_speed, c.push_speed)
         self.touched = self.touched or gap < 1e-3 or self.contact.update(view, d)  # geometry or the wrist's sensor
         self.info.update(contact_onsets=self.contact.onsets, contact_losses=self.contact.losses)
         if not self.touched:
             wanted = min(wanted, max(c.creep_speed, gap / GAP_TIME))  # touch the object slowly
         self.v = min(wanted, self.v + PUSH_ACCEL * view.dt)
         # tipping: no face of the box is down (a box that rolled onto another face is flat again)
-        tilted = float(np.arccos(np.clip(np.abs(obj_pose.rot[2]).max(), -1.0, 1.0))) > c.max_tilt
+        tilted = float(np.arccos(clamp(float(np.abs(obj_pose.rot[2]).max()), -1.0, 1.0))) > c.max_tilt
         lead = 0.0 if tilted else c.preload  # a tipping object gets no push until it is flat again
         self.info["tilt_pauses"] = self.info.get("tilt_pauses", 0) + int(tilted)
         along = min(along + self.v * view.dt, -half + lead)
         if self.touched:  # in contact, recentre only near the face's edge (sliding along it drags the object)
-            excess = lateral - float(np.clip(lateral, -c.centre_band, c.centre_band))
-            lateral -= float(np.clip(excess, -c.creep_speed * view.dt, c.creep_speed * view.dt))
+            excess = lateral - clamp(lateral, -c.centre_band, c.centre_band)
+            lateral -= clamp(excess, -c.creep_speed * view.dt, c.creep_speed * view.dt)
         else:
-            lateral -= float(np.clip(lateral, -c.push_speed * view.dt, c.push_speed * view.dt))
+            lateral -= clamp(lateral, -c.push_speed * view.dt, c.push_speed * view.dt)
         # Hold the real tool at the push height: contact forces lift a compliant arm, and a hand sliding up the
         # object's face drags it onto the table (more friction, more force, more lift).
         rise = view.frame_pose(c.frame).pos[2] - self.push_z
-        self.z_bias = float(np.clip(self.z_bias - HEIGHT_GAIN * rise * view.dt, -MAX_HEIGHT_BIAS, MAX_HEIGHT_BIAS))
+        self.z_bias = clamp(self.z_bias - HEIGHT_GAIN * rise * view.dt, -MAX_HEIGHT_BIAS, MAX_HEIGHT_BIAS)
         self.sp.pos = np.array([*(obj[:2] + along * d + lateral * n), self.push_z + self.z_bias])
         return self._command(allow=True)
 
