@@ -136,6 +136,16 @@ class PoseKalman:
         self.mode[:] = 0.5
         self.t, self._misses = t, 0
 
+    def start(self, t: float, z: np.ndarray, variance: np.ndarray) -> None:
+        """Restart at ``z`` taken at ``t`` [s], at rest, with position/angle ``variance`` per axis (6,)."""
+        self.reset(t, np.asarray(z, dtype=float))
+        for m in self.models:
+            m.p[:, 0, 0] = np.maximum(variance, 1e-12)
+
+    def variance(self) -> np.ndarray:
+        """Mode-weighted position/angle variance per axis (6,) at the last measurement."""
+        return sum(w * m.p[:, 0, 0] for w, m in zip(self.mode, self.models, strict=True))
+
     def update(self, t: float, z: np.ndarray) -> bool:
         """Apply a measurement ``z`` (x, y, z, roll, pitch, yaw) describing time ``t`` [s]; False if gated out."""
         z = np.asarray(z, dtype=float)

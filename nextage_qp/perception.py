@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import mujoco
@@ -21,6 +21,7 @@ from nextage_qp.errors import ConfigError
 from nextage_qp.estimation import PoseKalman, rpy_of, vector_pose
 from nextage_qp.faults import EstimationConfig, FaultsConfig
 from nextage_qp.geometry import Pose, axis_angle, wrap, yaw_of
+from nextage_qp.held import HeldEstimate
 from nextage_qp.sensors import Wrench
 from nextage_qp.shoves import Shoves
 
@@ -38,6 +39,8 @@ class _Track:
         self.est_sq: list[float] = []
         self.est_yaw: list[float] = []
         self.held_sq: list[float] = []  # the latest raw measurement against the truth now (no filter)
+        self.carried: HeldEstimate | None = None  # while the robot holds the object
+        self.carried_counts = [0, 0]  # gated measurements and restarts of finished holds
 
 
 class FaultySensors:
@@ -66,20 +69,48 @@ class FaultySensors:
         self._next_sample = 0.0
         self._joint_cache: tuple[float, np.ndarray, np.ndarray] | None = None
         self._frozen: Wrench | None = None
+        self._carrier: tuple[str, Callable[[], Pose]] | None = None
         self.history: dict[str, list[tuple[float, np.ndarray, np.ndarray | None]]] = {}
         """Per object: (t, estimate vector, raw measurement delivered this tick or None), for logs and plots."""
 
     # -- objects --------------------------------------------------------------------------------------------
 
+    def _kalman(self) -> PoseKalman | None:
+        if self.estimation.object_filter != "kalman":
+            return None
+        cam = self.faults.object_pose
+        noise = (cam.noise_pos_m, cam.noise_rot_rad) if cam else (0.0, 0.0)
+        return PoseKalman(*noise, accel_pos=self.estimation.accel_pos, accel_rot=self.estimation.accel_rot)
+
     def _track(self, name: str) -> _Track:
         if name not in self._tracks:
-            cam = self.faults.object_pose
-            kalman = None
-            if self.estimation.object_filter == "kalman":
-                noise = (cam.noise_pos_m, cam.noise_rot_rad) if cam else (0.0, 0.0)
-                kalman = PoseKalman(*noise, accel_pos=self.estimation.accel_pos, accel_rot=self.estimation.accel_rot)
-            self._tracks[name] = _Track(kalman)
+            self._tracks[name] = _Track(self._kalman())
         return self._tracks[name]
+
+    def carry(self, name: str | None, carrier: Callable[[], Pose] | None = None) -> None:
+        """The object the robot now holds and the pose of what holds it (None: nothing held).
+
+        A held object is estimated relative to its carrier (:class:`~nextage_qp.held.HeldEstimate`); when the
+        hold ends the world filter restarts from that estimate.
+        """
+        self._carrier = (name, carrier) if name is not None and carrier is not None else None
+
+    def _hold(self, t: float, name: str, tr: _Track) -> None:
+        """Start, keep or end the held estimate of ``name`` at ``t`` [s]."""
+        held = self._carrier is not None and self._carrier[0] == name and tr.kalman is not None
+        if held and tr.carried is None and tr.kalman is not None and tr.kalman.initialised:
+            assert self._carrier is not None
+            fresh = self._kalman()
+            assert fresh is not None
+            tr.carried = HeldEstimate(t, self._carrier[1](), tr.kalman.estimate(t), tr.kalman.variance(), fresh)
+        elif held and tr.carried is not None:
+            assert self._carrier is not None
+            tr.carried.observe(t, self._carrier[1]())
+        elif not held and tr.carried is not None and tr.kalman is not None:
+            tr.kalman.start(t, tr.carried.estimate(t), tr.carried.variance())
+            tr.carried_counts[0] += tr.carried.kalman.rejected
+            tr.carried_counts[1] += tr.carried.kalman.resets
+            tr.carried = None
 
     def _measure(self, pose: Pose) -> np.ndarray:
         """A noisy reading (x, y, z, roll, pitch, yaw) of ``pose``: Gaussian position and rotation vector."""
@@ -104,6 +135,7 @@ class FaultySensors:
         out: dict[str, Pose] = {}
         for name, pose in true.items():
             tr, true_yaw = self._track(name), yaw_of(pose.rot)
+            self._hold(t, name, tr)
             first = tr.raw is None and not tr.pending
             if sample or first:
                 tr.taken += 1
@@ -121,12 +153,15 @@ class FaultySensors:
             while tr.pending and tr.pending[0][0] <= t + 1e-9:
                 _, stamp, z = tr.pending.popleft()
                 tr.raw = delivered = z
-                if tr.kalman is not None:
+                if tr.carried is not None:
+                    tr.carried.update(stamp, z)
+                elif tr.kalman is not None:
                     tr.kalman.update(stamp, z)
             assert tr.raw is not None
             held = tr.raw[:3] - pose.pos
             tr.held_sq.append(float(held @ held))
-            est = tr.kalman.estimate(t) if tr.kalman is not None else tr.raw
+            est = (tr.carried.estimate(t) if tr.carried is not None
+                   else tr.kalman.estimate(t) if tr.kalman is not None else tr.raw)
             err = est[:3] - pose.pos
             tr.est_sq.append(float(err @ err))
             tr.est_yaw.append(abs(wrap(est[5] - true_yaw)))
@@ -179,7 +214,7 @@ class FaultySensors:
         """
         objects = {}
         for name, tr in self._tracks.items():
-            k = tr.kalman
+            k, c = tr.kalman, tr.carried
             objects[name] = {
                 "estimate_rms_m": _rms(tr.est_sq), "estimate_max_m": _max_sqrt(tr.est_sq),
                 "estimate_yaw_rms_rad": _rms([y * y for y in tr.est_yaw]),
@@ -187,7 +222,8 @@ class FaultySensors:
                 "raw_yaw_rms_rad": _rms([y * y for y in tr.raw_yaw]),
                 "held_rms_m": _rms(tr.held_sq), "held_max_m": _max_sqrt(tr.held_sq),
                 "measurements": tr.taken, "dropouts": tr.dropped,
-                "rejected": k.rejected if k else 0, "filter_resets": k.resets if k else 0,
+                "rejected": (k.rejected if k else 0) + tr.carried_counts[0] + (c.kalman.rejected if c else 0),
+                "filter_resets": (k.resets if k else 0) + tr.carried_counts[1] + (c.kalman.resets if c else 0),
             }
         return {"object_filter": self.estimation.object_filter, "objects": objects}
 

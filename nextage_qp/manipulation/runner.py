@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from functools import partial
 from typing import Any
 
 from nextage_qp.control import load_gains
@@ -102,6 +103,9 @@ class Runner:
         if self.shoves is not None:
             self.shoves.update(self.sim.data, self.sim.time, self._phase)
         objects = {name: (pose.pos, pose.quat) for name, pose in self.sim.measured.objects.items()}
+        grip = self.view.grip
+        if self.sensors is not None:  # a held object is estimated relative to the first pad
+            self.sensors.carry(*((grip.object, partial(self.view.frame_pose, grip.frames[0])) if grip else (None,)))
         self.servo.step(command, objects)
         self.sim.tick()
         if self.view.grip is not None:
