@@ -32,8 +32,7 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import BaseModel, Field, model_validator
 
-from nextage_qp.manipulation.phases.base import MAX_SECONDS, name_field
-from nextage_qp.yaml_file import STRICT
+from nextage_qp.yaml_file import MAX_SECONDS, STRICT, name_field
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 

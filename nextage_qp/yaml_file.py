@@ -9,10 +9,10 @@ from __future__ import annotations
 import re
 import typing
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from nextage_qp.errors import ConfigError
 
@@ -210,3 +210,19 @@ def valid_keys(root: type[BaseModel], loc: tuple[int | str, ...]) -> list[str]:
     """Keys accepted at a location of a model (for 'unknown key' messages)."""
     candidates = _walk(root, loc)[0]
     return sorted(candidates[0].model_fields) if len(candidates) == 1 else []
+
+
+NameKind = Literal["frame", "object", "body", "reference", "joint"]
+"""What a name field refers to: a site or body of the robot (``frame``), a free object, any body, a body or
+``world`` (``reference``), or a robot joint (the keys of a mapping)."""
+
+MAX_SECONDS = 3600.0
+"""Upper bound of every duration in a config [s]: a run always has a bounded length."""
+
+
+def name_field(kind: NameKind, *args: Any, **kwargs: Any) -> Any:
+    """A pydantic ``Field`` whose names are checked against the scene's names of ``kind``.
+
+    The value may be a name, a list of names or a mapping keyed by names.
+    """
+    return Field(*args, json_schema_extra={"names": kind}, **kwargs)

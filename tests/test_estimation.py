@@ -90,3 +90,67 @@ def test_noiseless_and_noisy_cameras_both_accepted(noise):
     kf = PoseKalman(noise, 0.0)
     kf.update(0.0, np.zeros(6))
     assert kf.update(1 / RATE, np.zeros(6)) and kf.initialised
+
+
+def _carrier(t):
+    """A pad moving on a curve and turning: 0.1 m/s, 0.5 rad/s about z."""
+    from nextage_qp.geometry import Pose, rot_z
+
+    return Pose(np.array([0.3 + 0.1 * t, 0.05 * np.sin(t), 1.1]), rot_z(0.5 * t) @ rot_of(np.array([0.3, -0.2, 0.0])))
+
+
+def test_a_held_object_is_estimated_relative_to_its_moving_carrier():
+    from nextage_qp.geometry import Pose
+    from nextage_qp.held import HeldEstimate
+
+    rng = np.random.default_rng(5)
+    offset = Pose(np.array([0.0, -0.06, -0.1]), rot_of(np.array([0.1, 0.0, 0.7])))  # object in the pad frame
+
+    def truth(t):
+        c = _carrier(t)
+        return pose_vector(Pose(c.pos + c.rot @ offset.pos, c.rot @ offset.rot))
+
+    world = PoseKalman(SIGMA_POS, SIGMA_ROT)
+    dt, latency = 0.004, 0.02
+    held = HeldEstimate(0.0, _carrier(0.0), truth(0.0), np.full(6, SIGMA_POS**2), PoseKalman(SIGMA_POS, SIGMA_ROT))
+    pending, errors, world_errors = [], [], []
+    for k in range(int(6.0 / dt)):
+        t = k * dt
+        held.observe(t, _carrier(t))
+        if k % round(1 / (RATE * dt)) == 0:
+            pending.append((t + latency, t, measure(rng, truth(t))))
+        while pending and pending[0][0] <= t + 1e-9:
+            _, stamp, z = pending.pop(0)
+            held.update(stamp, z)
+            world.update(stamp, z)
+        if t > 2.0:
+            errors.append(np.linalg.norm(held.estimate(t)[:3] - truth(t)[:3]))
+            world_errors.append(np.linalg.norm(world.estimate(t)[:3] - truth(t)[:3]))
+    rms, world_rms = np.sqrt(np.mean(np.square(errors))), np.sqrt(np.mean(np.square(world_errors)))
+    assert rms < 0.5 * SIGMA_POS * np.sqrt(3)  # the hold averages the noise although the object moves
+    assert rms < 0.6 * world_rms  # and beats the world-frame filter on the same measurements (about 0.5)
+
+
+def test_faulty_sensors_hand_a_held_object_over_without_a_jump():
+    from nextage_qp.faults import EstimationConfig, FaultsConfig
+    from nextage_qp.perception import FaultySensors
+
+    faults = FaultsConfig.model_validate({"object_pose": {"rate_hz": 30, "latency_s": 0.02, "noise_pos_m": SIGMA_POS,
+                                                          "noise_rot_rad": SIGMA_ROT}})
+    sensors = FaultySensors(faults, EstimationConfig(), seed=3)
+    offset = np.array([0.0, -0.06, -0.1])
+    dt, ests, truth = 0.004, [], []
+    for k in range(int(4.0 / dt)):
+        t = k * dt
+        held = 1.0 <= t < 3.0
+        c = _carrier(max(min(t, 3.0) - 1.0, 0.0))  # the object rests, is carried for 2 s, rests again
+        obj = vector_pose(pose_vector(type(c)(c.pos + c.rot @ offset, c.rot)))
+        sensors.carry("obj" if held else None, (lambda c=c: c) if held else None)
+        ests.append(sensors.objects(t, {"obj": obj})["obj"].pos)
+        truth.append(obj.pos)
+    for handover in (1.0, 3.0):  # the estimate does not jump when the hold starts or ends
+        k = round(handover / dt)
+        assert np.linalg.norm(ests[k] - ests[k - 1]) < 0.001
+    held = slice(round(1.5 / dt), round(3.0 / dt))  # carried, after the first half second of the hold
+    err = np.linalg.norm(np.array(ests[held]) - np.array(truth[held]), axis=1)
+    assert np.sqrt(np.mean(err**2)) < 0.5 * SIGMA_POS * np.sqrt(3)

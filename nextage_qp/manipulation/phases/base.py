@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar
 
 from pydantic import BaseModel, Field
 
@@ -17,22 +17,9 @@ from nextage_qp.errors import PhaseError
 from nextage_qp.manipulation.clamp import Clamp
 from nextage_qp.manipulation.context import Grip, View
 from nextage_qp.servo import Command
-from nextage_qp.yaml_file import STRICT
+from nextage_qp.yaml_file import MAX_SECONDS, STRICT, NameKind, name_field
 
-NameKind = Literal["frame", "object", "body", "reference", "joint"]
-"""What a name field refers to: a site or body of the robot (``frame``), a free object, any body, a body or
-``world`` (``reference``), or a robot joint (the keys of a mapping)."""
-
-MAX_SECONDS = 3600.0
-"""Upper bound of every duration in a config [s]: a run always has a bounded length."""
-
-
-def name_field(kind: NameKind, *args: Any, **kwargs: Any) -> Any:
-    """A pydantic ``Field`` whose names are checked against the scene's names of ``kind``.
-
-    The value may be a name, a list of names or a mapping keyed by names.
-    """
-    return Field(*args, json_schema_extra={"names": kind}, **kwargs)
+__all__ = ["MAX_SECONDS", "NameKind", "Phase", "Spec", "name_field"]
 
 
 class Spec(BaseModel):
