@@ -151,3 +151,20 @@ def print_outcome(out: dict[str, Any], as_json: bool, keys: tuple[str, ...] | No
 def print_json(obj: Any) -> None:
     """Print one strict JSON object: numpy values converted, NaN and infinities written as null."""
     print(dumps(obj))
+
+
+def add_backend_args(parser: argparse.ArgumentParser, workers_help: str) -> None:
+    """Add ``--workers``, ``--backend`` and ``--ray-address`` (checked by :func:`check_backend_args`)."""
+    from nextage_qp.sweep.run import BACKENDS
+
+    parser.add_argument("--workers", type=int, help=workers_help)
+    parser.add_argument("--backend", choices=BACKENDS, default="local", help="local process pool (default) or ray")
+    parser.add_argument("--ray-address", help="Ray cluster to join (default: $RAY_ADDRESS, else a local instance)")
+
+
+def check_backend_args(args: argparse.Namespace) -> None:
+    """One-line errors for ``--workers`` out of range and ``--ray-address`` without ``--backend ray``."""
+    if args.workers is not None and not 1 <= args.workers <= 1024:
+        raise ConfigError(f"--workers must be between 1 and 1024, got {args.workers}")
+    if args.ray_address and args.backend != "ray":
+        raise ConfigError("--ray-address needs --backend ray")

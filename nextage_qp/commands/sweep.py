@@ -15,11 +15,19 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
-from nextage_qp.commands.common import PLAIN_PROGRESS_S, PLOT_SUFFIXES, SEED, out_console, output_file
+from nextage_qp.commands.common import (
+    PLAIN_PROGRESS_S,
+    PLOT_SUFFIXES,
+    SEED,
+    add_backend_args,
+    check_backend_args,
+    out_console,
+    output_file,
+)
 from nextage_qp.errors import ConfigError
 from nextage_qp.json_out import dumps
 from nextage_qp.sweep.episode import Episode
-from nextage_qp.sweep.run import BACKENDS, plan, run_sweep
+from nextage_qp.sweep.run import plan, run_sweep
 from nextage_qp.sweep.spec import SweepSpec
 from nextage_qp.sweep.store import SweepStore
 from nextage_qp.sweep.summary import BINS, summarize
@@ -31,9 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("sweep", help="sweep YAML, e.g. configs/sweeps/push_cube.yaml")
     p.add_argument("--n", type=int, help="episodes 0..N-1 (required unless --only)")
     p.add_argument("--seed", type=SEED, default=0, help="sweep seed: episode i depends on (seed, i) only (default 0)")
-    p.add_argument("--workers", type=int, help="parallel episodes (default: the CPU count, or the Ray cluster's)")
-    p.add_argument("--backend", choices=BACKENDS, default="local", help="local process pool (default) or ray")
-    p.add_argument("--ray-address", help="Ray cluster to join (default: $RAY_ADDRESS, else a local instance)")
+    add_backend_args(p, "parallel episodes (default: the CPU count, or the Ray cluster's)")
     p.add_argument("--out", type=Path, help="directory of the episode records (default runs/sweeps/NAME-seedS)")
     p.add_argument("--json", type=output_file(".json"), metavar="PATH", help="write the summary as JSON")
     p.add_argument("--plot", type=output_file(*PLOT_SUFFIXES), metavar="PNG",
@@ -57,13 +63,6 @@ def _indices(args: argparse.Namespace) -> list[int]:
     if not 1 <= args.n <= 1_000_000:
         raise ConfigError(f"--n must be between 1 and 1000000, got {args.n}")
     return list(range(args.n))
-
-
-def _check_args(args: argparse.Namespace) -> None:
-    if args.workers is not None and not 1 <= args.workers <= 1024:
-        raise ConfigError(f"--workers must be between 1 and 1024, got {args.workers}")
-    if args.ray_address and args.backend != "ray":
-        raise ConfigError("--ray-address needs --backend ray")
 
 
 class _Progress:
@@ -114,7 +113,7 @@ class _Progress:
 
 def run(args: argparse.Namespace) -> int:
     """Run the sweep; exit 0 when every episode has a record (whatever its outcome), 130 when interrupted."""
-    _check_args(args)
+    check_backend_args(args)
     indices = _indices(args)
     spec = SweepSpec(args.sweep)
     workers = args.workers or (None if args.backend == "ray" else os.cpu_count() or 1)

@@ -5,16 +5,14 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
 from rich.console import Console
 from rich.table import Table
 
-from nextage_qp.commands.common import out_console
+from nextage_qp.commands.common import add_backend_args, check_backend_args, out_console
 from nextage_qp.errors import ConfigError
-from nextage_qp.sweep.run import BACKENDS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,9 +20,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("tune", help="tune gains or task keys with Optuna over a sweep's episodes or step responses")
     p.add_argument("study", help="study YAML, e.g. configs/studies/pd_gains.yaml")
     p.add_argument("--trials", type=int, help="complete trials the study should hold (default: the study file's)")
-    p.add_argument("--workers", type=int, help="parallel episodes per trial (default: the study file's, else CPUs)")
-    p.add_argument("--backend", choices=BACKENDS, default="local", help="local process pool (default) or ray")
-    p.add_argument("--ray-address", help="Ray cluster to join (default: $RAY_ADDRESS, else a local instance)")
+    add_backend_args(p, "parallel episodes per trial (default: the study file's, else CPUs)")
     p.add_argument("--storage", help="Optuna storage URL shared by several runs (default: sqlite in --out)")
     p.add_argument("--out", type=Path, help="output folder (default runs/studies/NAME)")
     p.add_argument("--resume", action="store_true", help="continue the study in the storage")
@@ -35,10 +31,7 @@ def _check(args: argparse.Namespace, default_trials: int) -> int:
     trials = default_trials if args.trials is None else args.trials
     if not 1 <= trials <= 100_000:
         raise ConfigError(f"--trials must be between 1 and 100000, got {trials}")
-    if args.workers is not None and not 1 <= args.workers <= 1024:
-        raise ConfigError(f"--workers must be between 1 and 1024, got {args.workers}")
-    if args.ray_address and args.backend != "ray":
-        raise ConfigError("--ray-address needs --backend ray")
+    check_backend_args(args)
     return trials
 
 
@@ -55,7 +48,7 @@ class _Progress:
     """One line per trial: its value and account, the best so far, the time per trial."""
 
     def __init__(self, total: int, done: int) -> None:
-        self.total, self.done, self.t0 = total, done, time.monotonic()
+        self.total, self.done = total, done
         self.console = Console(stderr=True, highlight=False)
 
     def __call__(self, trial: Any, score: Any, seconds: float) -> None:
@@ -132,6 +125,5 @@ def _print(s: dict[str, Any], console: Console) -> None:
     console.print(table)
     console.print(f"tuned config: {s['best_yaml']}; plots: {', '.join(s['plots']) or 'none'}; "
                   f"summary: {Path(s['best_yaml']).parent / 'summary.json'}", markup=False, soft_wrap=True)
-    for params in (best["params"],):
-        console.print("best values: " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
-                                                 for k, v in params.items()), markup=False, soft_wrap=True)
+    console.print("best values: " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
+                                             for k, v in best["params"].items()), markup=False, soft_wrap=True)
