@@ -111,6 +111,21 @@ def test_bad_sweep_study_keys(tmp_path, capsys, space, message):
     assert err.count("\n") == 1 and message in err
 
 
+@pytest.mark.parametrize(
+    "held,message",
+    [
+        ({"episodes": 10, "seed": 0}, "held_out.seed 0 is the objective's sweep.seed"),
+        ({"episodes": 10}, "held_out of a sweep study: give episodes and seed"),
+    ],
+)
+def test_held_out_episodes_must_be_other_scenes(tmp_path, capsys, held, message):
+    path = write_study(tmp_path, {"sweep": {"file": str(SWEEP), "episodes": 2, "seed": 0}, "held_out": held,
+                                  "space": {"ik.posture_cost": {"log": [0.005, 0.05]}}})
+    assert main(["tune", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err
+
+
 @pytest.mark.parametrize("text,message", [("[1, 2]", "expected a mapping"), ("space: [", "not valid YAML")])
 def test_study_file_that_is_not_a_mapping(tmp_path, capsys, text, message):
     path = tmp_path / "s.yaml"

@@ -64,6 +64,8 @@ class Param(_Strict):
         if self.log is not None and self.log[0] <= 0:
             raise ValueError(f"log needs lo > 0, got {self.log[0]}")
         for value in self.choice or ():
+            if not (value is None or isinstance(value, (bool, int, float, str))):
+                raise ValueError("choices must be numbers, strings, booleans or null")
             if isinstance(value, float) and not math.isfinite(value):
                 raise ValueError(f"choice values must be finite, got {value}")
         return self
@@ -138,8 +140,11 @@ class StudyFile(_Strict):
                              f"valid: {', '.join(OBJECTIVES[kind])}")
         held = self.held_out
         if held is not None:
-            if kind == "sweep" and (held.amplitude_deg is not None or held.episodes is None):
-                raise ValueError("held_out of a sweep study: give episodes (and seed), not amplitude_deg")
+            if kind == "sweep" and (held.amplitude_deg is not None or held.episodes is None or held.seed is None):
+                raise ValueError("held_out of a sweep study: give episodes and seed, not amplitude_deg")
+            if kind == "sweep" and self.sweep is not None and held.seed == self.sweep.seed:
+                raise ValueError(f"held_out.seed {held.seed} is the objective's sweep.seed: held-out episodes "
+                                 f"must be other scenes; give another seed")
             if kind == "steps" and (held.amplitude_deg is None or held.episodes is not None or held.seed is not None):
                 raise ValueError("held_out of a steps study: give amplitude_deg, not episodes or seed")
         return self

@@ -109,7 +109,6 @@ class StepsEvaluator:
             if name not in JOINT_NAMES:
                 raise ConfigError(f"steps: unknown joint {name!r}; valid joints: {', '.join(JOINT_NAMES)}")
         self.robot = Robot.from_scene(evaluation.scene)
-        self.held_amplitude = held_amplitude_deg
         self.skipped: dict[str, list[str]] = {}
         self.steps = self._steps(evaluation.amplitude_deg, "objective")
         self.held_steps = self._steps(held_amplitude_deg, "held_out") if held_amplitude_deg else []

@@ -63,26 +63,22 @@ class Study:
         return StepsEvaluator(f.steps, f.held_out.amplitude_deg if f.held_out else None, folder)
 
     def _check_space(self) -> dict[str, Any] | None:
-        """Validate every key at its bounds (or choices); returns the base values, or None if one is outside."""
-        base: dict[str, Any] | None = {}
+        """Validate every key at its bounds (or choices); the base values, or None if one is unset or outside."""
+        base: dict[str, Any] = {}
+        complete = True
         for key, param in self.file.space.items():
             values = [self.evaluator.base_value(k) for k in (key, *param.also)]
-            if any(v is None for v in values) or isinstance(values[0], (dict, list)):
-                base = None
-            elif base is not None:
+            if any(v is None for v in values) or not _inside(param, values[0]):
+                complete = False
+            else:
                 base[key] = values[0]
-            if param.choice is not None and not all(v is None or isinstance(v, (bool, int, float, str))
-                                                    for v in param.choice):
-                raise ConfigError(f"space.{key}: choices must be numbers, strings, booleans or null")
             for value in param.choice if param.choice is not None else param.bounds or ():
                 for k in (key, *param.also):
                     try:
                         self.evaluator.check_value(k, value)
                     except ConfigError as exc:
                         raise ConfigError(f"space.{key}: value {value!r} for {k}: {exc}") from None
-            if base is not None and key in base and not _inside(param, base[key]):
-                base = None
-        return base
+        return base if complete else None
 
     def expand(self, params: dict[str, Any]) -> dict[str, Any]:
         """Searched keys and their ``also`` keys, each with its value."""

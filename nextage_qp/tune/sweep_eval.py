@@ -13,6 +13,7 @@ p95 error wins (failure rate first, then p95 error). Refused scenes (exit 2 befo
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +23,7 @@ from nextage_qp.errors import ConfigError
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.sweep.episode import Episode, EpisodeTask, run_episode
 from nextage_qp.sweep.keys import lookup, yaml_scalar
+from nextage_qp.sweep.run import plan
 from nextage_qp.sweep.spec import SweepSpec
 from nextage_qp.sweep.summary import error_limit, object_error, wilson
 from nextage_qp.tune.evaluate import Score, apply_params, relocate
@@ -59,18 +61,13 @@ class SweepEvaluator:
     def tasks(self, params: dict[str, Any], held_out: bool = False) -> list[EpisodeTask]:
         """Episodes of the sweep (objective's seed, or the held-out seed) with ``params`` set."""
         held = self.held if held_out else None
-        n = held.episodes if held is not None and held.episodes else self.eval.episodes
-        seed = held.seed if held is not None and held.seed is not None else self.eval.seed
         if held_out and held is None:
             return []
-        extra = [f"{key}={yaml_scalar(value)}" for key, value in params.items()]
-        tasks = []
-        for i in range(n):
-            drawn, run_seed = self.spec.draw(seed, i)
-            overrides = self.spec.overrides(drawn, run_seed)
-            tasks.append(EpisodeTask(i, str(self.spec.base_path), (*overrides[:-1], *extra, overrides[-1]),
-                                     drawn, run_seed, self.wall_limit))
-        return tasks
+        n, seed = (held.episodes, held.seed) if held is not None else (self.eval.episodes, self.eval.seed)
+        assert n is not None and seed is not None  # the study file's schema requires both for a held-out set
+        extra = tuple(f"{key}={yaml_scalar(value)}" for key, value in params.items())
+        return [replace(t, overrides=(*t.overrides[:-1], *extra, t.overrides[-1]), wall_limit=self.wall_limit)
+                for t in plan(self.spec, seed, range(n))]  # the run seed stays the last override
 
     def score(self, episodes: Sequence[Episode]) -> Score:
         """Failure rate first, p95 object error second (see the module docstring)."""
