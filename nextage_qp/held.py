@@ -2,8 +2,8 @@
 
 A clamped object moves with the pads. In the world frame its pose changes all through a carry, and a filter
 there must trade noise against lag; relative to the pad it is (nearly) constant, so a filter on the *relative*
-pose averages the camera's noise down over the whole hold, and the hand's pose (from the robot's kinematics,
-exact to the encoders' noise) carries it through the motion without lag. Each measurement is expressed in the
+pose averages the camera's noise down over the whole hold, and the hand's pose (the pad frame's pose, as the
+phases read every robot frame) carries it through the motion without lag. Each measurement is expressed in the
 carrier frame of the moment it describes (the carrier's poses of the last second are kept, which compensates
 the camera's latency); the estimate is the carrier's pose now composed with the filtered relative pose. A slip
 in the pads is a change of the relative pose, which the filter's moving model and its gate follow.

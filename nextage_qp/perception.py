@@ -75,16 +75,14 @@ class FaultySensors:
 
     # -- objects --------------------------------------------------------------------------------------------
 
-    def _kalman(self) -> PoseKalman | None:
-        if self.estimation.object_filter != "kalman":
-            return None
+    def _kalman(self) -> PoseKalman:
         cam = self.faults.object_pose
         noise = (cam.noise_pos_m, cam.noise_rot_rad) if cam else (0.0, 0.0)
         return PoseKalman(*noise, accel_pos=self.estimation.accel_pos, accel_rot=self.estimation.accel_rot)
 
     def _track(self, name: str) -> _Track:
         if name not in self._tracks:
-            self._tracks[name] = _Track(self._kalman())
+            self._tracks[name] = _Track(self._kalman() if self.estimation.object_filter == "kalman" else None)
         return self._tracks[name]
 
     def carry(self, name: str | None, carrier: Callable[[], Pose] | None = None) -> None:
@@ -96,20 +94,19 @@ class FaultySensors:
         self._carrier = (name, carrier) if name is not None and carrier is not None else None
 
     def _hold(self, t: float, name: str, tr: _Track) -> None:
-        """Start, keep or end the held estimate of ``name`` at ``t`` [s]."""
-        held = self._carrier is not None and self._carrier[0] == name and tr.kalman is not None
-        if held and tr.carried is None and tr.kalman is not None and tr.kalman.initialised:
-            assert self._carrier is not None
-            fresh = self._kalman()
-            assert fresh is not None
-            tr.carried = HeldEstimate(t, self._carrier[1](), tr.kalman.estimate(t), tr.kalman.variance(), fresh)
-        elif held and tr.carried is not None:
-            assert self._carrier is not None
-            tr.carried.observe(t, self._carrier[1]())
-        elif not held and tr.carried is not None and tr.kalman is not None:
-            tr.kalman.start(t, tr.carried.estimate(t), tr.carried.variance())
-            tr.carried_counts[0] += tr.carried.kalman.rejected
-            tr.carried_counts[1] += tr.carried.kalman.resets
+        """Start, keep or end the held estimate of ``name`` at ``t`` [s] (with the Kalman filter only)."""
+        carrier = self._carrier[1] if self._carrier is not None and self._carrier[0] == name else None
+        k, held = tr.kalman, tr.carried
+        if k is None:
+            return
+        if carrier is not None and held is None and k.initialised:
+            tr.carried = HeldEstimate(t, carrier(), k.estimate(t), k.variance(), self._kalman())
+        elif carrier is not None and held is not None:
+            held.observe(t, carrier())
+        elif carrier is None and held is not None:
+            k.start(t, held.estimate(t), held.variance())
+            tr.carried_counts[0] += held.kalman.rejected
+            tr.carried_counts[1] += held.kalman.resets
             tr.carried = None
 
     def _measure(self, pose: Pose) -> np.ndarray:

@@ -103,9 +103,10 @@ class Runner:
         if self.shoves is not None:
             self.shoves.update(self.sim.data, self.sim.time, self._phase)
         objects = {name: (pose.pos, pose.quat) for name, pose in self.sim.measured.objects.items()}
-        grip = self.view.grip
         if self.sensors is not None:  # a held object is estimated relative to the first pad
-            self.sensors.carry(*((grip.object, partial(self.view.frame_pose, grip.frames[0])) if grip else (None,)))
+            grip = self.view.grip
+            carrier = partial(self.view.frame_pose, grip.frames[0]) if grip is not None else None
+            self.sensors.carry(grip.object if grip is not None else None, carrier)
         self.servo.step(command, objects)
         self.sim.tick()
         if self.view.grip is not None:
