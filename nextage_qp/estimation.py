@@ -1,8 +1,14 @@
-r"""Object pose estimation: constant-velocity Kalman filters on position and roll / pitch / yaw.
+r"""Object pose estimation: an interacting multiple model (IMM) filter on position and roll / pitch / yaw.
 
 A camera reports an object's pose late (``latency``), at its own rate, with noise, and now and then not at all.
-Each filter keeps six decoupled axes (x, y, z [m]; roll, pitch, yaw [rad]), each a position-velocity pair under
-white-noise acceleration of spectral density :math:`q`:
+The filter keeps six decoupled axes (x, y, z [m]; roll, pitch, yaw [rad]), each a position-velocity pair, under
+three motion models:
+
+* *resting*: the position is constant up to a tiny random walk and the velocity is zero; it averages the noise
+  of an object at rest down as a running mean would;
+* *moving*: constant velocity under white-noise acceleration of spectral density :math:`q` (the
+  ``accel_pos`` / ``accel_rot`` of the config), for an object pushed or carried;
+* *manoeuvring*: the same with ``MANOEUVRE_GAIN`` times :math:`q`, for starts, stops and shoves.
 
 .. math::
 
@@ -10,15 +16,16 @@ white-noise acceleration of spectral density :math:`q`:
     Q = q\begin{bmatrix}\Delta t^3/3 & \Delta t^2/2\\ \Delta t^2/2 & \Delta t\end{bmatrix},\quad
     H = \begin{bmatrix}1 & 0\end{bmatrix},\quad R = \sigma^2
 
-An object mostly rests or moves smoothly, and now and then starts, stops or is shoved: :class:`PoseKalman` runs
-a *still* filter (small :math:`q`) and a *moving* one (``MOVING_GAIN`` times larger) as an interacting multiple
-model (IMM): each measurement re-weights them by their likelihood, and the estimate is their weighted mix.
+Each axis keeps its own model probabilities (an object pushed along the table moves in x and y while its height
+and tilt rest): every measurement re-weights the models of each axis by their likelihood (IMM mixing with a
+``STAY`` probability of keeping the model), and the estimate is their probability-weighted mix.
 
 The state lives at the time the last measurement *describes* (arrival less latency): a measurement is applied
 at its own time stamp and :meth:`PoseKalman.estimate` predicts from there to now, which compensates the latency
-and bridges dropouts. A measurement whose normalised innovation :math:`\sum_i \nu_i^2 / S_i` (moving model)
-exceeds the gate (the 99.9 % point of :math:`\chi^2_6`) is rejected as an outlier; after ``reset_after``
-rejections in a row the object has really moved (a shove) and the filter restarts from the measurement.
+and bridges dropouts. A measurement whose normalised innovation :math:`\sum_i \nu_i^2 / S_i` (manoeuvring
+mixture the models predict, weighted by their probabilities) exceeds the gate (the 99.9 % point of
+:math:`\chi^2_6`) is rejected as an outlier; after
+``reset_after`` rejections in a row the object has really moved and the filter restarts from the measurement.
 """
 
 from __future__ import annotations
@@ -31,10 +38,13 @@ CHI2_6_999 = 22.458
 """99.9 % point of the chi-square distribution with 6 degrees of freedom (the innovation gate)."""
 
 
-MOVING_GAIN = 1e4
-"""Process noise of the moving model relative to the still one."""
+STATIC_GAIN = 1e-5
+"""Position random walk of the resting model [m^2/s per m^2/s^3 of ``accel_pos``] relative to the moving model's
+process noise."""
+MANOEUVRE_GAIN = 3e6
+"""Process noise of the manoeuvring model relative to the moving one."""
 STAY = 0.99
-"""Probability that the object keeps its mode (still or moving) from one measurement to the next."""
+"""Probability that an axis keeps its model (resting, moving or manoeuvring) from one measurement to the next."""
 
 
 def rpy_of(rot: np.ndarray) -> np.ndarray:
@@ -74,52 +84,71 @@ class _CV:
         out[:, 1, 1] = p[:, 1, 1] + q * dt
         return x, out
 
-    def update(self, dt: float, z: np.ndarray) -> float:
-        """Predict by ``dt`` and apply ``z``; returns the measurement's log-likelihood under the prediction."""
+    def pin(self) -> None:
+        """Keep the state within the model (a no-op here; the resting model zeroes its velocity)."""
+
+    def update(self, dt: float, z: np.ndarray) -> np.ndarray:
+        """Predict by ``dt`` and apply ``z``; returns each axis's log-likelihood of ``z`` under the prediction (6,)."""
         x, p = self.predicted(dt)
         nu = z - x[:, 0]
         nu[3:] = _wrap(nu[3:])
         s = p[:, 0, 0] + self.r
-        nis = float(np.sum(nu * nu / s))
         k = p[:, :, 0] / s[:, None]  # (6, 2): gain of each axis
         self.x = x + k * nu[:, None]
         self.p = p - k[:, :, None] * p[:, None, 0, :]  # (I - K H) P
-        return -0.5 * (nis + float(np.sum(np.log(2.0 * np.pi * s))))
+        return -0.5 * (nu * nu / s + np.log(2.0 * np.pi * s))
+
+
+class _Resting(_CV):
+    """Constant position: zero velocity, the position a random walk of density ``q`` [m^2/s]."""
+
+    def predicted(self, dt: float) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
+        x = self.x.copy()
+        x[:, 1] = 0.0
+        p = np.zeros_like(self.p)
+        p[:, 0, 0] = self.p[:, 0, 0] + self.q * dt
+        return x, p
+
+    def pin(self) -> None:  # noqa: D102
+        self.x[:, 1] = 0.0
+        self.p[:, 1, :] = 0.0
+        self.p[:, :, 1] = 0.0
 
 
 class PoseKalman:
-    """Kalman estimate of one object's pose: two constant-velocity models mixed as an IMM (see the module doc).
+    """Kalman estimate of one object's pose: resting, moving and manoeuvring models mixed per axis as an IMM.
 
-    An object mostly rests or moves smoothly, and now and then starts, stops or is shoved. One constant-velocity
-    filter cannot both average the noise of a resting object and follow a manoeuvre, so two run side by side
-    (interacting multiple models): *still*, with process noise ``accel_pos`` / ``accel_rot``, and *moving*, with
-    ``MOVING_GAIN`` times that; each measurement re-weights them by their likelihood and the estimate is their
-    probability-weighted mix.
+    One constant-velocity filter cannot both average the noise of a resting object and follow a shove, so three
+    models run side by side (see the module doc); each axis weighs them by how well they predicted its
+    measurements, and the estimate is the probability-weighted mix.
 
     Args:
         noise_pos: Measurement noise per position axis [m] (standard deviation).
         noise_rot: Measurement noise per rotation axis [rad].
-        accel_pos: Process noise of the still model, white acceleration spectral density [m²/s³].
+        accel_pos: Process noise of the moving model, white acceleration spectral density [m²/s³].
         accel_rot: The same for the rotation axes [rad²/s³].
-        gate: Innovation gate (normalised squared innovation over all six axes, of the moving model).
+        gate: Innovation gate (normalised squared innovation over all six axes, of the predicted mixture).
         reset_after: Rejected measurements in a row after which the filter restarts from the measurement.
 
     Attributes:
         accepted, rejected, resets: Measurement counts.
-        mode: Probability of each model (still, moving).
+        mode: Probability of each model (resting, moving, manoeuvring) on each axis, (3, 6).
     """
 
-    def __init__(self, noise_pos: float, noise_rot: float, *, accel_pos: float = 1e-6, accel_rot: float = 1e-5,
+    def __init__(self, noise_pos: float, noise_rot: float, *, accel_pos: float = 1e-4, accel_rot: float = 1e-3,
                  gate: float = CHI2_6_999, reset_after: int = 2) -> None:
         floor_pos, floor_rot = 1e-4, 1e-3  # a noiseless camera still gets a small R, so S never vanishes
         r = np.array([max(noise_pos, floor_pos) ** 2] * 3 + [max(noise_rot, floor_rot) ** 2] * 3)
         q = np.array([accel_pos] * 3 + [accel_rot] * 3)
-        self.models = (_CV(q, r), _CV(q * MOVING_GAIN, r))
-        self.mode = np.array([0.5, 0.5])
+        self.models = (_Resting(q * STATIC_GAIN, r), _CV(q, r), _CV(q * MANOEUVRE_GAIN, r))
+        n = len(self.models)
+        self.trans = np.full((n, n), (1.0 - STAY) / (n - 1))
+        np.fill_diagonal(self.trans, STAY)
+        self.mode = np.full((n, 6), 1.0 / n)
         self.gate, self.reset_after = gate, reset_after
         self.t: float | None = None
         self.accepted = self.rejected = self.resets = 0
-        self._misses = 0
+        self._misses: list[tuple[float, np.ndarray]] = []
 
     @property
     def initialised(self) -> bool:
@@ -133,8 +162,28 @@ class PoseKalman:
             m.p[:] = 0.0
             m.p[:, 0, 0] = m.r
             m.p[:, 1, 1] = np.array([0.05**2] * 3 + [0.5**2] * 3)  # objects start (nearly) at rest
-        self.mode[:] = 0.5
-        self.t, self._misses = t, 0
+            m.pin()
+        self.mode[:] = 1.0 / len(self.models)
+        self.t, self._misses = t, []
+
+    def _restart_moving(self) -> None:
+        """Restart from the rejected measurements that showed the object moved: at the last one, with the
+        velocity of the last two, manoeuvring."""
+        t1, z1 = self._misses[-1]
+        t0, z0 = self._misses[-2] if len(self._misses) > 1 else (t1, z1)
+        self.reset(t1, z1)
+        dt = t1 - t0
+        if dt <= 0.0:
+            return
+        v = z1 - z0
+        v[3:] = _wrap(v[3:])
+        for m in self.models:
+            m.x[:, 1] = v / dt
+            m.p[:, 1, 1] = 2.0 * m.r / dt**2
+            m.p[:, 0, 1] = m.p[:, 1, 0] = m.r / dt
+            m.pin()
+        self.mode[:] = (1.0 - STAY) / (len(self.models) - 1)
+        self.mode[-1] = STAY
 
     def start(self, t: float, z: np.ndarray, variance: np.ndarray) -> None:
         """Restart at ``z`` taken at ``t`` [s], at rest, with position/angle ``variance`` per axis (6,)."""
@@ -154,37 +203,47 @@ class PoseKalman:
             self.accepted += 1
             return True
         dt = max(t - self.t, 0.0)
-        moving = self.models[1]
-        x, p = moving.predicted(dt)
-        nu = z - x[:, 0]
-        nu[3:] = _wrap(nu[3:])
-        if float(np.sum(nu * nu / (p[:, 0, 0] + moving.r))) > self.gate:
+        if self._nis(dt, z) > self.gate:
             self.rejected += 1
-            self._misses += 1
-            if self._misses >= self.reset_after:  # not an outlier: the object really is elsewhere (a shove)
+            self._misses.append((t, z))
+            if len(self._misses) >= self.reset_after:  # not an outlier: the object really is elsewhere
                 self.resets += 1
-                self.reset(t, z)
+                self._restart_moving()
             return False
         prior = self._mix()
-        logl = np.array([m.update(dt, z) for m in self.models])
-        w = prior * np.exp(logl - logl.max())
-        self.mode = w / w.sum()
-        self.t, self._misses = t, 0
+        logl = np.array([m.update(dt, z) for m in self.models])  # (models, axes)
+        w = prior * np.exp(logl - logl.max(axis=0))
+        self.mode = w / w.sum(axis=0)
+        self.t, self._misses = t, []
         self.accepted += 1
         return True
 
+    def _nis(self, dt: float, z: np.ndarray) -> float:
+        """Normalised squared innovation of ``z`` under the predicted mixture (the models weighted by their prior)."""
+        w = self.trans.T @ self.mode  # (models, axes)
+        preds = [m.predicted(dt) for m in self.models]
+        mean = sum(wi * x[:, 0] for wi, (x, _) in zip(w, preds, strict=True))
+        var = sum(wi * (p[:, 0, 0] + (x[:, 0] - mean) ** 2) for wi, (x, p) in zip(w, preds, strict=True))
+        nu = z - mean
+        nu[3:] = _wrap(nu[3:])
+        return float(np.sum(nu * nu / (var + self.models[0].r)))
+
     def _mix(self) -> np.ndarray:
-        """IMM mixing: each model restarts from the mixture its predecessors hand it; returns the mode prior."""
-        trans = np.array([[STAY, 1.0 - STAY], [1.0 - STAY, STAY]])
-        joint = trans * self.mode[:, None]  # [i, j]: from model i to model j
+        """IMM mixing, per axis: each model restarts from the mixture its predecessors hand it; returns the prior."""
+        joint = self.trans[:, :, None] * self.mode[:, None, :]  # [i, j, axis]: from model i to model j
         prior = joint.sum(axis=0)
-        weights = joint / prior
+        weights = joint / prior[None]
         xs = [m.x for m in self.models]
         ps = [m.p for m in self.models]
-        for j, m in enumerate(self.models):
-            x0 = sum(weights[i, j] * xs[i] for i in range(2))
-            p0 = sum(weights[i, j] * (ps[i] + _outer(xs[i] - x0)) for i in range(2))
+        n = len(self.models)
+        mixed = []
+        for j in range(n):
+            x0 = sum(weights[i, j][:, None] * xs[i] for i in range(n))
+            p0 = sum(weights[i, j][:, None, None] * (ps[i] + _outer(xs[i] - x0)) for i in range(n))
+            mixed.append((x0, p0))
+        for m, (x0, p0) in zip(self.models, mixed, strict=True):
             m.x, m.p = x0, p0
+            m.pin()
         return prior
 
     def estimate(self, t: float) -> np.ndarray:

@@ -112,7 +112,7 @@ class EstimationConfig(_Strict):
 
     object_filter: Literal["kalman", "none"] = Field(
         default="kalman", description="kalman: constant-velocity Kalman filter; none: the latest raw measurement.")
-    accel_pos: float = Field(default=1e-6, gt=0, le=1e4, allow_inf_nan=False,
-                             description="Process noise of the still model, position axes [m^2/s^3].")
-    accel_rot: float = Field(default=1e-5, gt=0, le=1e4, allow_inf_nan=False,
-                             description="Process noise of the still model, rotation axes [rad^2/s^3].")
+    accel_pos: float = Field(default=1e-4, gt=0, le=1e4, allow_inf_nan=False,
+                             description="Process noise of the filter's moving model, position axes [m^2/s^3].")
+    accel_rot: float = Field(default=1e-3, gt=0, le=1e4, allow_inf_nan=False,
+                             description="Process noise of the filter's moving model, rotation axes [rad^2/s^3].")
