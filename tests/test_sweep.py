@@ -130,6 +130,9 @@ def test_sweep_file_that_is_not_a_mapping(tmp_path, capsys, text, message):
         (["--n", "2", "--json", "."], "is a directory"),
         (["--n", "2", "--plot", "pyproject.toml/p.png"], "is a file, not a folder"),
         (["--n", "2", "--plot", "p.txt"], "expected a file ending in .png or .pdf or .svg"),
+        (["--n", "2", "--set", "timing.ctrl_dtt=0.01"], "--set: "),
+        (["--n", "2", "--set", "timing.ctrl_dt=0.0015"], "--set: "),
+        (["--n", "2", "--set", "timing.settle=0.1"], "the sweep randomises timing.settle"),
     ],
 )
 def test_bad_sweep_arguments(capsys, args, message):
@@ -147,6 +150,21 @@ def test_out_dir_with_episodes_needs_resume(tmp_path, capsys):
     assert "pass --resume" in capsys.readouterr().err
     assert main(["sweep", str(QUICK), "--n", "2", "--seed", "5", "--out", str(tmp_path), "--resume"]) == 2
     assert "another seed" in capsys.readouterr().err
+
+
+def test_set_applies_to_every_episode_its_replays_and_its_resume(tmp_path, capsys):
+    spec = SweepSpec(QUICK, ["timing.ctrl_dt=0.008"])
+    assert spec.base.timing.ctrl_dt == 0.008
+    tasks = plan(spec, 0, [0, 1])
+    assert all("timing.ctrl_dt=0.008" in t.overrides for t in tasks)
+    episode = Episode(1, tasks[1].seed, dict(tasks[1].params), list(tasks[1].overrides), "failed")
+    replay = replay_commands(spec, 0, episode)
+    assert "--only 1 --set timing.ctrl_dt=0.008" in replay["sweep"] and "timing.ctrl_dt=0.008" in replay["run"]
+    store = SweepStore(tmp_path, spec, 0, resume=False)
+    store.add(episode)
+    store.close()
+    assert main(["sweep", str(QUICK), "--n", "2", "--out", str(tmp_path), "--resume"]) == 2  # without the --set
+    assert "another fingerprint" in capsys.readouterr().err
 
 
 # --- statistics --------------------------------------------------------------------------------------------------

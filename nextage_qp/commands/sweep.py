@@ -38,6 +38,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("sweep", help="run a task over randomised scenes (success rate with its 95 %% interval)")
     p.add_argument("sweep", help="sweep YAML, e.g. configs/sweeps/push_cube.yaml")
     p.add_argument("--n", type=int, help="episodes 0..N-1 (required unless --only)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a base-config key in every episode, e.g. --set timing.ctrl_dt=0.01 (repeatable)")
     p.add_argument("--seed", type=SEED, default=0, help="sweep seed: episode i depends on (seed, i) only (default 0)")
     add_backend_args(p, "parallel episodes (default: the CPU count, or the Ray cluster's)")
     p.add_argument("--out", type=Path, help="directory of the episode records (default runs/sweeps/NAME-seedS)")
@@ -115,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the sweep; exit 0 when every episode has a record (whatever its outcome), 130 when interrupted."""
     check_backend_args(args)
     indices = _indices(args)
-    spec = SweepSpec(args.sweep)
+    spec = SweepSpec(args.sweep, args.overrides)
     workers = args.workers or (None if args.backend == "ray" else os.cpu_count() or 1)
     if args.out is not None:
         out = args.out
@@ -161,7 +163,8 @@ def _mm(value: float | None) -> str:
 def _print_summary(s: dict[str, Any], console: Console, *, only: bool, episodes: list[Episode]) -> None:
     rate = s["success_rate"]
     lo, hi = s["success_rate_ci95"]
-    head = (f"{s['sweep']} (seed {s['seed']}): {s['counts']['success']}/{s['ran']} succeed = "
+    sets = "".join(f" --set {item}" for item in s.get("set", []))
+    head = (f"{s['sweep']}{sets} (seed {s['seed']}): {s['counts']['success']}/{s['ran']} succeed = "
             + ("-" if rate is None else f"{100 * rate:.1f} %") + f" (95 % CI {100 * lo:.1f}-{100 * hi:.1f} %)")
     console.print(head, markup=False)
     counts = ", ".join(f"{k} {v}" for k, v in s["counts"].items())

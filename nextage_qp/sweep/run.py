@@ -67,7 +67,8 @@ def replay_commands(spec: SweepSpec, seed: int, episode: Episode, cwd: Path | No
     sweep = _shown(spec.path, cwd)
     base = _shown(spec.base_path, cwd)
     sets = " ".join(f"--set {shlex.quote(o)}" for o in episode.overrides)
-    return {"sweep": f"nextage-qp sweep {shlex.quote(sweep)} --seed {seed} --only {episode.index}",
+    extra = "".join(f" --set {shlex.quote(o)}" for o in spec.extra)
+    return {"sweep": f"nextage-qp sweep {shlex.quote(sweep)} --seed {seed} --only {episode.index}{extra}",
             "run": f"nextage-qp run {shlex.quote(base)} {sets}"}
 
 

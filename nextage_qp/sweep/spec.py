@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -116,12 +117,14 @@ class SweepSpec:
 
     Args:
         path: The sweep YAML.
+        extra: ``KEY=VALUE`` overrides applied to every episode after the file's own ``set:`` (the command's
+            ``--set``); a key the sweep randomises cannot be set.
 
     Raises:
         ConfigError: Any problem with the file, its base config or a key (one line naming file and key).
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, extra: Sequence[str] = ()) -> None:
         self.path = Path(path)
         if not self.path.is_file():
             raise ConfigError(f"{self.path}: no such sweep file")
@@ -135,7 +138,20 @@ class SweepSpec:
             self.base = load_config(self.base_path, self.fixed)
         except ConfigError as exc:
             raise ConfigError(f"{self.path}: set: {exc}") from None
+        self.extra = list(extra)
         self.distributions = dict(self.file.randomize)
+        if self.extra:
+            for item in self.extra:
+                key = item.split("=", 1)[0].strip()
+                clash = [k for k in self.distributions if k == key or k.startswith(key + ".")]
+                if clash:
+                    raise ConfigError(f"--set {item}: the sweep randomises {', '.join(clash)}; set a key it does "
+                                      "not randomise")
+            try:
+                self.base = load_config(self.base_path, [*self.fixed, *self.extra])
+            except ConfigError as exc:
+                raise ConfigError(f"--set: {exc}") from None
+            self.fixed += self.extra
         if "seed" in self.distributions:
             raise self._fail("seed", "the sweep sets each episode's run seed itself; remove this key")
         robot = build_robot(self.base, str(self.base_path))

@@ -18,10 +18,13 @@ from nextage_qp.sweep.spec import SweepSpec
 
 
 def fingerprint(spec: SweepSpec) -> str:
-    """SHA-256 of the sweep file and its base config: a resumed sweep must run the same episodes."""
+    """SHA-256 of the sweep file, its base config and the command's ``--set``: a resumed sweep must run the same
+    episodes."""
     digest = hashlib.sha256()
     for path in (spec.path, spec.base_path):
         digest.update(path.read_bytes())
+    for item in spec.extra:
+        digest.update(item.encode())
     return digest.hexdigest()
 
 
@@ -40,7 +43,7 @@ class SweepStore:
 
     def __init__(self, out: Path, spec: SweepSpec, seed: int, *, resume: bool) -> None:
         self.out = out
-        self.header = {"sweep": str(spec.path), "base": str(spec.base_path), "seed": seed,
+        self.header = {"sweep": str(spec.path), "base": str(spec.base_path), "set": spec.extra, "seed": seed,
                        "fingerprint": fingerprint(spec)}
         self.episodes_path = out / "episodes.jsonl"
         self.done: dict[int, Episode] = {}

@@ -171,6 +171,7 @@ def summarize(spec: SweepSpec, seed: int, episodes: Sequence[Episode], *, sessio
     return {
         "sweep": str(spec.path),
         "base": str(spec.base_path),
+        "set": spec.extra,
         "seed": seed,
         "episodes": len(episodes),
         "counts": {s: counts[s] for s in STATUSES},
