@@ -102,14 +102,16 @@ class _CV:
 class _Resting(_CV):
     """Constant position: zero velocity, the position a random walk of density ``q`` [m^2/s]."""
 
-    def predicted(self, dt: float) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
+    def predicted(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """State and covariance ``dt`` [s] ahead: the position waits, its variance grows by ``q dt``."""
         x = self.x.copy()
         x[:, 1] = 0.0
         p = np.zeros_like(self.p)
         p[:, 0, 0] = self.p[:, 0, 0] + self.q * dt
         return x, p
 
-    def pin(self) -> None:  # noqa: D102
+    def pin(self) -> None:
+        """Zero the velocity and its covariance."""
         self.x[:, 1] = 0.0
         self.p[:, 1, :] = 0.0
         self.p[:, :, 1] = 0.0
@@ -167,8 +169,7 @@ class PoseKalman:
         self.t, self._misses = t, []
 
     def _restart_moving(self) -> None:
-        """Restart from the rejected measurements that showed the object moved: at the last one, with the
-        velocity of the last two, manoeuvring."""
+        """Restart at the last rejected measurement, manoeuvring, with the velocity of the last two."""
         t1, z1 = self._misses[-1]
         t0, z0 = self._misses[-2] if len(self._misses) > 1 else (t1, z1)
         self.reset(t1, z1)
@@ -193,7 +194,7 @@ class PoseKalman:
 
     def variance(self) -> np.ndarray:
         """Mode-weighted position/angle variance per axis (6,) at the last measurement."""
-        return sum(w * m.p[:, 0, 0] for w, m in zip(self.mode, self.models, strict=True))
+        return np.asarray(sum(w * m.p[:, 0, 0] for w, m in zip(self.mode, self.models, strict=True)))
 
     def update(self, t: float, z: np.ndarray) -> bool:
         """Apply a measurement ``z`` (x, y, z, roll, pitch, yaw) describing time ``t`` [s]; False if gated out."""

@@ -101,9 +101,9 @@ def stage_costs(scene: str, duration: float) -> dict[str, dict[str, float]]:
     return _stats({"servo (ik)": servo_s, **timer.samples})
 
 
-def task_costs(config: str) -> tuple[dict[str, dict[str, float]], float]:
+def task_costs(config: str, sets: list[str]) -> tuple[dict[str, dict[str, float]], float]:
     """Stage profile of a whole task run, and its real-time factor (the runner's servo timed per tick)."""
-    runner = Runner(load_config(config), config)
+    runner = Runner(load_config(config, sets), config)
     runner.sim.timer = timer = StageTimer()
     servo_s: list[float] = []
     step = runner.servo.step
@@ -126,6 +126,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5, help="reach runs for the loop RTF (default 5)")
     parser.add_argument("--task", action="append", default=[], metavar="CONFIG",
                         help="also profile a whole task run of this config (repeatable)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a key of every --task config, e.g. --set timing.ctrl_dt=0.01 (repeatable)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args()
     bare = [bare_rtf(args.scene, args.duration) for _ in range(3)]
@@ -145,11 +147,13 @@ def main() -> None:
         "tasks": {},
     }
     for config in args.task:
-        scene = str(load_config(config).scene.file)
+        cfg = load_config(config, args.overrides)
+        scene = str(cfg.scene.file)
         task_bare = float(np.median([bare_rtf(scene, args.duration) for _ in range(3)]))
-        plain = float(Runner(load_config(config), config).run()["real_time_factor"] or 0.0)  # no stage timer
-        task_stages, timed = task_costs(config)
-        out["tasks"][config] = {"scene": scene, "bare_mj_step_rtf_median": task_bare, "real_time_factor": plain,
+        plain = float(Runner(cfg, config).run()["real_time_factor"] or 0.0)  # no stage timer
+        task_stages, timed = task_costs(config, args.overrides)
+        out["tasks"][config] = {"scene": scene, "set": args.overrides, "ctrl_dt_s": cfg.timing.ctrl_dt,
+                                "bare_mj_step_rtf_median": task_bare, "real_time_factor": plain,
                                 "task_over_bare_ratio": plain / task_bare, "real_time_factor_with_timer": timed,
                                 "per_call_us": task_stages}
     if args.json:
@@ -164,7 +168,9 @@ def main() -> None:
     print(f"reach final error max  {out['reach_final_error_m_max'] * 1e3:.4f} mm\n")
     _print_stages(stages)
     for config, task in out["tasks"].items():
-        print(f"\ntask {config}: RTF {task['real_time_factor']:.1f}x; bare mj_step on its scene "
+        sets = "".join(f" --set {item}" for item in task["set"])
+        print(f"\ntask {config}{sets} (ctrl_dt {task['ctrl_dt_s'] * 1e3:g} ms): RTF {task['real_time_factor']:.1f}x; "
+              f"bare mj_step on its scene "
               f"({task['scene']}) {task['bare_mj_step_rtf_median']:.1f}x; ratio {task['task_over_bare_ratio']:.3f} "
               f"(stage-timed run: {task['real_time_factor_with_timer']:.1f}x)")
         _print_stages(task["per_call_us"])

@@ -18,8 +18,7 @@ from nextage_qp.sweep.spec import SweepSpec
 
 
 def fingerprint(spec: SweepSpec) -> str:
-    """SHA-256 of the sweep file, its base config and the command's ``--set``: a resumed sweep must run the same
-    episodes."""
+    """SHA-256 of the sweep file, its base config and the command's ``--set`` (a resumed sweep runs the same)."""
     digest = hashlib.sha256()
     for path in (spec.path, spec.base_path):
         digest.update(path.read_bytes())
