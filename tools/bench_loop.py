@@ -7,7 +7,9 @@ Measured in one run on one core:
   -> MuJoCo, with recording) on reach motions of the left wrist, as simulated seconds per wall second;
 * the same loop with the simulation's stage timer on, timing the servo (IK) and each stage of the real
   ``Simulation.tick`` separately (median and p99 per call);
-* with ``--task CONFIG``, the same stage profile of a whole task run (the manipulation runner).
+* with ``--task CONFIG``, the same stage profile of a whole task run (the manipulation runner), plus the time
+  between ticks, where the phase computes its next command and may plan offline (``phase+plan``); ``--set``
+  overrides keys of those configs (e.g. ``--set timing.ctrl_dt=0.01``).
 
 Example: ``.venv/bin/python tools/bench_loop.py --repeats 3 --json``
 """
@@ -78,8 +80,8 @@ def loop_rtf(scene: str, duration: float, repeats: int) -> tuple[list[float], li
 
 
 def _stats(samples: dict[str, list[float]]) -> dict[str, dict[str, float]]:
-    return {k: {"median_us": float(np.median(v) * 1e6), "p99_us": float(np.percentile(v, 99) * 1e6), "calls": len(v)}
-            for k, v in samples.items()}
+    return {k: {"median_us": float(np.median(v) * 1e6), "p99_us": float(np.percentile(v, 99) * 1e6),
+                "mean_us": float(np.mean(v) * 1e6), "calls": len(v)} for k, v in samples.items()}
 
 
 def stage_costs(scene: str, duration: float) -> dict[str, dict[str, float]]:
@@ -115,8 +117,22 @@ def task_costs(config: str, sets: list[str]) -> tuple[dict[str, dict[str, float]
         return out
 
     runner.servo.step = timed_step  # type: ignore[method-assign]
+    # Between two ticks the runner's phase decides the next command (and may plan offline): timed as the gap.
+    between: list[float] = []
+    last_end: list[float] = []
+    tick = runner.tick
+
+    def timed_tick(command):  # type: ignore[no-untyped-def]
+        t0 = time.perf_counter()
+        if last_end:
+            between.append(t0 - last_end[0])
+        tick(command)
+        last_end[:] = [time.perf_counter()]
+
+    runner.tick = timed_tick  # type: ignore[method-assign]
     result = runner.run()
-    return _stats({"servo (ik)": servo_s, **timer.samples}), float(result["real_time_factor"] or 0.0)
+    stats = _stats({"servo (ik)": servo_s, **timer.samples, "phase+plan": between})
+    return stats, float(result["real_time_factor"] or 0.0)
 
 
 def main() -> None:
@@ -177,9 +193,9 @@ def main() -> None:
 
 
 def _print_stages(stages: dict[str, dict[str, float]]) -> None:
-    print(f"{'stage':14s} {'calls':>8s} {'median us':>10s} {'p99 us':>9s}")
+    print(f"{'stage':14s} {'calls':>8s} {'median us':>10s} {'p99 us':>9s} {'mean us':>9s}")
     for name, s in stages.items():
-        print(f"{name:14s} {s['calls']:8d} {s['median_us']:10.1f} {s['p99_us']:9.1f}")
+        print(f"{name:14s} {s['calls']:8d} {s['median_us']:10.1f} {s['p99_us']:9.1f} {s['mean_us']:9.1f}")
 
 
 if __name__ == "__main__":
