@@ -17,7 +17,7 @@ MAX_DEEPEN = 0.01
 """Most the force loop may push a pad further in than the grasp left it [m]."""
 
 
-MAX_ROLL = 0.3
+MAX_ROLL = 0.6
 """Most the levelling loop rolls the pads [rad]."""
 LOST_FRACTION = 0.2
 """A clamp whose pads both feel less than this fraction of the grip force has lost the object."""
