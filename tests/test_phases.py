@@ -9,7 +9,7 @@ import pytest
 from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import Pose, rot_z, yaw_of
 from nextage_qp.ik import FrameTarget, RelativeTarget
-from nextage_qp.manipulation.clamp import Clamp
+from nextage_qp.manipulation.clamp import MAX_ROLL, Clamp
 from nextage_qp.manipulation.context import Grip
 from nextage_qp.manipulation.phases import REGISTRY, build
 from nextage_qp.manipulation.route import PlannedRoute
@@ -544,6 +544,6 @@ def test_levelling_rolls_both_pads_against_the_tilt_about_the_clamp_axis():
         assert np.degrees(np.arccos((np.trace(turned) - 1) / 2)) == pytest.approx(np.degrees(0.1))
         np.testing.assert_allclose(turned @ np.array([0, 1.0, 0]), [0, 1.0, 0], atol=1e-12)  # about the axis
     np.testing.assert_allclose(rel_after.pos, rel_before.pos)
-    for _ in range(10_000):  # bounded
+    for _ in range(10_000):  # bounded, but far enough to follow a dumbbell creeping all through a long place phase
         clamp.level(TiltedView(0.5), yaw=0.0)
-    assert clamp.roll == pytest.approx(-0.3)
+    assert clamp.roll == pytest.approx(-MAX_ROLL) and MAX_ROLL >= 0.6
