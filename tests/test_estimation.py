@@ -12,6 +12,15 @@ def measure(rng, truth):
     return truth + np.r_[rng.normal(0, SIGMA_POS, 3), rng.normal(0, SIGMA_ROT, 3)]
 
 
+def settled(seed, truth, seconds=2.0):
+    """A filter after ``seconds`` of measurements of an object resting at ``truth``, and its random stream."""
+    rng = np.random.default_rng(seed)
+    kf = PoseKalman(SIGMA_POS, SIGMA_ROT)
+    for i in range(round(seconds * RATE)):
+        kf.update(i / RATE, measure(rng, truth))
+    return kf, rng
+
+
 def test_rpy_round_trip():
     rng = np.random.default_rng(1)
     for rpy in rng.uniform([-0.5, -0.5, -3.0], [0.5, 0.5, 3.0], (20, 3)):
@@ -59,11 +68,8 @@ def test_tracks_a_moving_object_with_latency_and_bridges_half_a_second_of_dropou
 
 
 def test_an_outlier_is_gated_and_a_real_jump_restarts_the_filter():
-    rng = np.random.default_rng(3)
-    kf = PoseKalman(SIGMA_POS, SIGMA_ROT)
     truth = np.array([0.5, 0.0, 0.92, 0.0, 0.0, 0.0])
-    for i in range(60):
-        kf.update(i / RATE, measure(rng, truth))
+    kf, rng = settled(3, truth)
     before = kf.estimate(2.0).copy()
     assert not kf.update(2.0, truth + np.r_[0.05, 0, 0, 0, 0, 0])  # one 5 cm outlier
     np.testing.assert_allclose(kf.estimate(2.0), before, atol=1e-9)
@@ -92,11 +98,8 @@ def test_each_axis_keeps_its_own_model_a_pushed_object_s_height_stays_averaged()
 
 
 def test_a_shoved_object_is_followed_at_its_new_velocity_within_three_camera_periods():
-    rng = np.random.default_rng(6)
-    kf = PoseKalman(SIGMA_POS, SIGMA_ROT)
     rest = np.array([0.4, 0.0, 0.91, 0.0, 0.0, 0.0])
-    for i in range(60):
-        kf.update(i / RATE, measure(rng, rest))
+    kf, rng = settled(6, rest)
     v = np.r_[0.0, 2.0, 0.0, 0.0, 0.0, 0.0]  # shoved just after the last measurement: sliding at 2 m/s
     t0 = 59 / RATE
     stamps = [t0 + (i + 1) / RATE for i in range(3)]
