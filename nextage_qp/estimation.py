@@ -22,10 +22,10 @@ and tilt rest): every measurement re-weights the models of each axis by their li
 
 The state lives at the time the last measurement *describes* (arrival less latency): a measurement is applied
 at its own time stamp and :meth:`PoseKalman.estimate` predicts from there to now, which compensates the latency
-and bridges dropouts. A measurement whose normalised innovation :math:`\sum_i \nu_i^2 / S_i` (manoeuvring
-mixture the models predict, weighted by their probabilities) exceeds the gate (the 99.9 % point of
-:math:`\chi^2_6`) is rejected as an outlier; after
-``reset_after`` rejections in a row the object has really moved and the filter restarts from the measurement.
+and bridges dropouts. A measurement whose normalised innovation :math:`\sum_i \nu_i^2 / S_i` under the mixture
+the models predict (weighted by their probabilities) exceeds the gate (the 99.9 % point of :math:`\chi^2_6`) is
+rejected as an outlier; after ``reset_after`` rejections in a row the object has really moved, and the filter
+restarts at the last of them, manoeuvring, with the velocity the last two show.
 """
 
 from __future__ import annotations
@@ -130,7 +130,7 @@ class PoseKalman:
         accel_pos: Process noise of the moving model, white acceleration spectral density [m²/s³].
         accel_rot: The same for the rotation axes [rad²/s³].
         gate: Innovation gate (normalised squared innovation over all six axes, of the predicted mixture).
-        reset_after: Rejected measurements in a row after which the filter restarts from the measurement.
+        reset_after: Rejected measurements in a row after which the filter restarts, manoeuvring.
 
     Attributes:
         accepted, rejected, resets: Measurement counts.

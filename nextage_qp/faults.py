@@ -111,7 +111,8 @@ class EstimationConfig(_Strict):
     """How object measurements become the poses the phases see."""
 
     object_filter: Literal["kalman", "none"] = Field(
-        default="kalman", description="kalman: constant-velocity Kalman filter; none: the latest raw measurement.")
+        default="kalman", description="kalman: Kalman filter (resting / moving / manoeuvring IMM); none: the latest "
+        "raw measurement.")
     accel_pos: float = Field(default=1e-4, gt=0, le=1e4, allow_inf_nan=False,
                              description="Process noise of the filter's moving model, position axes [m^2/s^3].")
     accel_rot: float = Field(default=1e-3, gt=0, le=1e4, allow_inf_nan=False,

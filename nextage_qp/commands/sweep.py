@@ -163,7 +163,7 @@ def _mm(value: float | None) -> str:
 def _print_summary(s: dict[str, Any], console: Console, *, only: bool, episodes: list[Episode]) -> None:
     rate = s["success_rate"]
     lo, hi = s["success_rate_ci95"]
-    sets = "".join(f" --set {item}" for item in s.get("set", []))
+    sets = "".join(f" --set {item}" for item in s["set"])
     head = (f"{s['sweep']}{sets} (seed {s['seed']}): {s['counts']['success']}/{s['ran']} succeed = "
             + ("-" if rate is None else f"{100 * rate:.1f} %") + f" (95 % CI {100 * lo:.1f}-{100 * hi:.1f} %)")
     console.print(head, markup=False)
