@@ -9,7 +9,8 @@ Measured in one run on one core:
   ``Simulation.tick`` separately (median and p99 per call);
 * with ``--task CONFIG``, the same stage profile of a whole task run (the manipulation runner), plus the time
   between ticks, where the phase computes its next command and may plan offline (``phase+plan``); ``--set``
-  overrides keys of those configs (e.g. ``--set timing.ctrl_dt=0.01``).
+  overrides keys of those configs (e.g. ``--set timing.ctrl_dt=0.01``); and the ceilings this profile puts on
+  the run's ratio to bare physics (its own physics alone, and physics plus IK).
 
 Example: ``.venv/bin/python tools/bench_loop.py --repeats 3 --json``
 """
@@ -135,6 +136,20 @@ def task_costs(config: str, sets: list[str]) -> tuple[dict[str, dict[str, float]
     return stats, float(result["real_time_factor"] or 0.0)
 
 
+def ceilings(stages: dict[str, dict[str, float]], bare_rtf: float, sim_dt: float, ctrl_dt: float) -> dict[str, float]:
+    """What bounds a task run's ratio to bare physics, from its stage profile (means per tick).
+
+    ``physics_only``: the ratio if nothing but the task's own ``mj_step`` calls ran (its states, with the arm
+    moving and in contact, cost more than the bare loop's); ``physics_and_ik``: with the IK step added too.
+    """
+    bare_step_us = sim_dt * 1e6 / bare_rtf
+    physics_us, ik_us = stages["physics"]["mean_us"], stages["servo (ik)"]["mean_us"]
+    task_step_us = physics_us * sim_dt / ctrl_dt
+    return {"bare_step_us": bare_step_us, "task_step_us": task_step_us,
+            "physics_only": bare_step_us / task_step_us,
+            "physics_and_ik": ctrl_dt * 1e6 / (physics_us + ik_us) / bare_rtf}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default="scene", help="bundled scene or MJCF path (default: scene)")
@@ -171,7 +186,8 @@ def main() -> None:
         out["tasks"][config] = {"scene": scene, "set": args.overrides, "ctrl_dt_s": cfg.timing.ctrl_dt,
                                 "bare_mj_step_rtf_median": task_bare, "real_time_factor": plain,
                                 "task_over_bare_ratio": plain / task_bare, "real_time_factor_with_timer": timed,
-                                "per_call_us": task_stages}
+                                "per_call_us": task_stages,
+                                "ceilings": ceilings(task_stages, task_bare, cfg.timing.sim_dt, cfg.timing.ctrl_dt)}
     if args.json:
         print(json.dumps(out, indent=2))
         return
@@ -190,6 +206,9 @@ def main() -> None:
               f"({task['scene']}) {task['bare_mj_step_rtf_median']:.1f}x; ratio {task['task_over_bare_ratio']:.3f} "
               f"(stage-timed run: {task['real_time_factor_with_timer']:.1f}x)")
         _print_stages(task["per_call_us"])
+        c = task["ceilings"]
+        print(f"ceilings: its own physics alone {c['task_step_us']:.1f} us per mj_step against {c['bare_step_us']:.1f} "
+              f"bare -> ratio {c['physics_only']:.2f} at most; physics + IK alone -> {c['physics_and_ik']:.2f}")
 
 
 def _print_stages(stages: dict[str, dict[str, float]]) -> None:
