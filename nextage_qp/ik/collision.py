@@ -28,15 +28,7 @@ from mink.limits.collision_avoidance_limit import (
 from mink.limits.limit import Constraint
 
 from nextage_qp.ik.limits import JointBoxLimit
-
-
-def _moved_by_a_joint(model: mujoco.MjModel, body: int) -> bool:
-    """Whether any joint on the chain from the world to ``body`` moves it (its points have a Jacobian)."""
-    while body > 0:
-        if model.body_dofnum[body] > 0:
-            return True
-        body = int(model.body_parentid[body])
-    return False
+from nextage_qp.ik.model import lever_bounds, moved_by_a_joint
 
 
 class ActiveCollisionLimit(mink.Limit):
@@ -99,16 +91,20 @@ class ActiveCollisionLimit(mink.Limit):
         self._rbound_chord = rbound / np.sqrt(2.0)  # ||R1 - R2||_F / sqrt(2) bounds a unit vector's shift
         # Per pair: the distance lower bound last stored plus both geoms' travel at that moment (-inf: none).
         self._base = np.full(len(keys), -np.inf)
-        self._lever = self._lever_bounds(model)
+        self._lever = lever_bounds(model)
+        self._lever_inf = bool(np.isinf(self._lever).any())
         self._lists = (self.geom1.tolist(), self.geom2.tolist(), self.detection_distance.tolist(),
                        self.min_distance.tolist())
         self._fromto, self._normal = np.empty(6), np.empty(3)
+        self._from, self._to = self._fromto[:3], self._fromto[3:]  # views: the witness points of the last query
         self._jac1, self._jac2 = np.empty((3, model.nv)), np.empty((3, model.nv))
+        self._rows = np.empty((len(keys), model.nv))  # the rows of one call, filled in place
         # Body of each geom, or -1 where no joint moves it (welded to the world, or a mocap object): its witness
         # point has a zero Jacobian, so that side of a row costs nothing.
-        self._body = [int(b) if _moved_by_a_joint(model, int(b)) else -1 for b in model.geom_bodyid]
+        self._body = [int(b) if moved_by_a_joint(model, int(b)) else -1 for b in model.geom_bodyid]
         self.enabled = np.ones(len(keys), dtype=bool)
         """Pairs watched at the next call (see :meth:`allow`)."""
+        self._allowed_geoms: np.ndarray | None = None
         self.active: list[tuple[int, float]] = []
         """(pair index, distance [m]) of the pairs sent to the QP at the last call."""
         self.queries = 0
@@ -116,28 +112,14 @@ class ActiveCollisionLimit(mink.Limit):
         self.slack = 0
         """Pairs not ruled out by the travel and sphere bounds that could not bind within the box (no row)."""
 
-    @staticmethod
-    def _lever_bounds(model: mujoco.MjModel) -> np.ndarray:
-        """Lever arms (ngeom, nv) [m] that hold in every configuration.
-
-        Each entry bounds the distance from a hinge dof's anchor to any point of a geom it moves (the sum of
-        the offsets along the chain); 0 where the dof does not move the geom, inf for a non-hinge dof.
-        """
-        lever = np.zeros((model.ngeom, model.nv))
-        for g in range(model.ngeom):
-            length = float(np.linalg.norm(model.geom_pos[g]) + model.geom_rbound[g])
-            body = int(model.geom_bodyid[g])
-            while body > 0:
-                for dof in range(model.body_dofadr[body], model.body_dofadr[body] + model.body_dofnum[body]):
-                    jnt = model.dof_jntid[dof]
-                    hinge = model.jnt_type[jnt] == mujoco.mjtJoint.mjJNT_HINGE
-                    lever[g, dof] = length + float(np.linalg.norm(model.jnt_pos[jnt])) if hinge else np.inf
-                length += float(np.linalg.norm(model.body_pos[body]))
-                body = int(model.body_parentid[body])
-        return lever
-
     def allow(self, geoms: np.ndarray) -> None:
-        """Let the given geoms touch: pairs with a geom in ``geoms`` (a boolean mask over geoms) get no row."""
+        """Let the given geoms touch: pairs with a geom in ``geoms`` (a boolean mask over geoms) get no row.
+
+        The mask is taken as read-only: passing the same array object again keeps the pairs as they are.
+        """
+        if geoms is self._allowed_geoms:
+            return
+        self._allowed_geoms = geoms
         self.enabled = ~(geoms[self.geom1] | geoms[self.geom2])
 
     @property
@@ -193,10 +175,13 @@ class ActiveCollisionLimit(mink.Limit):
         """Store a lower bound on the distance of pairs ``idx`` at the current geom travel."""
         self._base[idx] = lower + self._travel[self.geom1[idx]] + self._travel[self.geom2[idx]]
 
-    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
-        """Rows of the pairs that can bind only; an inactive constraint when there are none."""
-        model, data, fromto = self.model, configuration.data, self._fromto
-        rows: list[np.ndarray] = []
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float,
+                                box_bounds: tuple[np.ndarray, np.ndarray] | None = None) -> Constraint:
+        """Rows of the pairs that can bind only; an inactive constraint when there are none.
+
+        ``box_bounds`` is the joint box's ``(lb, ub)`` at this configuration when the caller has it already.
+        """
+        model, data, fromto, rows = self.model, configuration.data, self._fromto, self._rows
         bounds: list[float] = []
         self.active, self.slack = [], 0
         near, lower = self._near(data)
@@ -206,8 +191,11 @@ class ActiveCollisionLimit(mink.Limit):
         # exceeds it cannot bind. Checked on the distance's lower bound first (no narrow phase), then on it.
         reach: list[float] | None = None
         if self.box is not None and near.size:
-            lb, ub = self.box.bounds(configuration.q, dt)
-            with np.errstate(invalid="ignore"):  # inf lever x 0 step (non-hinge dof): NaN, never prunes
+            lb, ub = box_bounds if box_bounds is not None else self.box.bounds(configuration.q, dt)
+            if self._lever_inf:
+                with np.errstate(invalid="ignore"):  # inf lever x 0 step (non-hinge dof): NaN, never prunes
+                    approach = self._lever @ np.maximum(np.abs(lb), np.abs(ub))
+            else:
                 approach = self._lever @ np.maximum(np.abs(lb), np.abs(ub))
             pair_reach = approach[self.geom1[near]] + approach[self.geom2[near]]
             cannot = self.gain * (lower - self.min_distance[near]) > pair_reach
@@ -226,33 +214,36 @@ class ActiveCollisionLimit(mink.Limit):
             if reach is not None and bound > reach[k]:
                 self.slack += 1
                 continue
-            rows.append(self._row(data, g1, g2, dist))
+            self._row(data, g1, g2, dist, rows[len(bounds)])
             bounds.append(bound)
             self.active.append((idx, dist))
-        if not rows:
+        if not bounds:
             return Constraint()
-        return Constraint(G=np.vstack(rows), h=np.array(bounds))
+        return Constraint(G=rows[: len(bounds)].copy(), h=np.array(bounds))
 
-    def _row(self, data: mujoco.MjData, g1: int, g2: int, dist: float) -> np.ndarray:
-        """The row :math:`-n^T (J_2 - J_1)` of a pair whose witness points are in ``self._fromto``.
+    def _row(self, data: mujoco.MjData, g1: int, g2: int, dist: float, out: np.ndarray) -> None:
+        """Write the row :math:`-n^T (J_2 - J_1)` of a pair whose witness points are in ``self._fromto`` to ``out``.
 
         As mink's ``compute_contact_normal_jacobian`` (sign flipped for a penetrating pair), without the
         Jacobian of a side no joint moves.
         """
-        fromto, normal = self._fromto, self._normal
-        normal[:] = fromto[3:] - fromto[:3]
+        start, end, normal = self._from, self._to, self._normal
+        np.subtract(end, start, out=normal)
         mujoco.mju_normalize3(normal)
         b1, b2 = self._body[g1], self._body[g2]
         if b2 >= 0:
-            mujoco.mj_jac(self.model, data, self._jac2, None, fromto[3:], b2)
+            mujoco.mj_jac(self.model, data, self._jac2, None, end, b2)
             if b1 >= 0:
-                mujoco.mj_jac(self.model, data, self._jac1, None, fromto[:3], b1)
+                mujoco.mj_jac(self.model, data, self._jac1, None, start, b1)
                 self._jac2 -= self._jac1
-            row = normal @ self._jac2
+            np.matmul(normal, self._jac2, out=out)
+            if dist >= 0:
+                np.negative(out, out=out)
         else:
-            mujoco.mj_jac(self.model, data, self._jac1, None, fromto[:3], b1)
-            row = -(normal @ self._jac1)
-        return -row if dist >= 0 else row
+            mujoco.mj_jac(self.model, data, self._jac1, None, start, b1)
+            np.matmul(normal, self._jac1, out=out)
+            if dist < 0:
+                np.negative(out, out=out)
 
     def violated(self, model: mujoco.MjModel) -> list[str]:
         """One line per pair at or below its minimum distance at the last call."""

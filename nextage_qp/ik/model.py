@@ -94,3 +94,32 @@ def set_object_poses(model: mujoco.MjModel, data: mujoco.MjData, poses: ObjectPo
             raise ConfigError(f"object {name!r}: pose must be pos (3,) and non-zero quat wxyz (4,)")
         data.mocap_pos[mocap[name]] = p
         data.mocap_quat[mocap[name]] = qt / np.linalg.norm(qt)
+
+
+def moved_by_a_joint(model: mujoco.MjModel, body: int) -> bool:
+    """Whether any joint on the chain from the world to ``body`` moves it (its points have a Jacobian)."""
+    while body > 0:
+        if model.body_dofnum[body] > 0:
+            return True
+        body = int(model.body_parentid[body])
+    return False
+
+
+def lever_bounds(model: mujoco.MjModel) -> np.ndarray:
+    """Lever arms (ngeom, nv) [m] that hold in every configuration.
+
+    Each entry bounds the distance from a hinge dof's anchor to any point of a geom it moves (the sum of
+    the offsets along the chain); 0 where the dof does not move the geom, inf for a non-hinge dof.
+    """
+    lever = np.zeros((model.ngeom, model.nv))
+    for g in range(model.ngeom):
+        length = float(np.linalg.norm(model.geom_pos[g]) + model.geom_rbound[g])
+        body = int(model.geom_bodyid[g])
+        while body > 0:
+            for dof in range(model.body_dofadr[body], model.body_dofadr[body] + model.body_dofnum[body]):
+                jnt = model.dof_jntid[dof]
+                hinge = model.jnt_type[jnt] == mujoco.mjtJoint.mjJNT_HINGE
+                lever[g, dof] = length + float(np.linalg.norm(model.jnt_pos[jnt])) if hinge else np.inf
+            length += float(np.linalg.norm(model.body_pos[body]))
+            body = int(model.body_parentid[body])
+    return lever

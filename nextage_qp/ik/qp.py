@@ -118,12 +118,18 @@ class QPIK:
     def _step(self, targets: Sequence[FrameTarget], dt: float, extra_tasks: Sequence[mink.Task]) -> np.ndarray:
         """:meth:`step` at the configuration already loaded in :attr:`configuration`."""
         tasks = [*self.tasks.frames(targets, self.configuration.data), self.posture, *extra_tasks]
-        limits = [self.collision] if self.collision is not None else []
-        problem = mink.build_ik(self.configuration, tasks, dt, damping=self.config.damping, limits=limits)
         q = self.configuration.data.qpos
-        problem.lb, problem.ub = self.box.bounds(q, dt)
-        if np.any(problem.lb > problem.ub + 1e-12):
-            raise IKInfeasibleError(self._explain(q, problem.lb, problem.ub))
+        lb, ub = self.box.bounds(q, dt)
+        # mink builds the objective; the box goes to the solver as bounds and the collision rows are added here
+        # (computed with the same box, so it is evaluated once).
+        problem = mink.build_ik(self.configuration, tasks, dt, damping=self.config.damping, limits=[])
+        if self.collision is not None:
+            rows = self.collision.compute_qp_inequalities(self.configuration, dt, (lb, ub))
+            if not rows.inactive:
+                problem.G, problem.h = rows.G, rows.h
+        problem.lb, problem.ub = lb, ub
+        if (lb > ub + 1e-12).any():
+            raise IKInfeasibleError(self._explain(q, lb, ub))
         x = solve_qp(problem, self.config.solver)
         if x is None:
             raise IKInfeasibleError(self._explain(q, problem.lb, problem.ub))
