@@ -4,10 +4,18 @@ A command asks for frame poses (world or relative to another frame), or for join
 (hold). :meth:`Servo.step` turns it into joints:
 
 * frame targets: one QP IK step gives a joint velocity :math:`v` [rad/s] at :math:`q_{cmd}`, and
-  :math:`q_{cmd} \leftarrow \operatorname{clip}(q_{cmd} + v\,\Delta t_{ctrl},\ q_{min},\ q_{max})`;
+  :math:`q_{cmd} \leftarrow \operatorname{clip}(q_{cmd} + s\,v\,\Delta t_{ctrl},\ q_{min},\ q_{max})` with a step
+  scale :math:`s \le 1` (below);
 * a joint goal: the named joints of :math:`q_{cmd}` jump to the goal (clipped to their range) and Ruckig
   shapes the motion;
 * a hold: :math:`q_{cmd}` stays.
+
+The step scale is a trust region that acts only on a limit cycle. The IK's Gauss-Newton step is exact for the
+frame tasks' linearisation, but along joint directions that only the (weak) posture task weighs, the frame tasks'
+curvature makes it overshoot: with targets that stay put, :math:`q_{cmd}` can then jump back and forth between
+two configurations for ever (at 50 Hz a 20 mrad cycle at the velocity limit, so the arm never settles). When the
+command is the same as on the last tick and the step turns back on the last one (cosine below
+``REVERSAL``), :math:`s` halves (down to ``MIN_SCALE``); on every other tick it doubles back towards 1.
 
 Then :math:`q_{cmd}` becomes Ruckig's target. :meth:`Servo.commanded_pose` is always the pose at the current
 :math:`q_{cmd}`, so a phase that starts after a joint goal starts from where the robot is being sent.
@@ -17,7 +25,7 @@ The caller advances the simulation (``sim.tick()``) after the step.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -25,6 +33,13 @@ from nextage_qp.geometry import Pose
 from nextage_qp.ik import QPIK, FrameTarget, RelativeTarget
 from nextage_qp.ik.model import ObjectPoses
 from nextage_qp.sim import Simulation
+
+REVERSAL = -0.5
+"""Cosine between two successive IK steps below which the second turns back on the first."""
+MIN_STEP = 1e-4
+"""Largest joint motion [rad] of a step that the trust region leaves alone (a converged IK's rounding noise)."""
+MIN_SCALE = 1.0 / 64.0
+"""Smallest step scale of the trust region."""
 
 
 @dataclass(frozen=True)
@@ -73,6 +88,9 @@ class Servo:
     def reset(self, q0: np.ndarray) -> None:
         """Set ``q_cmd`` [rad] (no motion is commanded)."""
         self._q = np.array(q0, dtype=float)
+        self._last: tuple[Command, np.ndarray] | None = None  # the last IK command and its (scaled) step
+        self.scale = 1.0
+        """The IK step's trust-region scale (see the module doc)."""
 
     @property
     def q_cmd(self) -> np.ndarray:
@@ -93,13 +111,27 @@ class Servo:
             idx = np.array([r.joint_index(j) for j in command.joints], dtype=int)
             goal = np.fromiter(command.joints.values(), dtype=float, count=len(idx))
             self._q[idx] = np.clip(goal, r.lower[idx], r.upper[idx])
+            self._last = None
         elif not command.holds:
             dt = self.sim.ctrl_dt
             v = self.ik.step(self._q, command.targets, dt, relative=command.relative, object_poses=object_poses,
                              allow=command.allow, posture=command.posture)
-            self._q = np.clip(self._q + v * dt, r.lower, r.upper)
+            dq = self._trust(command, v * dt)
+            self._q = np.clip(self._q + dq, r.lower, r.upper)
         self.sim.set_target(self._q)
         return self.q_cmd
+
+    def _trust(self, command: Command, dq: np.ndarray) -> np.ndarray:
+        """The step ``dq`` [rad] scaled by the trust region (see the module doc)."""
+        last, self._last = self._last, None
+        cycling = False
+        if last is not None and float(np.max(np.abs(dq))) > MIN_STEP and same_command(command, last[0]):
+            norms = float(np.linalg.norm(dq)) * float(np.linalg.norm(last[1]))
+            cycling = norms > 0.0 and float(dq @ last[1]) < REVERSAL * norms
+        self.scale = max(self.scale * 0.5, MIN_SCALE) if cycling else min(self.scale * 2.0, 1.0)
+        dq = dq * self.scale
+        self._last = (command, dq)
+        return dq
 
     def commanded_pose(self, frame: str) -> Pose:
         """World pose of a frame at ``q_cmd`` (where the robot is being sent)."""
@@ -107,3 +139,21 @@ class Servo:
             self.ik.configuration.update(self._q)
         pos, rot = self.ik.frame(frame).pose(self.ik.configuration.data)
         return Pose(pos.copy(), rot.copy())
+
+
+def _same(a: object, b: object) -> bool:
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return a is not None and b is not None and np.array_equal(a, b)  # type: ignore[arg-type]
+    return a == b
+
+
+def same_command(a: Command, b: Command) -> bool:
+    """True when two commands ask for the same targets (frame, relative and joint), allowances and posture."""
+    if len(a.targets) != len(b.targets) or len(a.relative) != len(b.relative):
+        return False
+    pairs: list[tuple[FrameTarget | RelativeTarget, FrameTarget | RelativeTarget]] = [
+        *zip(a.targets, b.targets, strict=True), *zip(a.relative, b.relative, strict=True)]
+    for x, y in pairs:
+        if type(x) is not type(y) or not all(_same(getattr(x, f.name), getattr(y, f.name)) for f in fields(x)):
+            return False
+    return a.allow == b.allow and _same(a.posture, b.posture) and a.joints == b.joints

@@ -57,6 +57,35 @@ def test_servo_frame_command_integrates_one_ik_step_and_hold_keeps_q(servo):
         servo.q_cmd[0] = 1.0  # read-only view
 
 
+class _CyclingIK:
+    """An IK whose step flips sign every call: the limit cycle the servo's trust region must damp."""
+
+    def __init__(self, n: int) -> None:
+        self.sign, self.v = 1.0, np.full(n, 0.5)
+
+    def step(self, q, targets, dt, **_):
+        self.sign = -self.sign
+        return self.sign * self.v
+
+
+def test_servo_trust_region_damps_a_cycle_only_under_an_unchanged_command(servo):
+    servo.ik = _CyclingIK(servo.robot.nq)
+    hold_here = Command((FrameTarget("left_tool", pos=np.array([0.3, 0.2, 1.0])),))
+    swings = []
+    for _ in range(8):
+        q0 = np.array(servo.q_cmd)
+        swings.append(float(np.max(np.abs(servo.step(hold_here) - q0))))
+    assert swings[0] == pytest.approx(0.5 * servo.sim.ctrl_dt)  # the first step is taken whole
+    assert swings[-1] == pytest.approx(swings[0] / 64)  # each reversal halves the step, down to 1/64
+    assert servo.scale == pytest.approx(1 / 64)
+    moving = [Command((FrameTarget("left_tool", pos=np.array([0.3, 0.2, 1.0 + 0.001 * (k + 1)])),)) for k in range(7)]
+    scales = []
+    for command in moving:  # a target that moves: reversals are the target's, not a cycle; the scale regrows
+        servo.step(command)
+        scales.append(servo.scale)
+    assert scales == [1 / 32, 1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0, 1.0]
+
+
 def test_stale_pose_after_a_joints_phase(tmp_path):
     """A move after a joints phase starts at the tool's real pose and never outruns its speed by 20 %.
 
