@@ -10,12 +10,13 @@ A command asks for frame poses (world or relative to another frame), or for join
   shapes the motion;
 * a hold: :math:`q_{cmd}` stays.
 
-The step scale is a trust region that acts only on a limit cycle. The IK's Gauss-Newton step is exact for the
-frame tasks' linearisation, but along joint directions that only the (weak) posture task weighs, the frame tasks'
-curvature makes it overshoot: with targets that stay put, :math:`q_{cmd}` can then jump back and forth between
-two configurations for ever (at 50 Hz a 20 mrad cycle at the velocity limit, so the arm never settles). When the
-command is the same as on the last tick and the step turns back on the last one (cosine below
-``REVERSAL``), :math:`s` halves (down to ``MIN_SCALE``); on every other tick it doubles back towards 1.
+With ``ik.trust_region`` on, the step scale is a trust region that acts only on a limit cycle. The IK's
+Gauss-Newton step is exact for the frame tasks' linearisation, but along joint directions that only the (weak)
+posture task weighs, the frame tasks' curvature makes it overshoot: with targets that stay put, :math:`q_{cmd}`
+can then jump back and forth between two configurations for ever (at 50 Hz a 20 mrad cycle at the velocity
+limit, so the arm never settles). When the command is the same as on the last tick and a fast step (one joint at
+``FAST`` of its velocity limit or more) turns back on the last one (cosine below ``REVERSAL``), :math:`s` halves
+(down to ``MIN_SCALE``); on every other tick it doubles back towards 1. Off (the default), :math:`s = 1`.
 
 Then :math:`q_{cmd}` becomes Ruckig's target. :meth:`Servo.commanded_pose` is always the pose at the current
 :math:`q_{cmd}`, so a phase that starts after a joint goal starts from where the robot is being sent.
@@ -36,8 +37,9 @@ from nextage_qp.sim import Simulation
 
 REVERSAL = -0.5
 """Cosine between two successive IK steps below which the second turns back on the first."""
-MIN_STEP = 1e-4
-"""Largest joint motion [rad] of a step that the trust region leaves alone (a converged IK's rounding noise)."""
+FAST = 0.5
+"""Fraction of a joint's velocity limit x control period that a step must reach somewhere for the trust region to
+act: a cycle of steps that run into the velocity box both ways, not the small back-and-forth of a converged IK."""
 MIN_SCALE = 1.0 / 64.0
 """Smallest step scale of the trust region."""
 
@@ -116,16 +118,18 @@ class Servo:
             dt = self.sim.ctrl_dt
             v = self.ik.step(self._q, command.targets, dt, relative=command.relative, object_poses=object_poses,
                              allow=command.allow, posture=command.posture)
-            dq = self._trust(command, v * dt)
+            dq = v * dt
+            if self.ik.config.trust_region:
+                dq = self._trust(command, dq, float(np.max(np.abs(v) / self.ik.box.vmax)))
             self._q = np.clip(self._q + dq, r.lower, r.upper)
         self.sim.set_target(self._q)
         return self.q_cmd
 
-    def _trust(self, command: Command, dq: np.ndarray) -> np.ndarray:
-        """The step ``dq`` [rad] scaled by the trust region (see the module doc)."""
+    def _trust(self, command: Command, dq: np.ndarray, speed: float) -> np.ndarray:
+        """The step ``dq`` [rad] scaled by the trust region; ``speed``: its largest fraction of a velocity limit."""
         last, self._last = self._last, None
         cycling = False
-        if last is not None and float(np.max(np.abs(dq))) > MIN_STEP and same_command(command, last[0]):
+        if last is not None and speed >= FAST and same_command(command, last[0]):
             norms = float(np.linalg.norm(dq)) * float(np.linalg.norm(last[1]))
             cycling = norms > 0.0 and float(dq @ last[1]) < REVERSAL * norms
         self.scale = max(self.scale * 0.5, MIN_SCALE) if cycling else min(self.scale * 2.0, 1.0)

@@ -58,10 +58,11 @@ def test_servo_frame_command_integrates_one_ik_step_and_hold_keeps_q(servo):
 
 
 class _CyclingIK:
-    """An IK whose step flips sign every call: the limit cycle the servo's trust region must damp."""
+    """An IK whose full-speed step flips sign every call: the limit cycle the servo's trust region must damp."""
 
-    def __init__(self, n: int) -> None:
-        self.sign, self.v = 1.0, np.full(n, 0.5)
+    def __init__(self, box) -> None:
+        self.box, self.sign, self.v = box, 1.0, box.vmax.copy()
+        self.config = IKConfig(trust_region=True)
 
     def step(self, q, targets, dt, **_):
         self.sign = -self.sign
@@ -69,13 +70,13 @@ class _CyclingIK:
 
 
 def test_servo_trust_region_damps_a_cycle_only_under_an_unchanged_command(servo):
-    servo.ik = _CyclingIK(servo.robot.nq)
+    servo.ik = _CyclingIK(servo.ik.box)
     hold_here = Command((FrameTarget("left_tool", pos=np.array([0.3, 0.2, 1.0])),))
     swings = []
     for _ in range(8):
         q0 = np.array(servo.q_cmd)
         swings.append(float(np.max(np.abs(servo.step(hold_here) - q0))))
-    assert swings[0] == pytest.approx(0.5 * servo.sim.ctrl_dt)  # the first step is taken whole
+    assert swings[0] == pytest.approx(np.max(servo.ik.v) * servo.sim.ctrl_dt)  # the first step is taken whole
     assert swings[-1] == pytest.approx(swings[0] / 64)  # each reversal halves the step, down to 1/64
     assert servo.scale == pytest.approx(1 / 64)
     moving = [Command((FrameTarget("left_tool", pos=np.array([0.3, 0.2, 1.0 + 0.001 * (k + 1)])),)) for k in range(7)]
@@ -84,6 +85,15 @@ def test_servo_trust_region_damps_a_cycle_only_under_an_unchanged_command(servo)
         servo.step(command)
         scales.append(servo.scale)
     assert scales == [1 / 32, 1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0, 1.0]
+    servo.ik.v *= 0.4  # slow steps that turn back (a converged IK's small back-and-forth) are left alone
+    for _ in range(3):
+        servo.step(hold_here)
+        assert servo.scale == 1.0
+    servo.ik.config = IKConfig()  # off (the default): every step is taken whole
+    servo.ik.v /= 0.4
+    for _ in range(3):
+        q0 = np.array(servo.q_cmd)
+        assert np.max(np.abs(servo.step(hold_here) - q0)) == pytest.approx(swings[0])
 
 
 def test_stale_pose_after_a_joints_phase(tmp_path):

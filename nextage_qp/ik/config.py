@@ -117,6 +117,11 @@ class IKConfig(BaseModel):
     stall_iters: int = Field(
         default=8, ge=1, description="solve(): a descent stalls after this many iterations without 1 % progress."
     )
+    trust_region: bool = Field(
+        default=False, description=(
+            "Servo: halve a fast IK step that turns back on the last one under an unchanged command (damps the "
+            "IK's limit cycle at slow control rates; see nextage_qp/servo.py)."),
+    )
 
     @field_validator("solver")
     @classmethod
