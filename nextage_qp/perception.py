@@ -9,7 +9,6 @@ and the :class:`~nextage_qp.shoves.Shoves` of a config.
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
@@ -18,6 +17,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.estimate_errors import EstimateErrors
 from nextage_qp.estimation import PoseKalman, rpy_of, vector_pose
 from nextage_qp.faults import EstimationConfig, FaultsConfig
 from nextage_qp.geometry import Pose, axis_angle, wrap, yaw_of
@@ -34,11 +34,7 @@ class _Track:
         self.pending: deque[tuple[float, float, np.ndarray]] = deque()  # (arrival, stamp, measured vector)
         self.raw: np.ndarray | None = None  # latest raw measurement delivered
         self.taken = self.dropped = 0
-        self.raw_sq: list[float] = []
-        self.raw_yaw: list[float] = []
-        self.est_sq: list[float] = []
-        self.est_yaw: list[float] = []
-        self.held_sq: list[float] = []  # the latest raw measurement against the truth now (no filter)
+        self.errors = EstimateErrors()
         self.carried: HeldEstimate | None = None  # while the robot holds the object
         self.carried_counts = [0, 0]  # gated measurements and restarts of finished holds
 
@@ -144,8 +140,7 @@ class FaultySensors:
                     # first measurement is taken to exist before the run starts).
                     tr.pending.append((t if first else t + cam.latency_s, t, z))
                     err = z[:3] - pose.pos
-                    tr.raw_sq.append(float(err @ err))
-                    tr.raw_yaw.append(abs(wrap(z[5] - true_yaw)))
+                    tr.errors.measurement(float(err @ err), abs(wrap(z[5] - true_yaw)))
             delivered = None
             while tr.pending and tr.pending[0][0] <= t + 1e-9:
                 _, stamp, z = tr.pending.popleft()
@@ -156,12 +151,10 @@ class FaultySensors:
                     tr.kalman.update(stamp, z)
             assert tr.raw is not None
             held = tr.raw[:3] - pose.pos
-            tr.held_sq.append(float(held @ held))
             est = (tr.carried.estimate(t) if tr.carried is not None
                    else tr.kalman.estimate(t) if tr.kalman is not None else tr.raw)
             err = est[:3] - pose.pos
-            tr.est_sq.append(float(err @ err))
-            tr.est_yaw.append(abs(wrap(est[5] - true_yaw)))
+            tr.errors.tick(t, float(err @ err), abs(wrap(est[5] - true_yaw)), float(held @ held))
             self.history.setdefault(name, []).append((t, est.copy(), delivered))
             out[name] = vector_pose(est)
         return out
@@ -202,35 +195,22 @@ class FaultySensors:
 
     # -- report ---------------------------------------------------------------------------------------------
 
-    def report(self) -> dict[str, Any]:
-        """Estimation errors against the truth per object.
+    def report(self, shoves: Sequence[tuple[str, float, float]] = ()) -> dict[str, Any]:
+        """Estimation errors against the truth per object (see :class:`~nextage_qp.estimate_errors.EstimateErrors`).
 
-        ``estimate_*``: the pose the phases saw, every tick; ``raw_*``: each measurement against the pose it
-        describes (the camera's noise); ``held_*``: the latest measurement against the truth at every tick (what
-        the phases would see without a filter: noise, latency and the wait for the next measurement).
+        ``shoves``: (body, start, end) [s] of the shoves applied (:meth:`~nextage_qp.shoves.Shoves.windows`), the
+        ticks the ``estimate_outside_shoves_rms_m`` of their body leaves out.
         """
         objects = {}
         for name, tr in self._tracks.items():
             k, c = tr.kalman, tr.carried
+            spans = [(a, b) for body, a, b in shoves if body == name]
             objects[name] = {
-                "estimate_rms_m": _rms(tr.est_sq), "estimate_max_m": _max_sqrt(tr.est_sq),
-                "estimate_yaw_rms_rad": _rms([y * y for y in tr.est_yaw]),
-                "raw_rms_m": _rms(tr.raw_sq), "raw_max_m": _max_sqrt(tr.raw_sq),
-                "raw_yaw_rms_rad": _rms([y * y for y in tr.raw_yaw]),
-                "held_rms_m": _rms(tr.held_sq), "held_max_m": _max_sqrt(tr.held_sq),
-                "measurements": tr.taken, "dropouts": tr.dropped,
+                **tr.errors.report(spans), "measurements": tr.taken, "dropouts": tr.dropped,
                 "rejected": (k.rejected if k else 0) + tr.carried_counts[0] + (c.kalman.rejected if c else 0),
                 "filter_resets": (k.resets if k else 0) + tr.carried_counts[1] + (c.kalman.resets if c else 0),
             }
         return {"object_filter": self.estimation.object_filter, "objects": objects}
-
-
-def _rms(squares: list[float]) -> float | None:
-    return math.sqrt(sum(squares) / len(squares)) if squares else None
-
-
-def _max_sqrt(squares: list[float]) -> float | None:
-    return math.sqrt(max(squares)) if squares else None
 
 
 def perception_of(cfg: Any, robot: Any, source: str) -> tuple[FaultySensors | None, Shoves | None]:

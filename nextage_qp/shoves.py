@@ -20,11 +20,12 @@ class Shoves:
     """
 
     def __init__(self, shoves: Sequence[Shove], body_ids: Mapping[str, int], ctrl_dt: float) -> None:
-        self.shoves, self.body_ids = list(shoves), body_ids
+        self.shoves, self.body_ids, self.ctrl_dt = list(shoves), body_ids, ctrl_dt
         self._ticks = [max(1, round(s.duration_s / ctrl_dt)) for s in self.shoves]
         self._force = [np.asarray(s.impulse_ns) / (n * ctrl_dt) for s, n in zip(self.shoves, self._ticks, strict=True)]
         self._left: list[int | None] = [None for _ in self.shoves]  # ticks of force still to apply; -1: done
         self.applied: list[dict[str, Any]] = []
+        self._spans: list[tuple[str, float, float]] = []  # (body, first tick, end of the force window) [s]
 
     def update(self, data: Any, t: float, phase: tuple[str, str, float] | None) -> None:
         """Before a tick at ``t`` [s]: start due shoves, set the force of the running ones, clear finished ones.
@@ -39,6 +40,7 @@ class Shoves:
                 left = self._ticks[i]
                 self.applied.append({"body": s.body, "t_s": round(t, 6), "impulse_ns": list(s.impulse_ns),
                                      "phase": phase[0] if phase else None})
+                self._spans.append((s.body, t, t + left * self.ctrl_dt))
             bid = self.body_ids[s.body]
             if left > 0:
                 data.xfrc_applied[bid, :3] = self._force[i]
@@ -46,6 +48,10 @@ class Shoves:
             elif left == 0:
                 data.xfrc_applied[bid, :3] = 0.0
                 self._left[i] = -1
+
+    def windows(self, settle: float) -> list[tuple[str, float, float]]:
+        """(body, start, end) [s] of each applied shove: its force window and ``settle`` seconds after it."""
+        return [(body, t0, t1 + settle) for body, t0, t1 in self._spans]
 
     @staticmethod
     def _due(s: Shove, t: float, phase: tuple[str, str, float] | None) -> bool:

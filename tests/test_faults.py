@@ -9,6 +9,7 @@ import yaml
 
 from nextage_qp.cli import main
 from nextage_qp.errors import ConfigError
+from nextage_qp.estimate_errors import SHOVE_SETTLE_S
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import Runner
 
@@ -72,6 +73,11 @@ def test_a_shove_moves_the_object_and_is_reported(tmp_path):
     assert result["final_object_position"][1] > 0.005  # pushed along +y
     quiet, _ = run(short_config(tmp_path, {"object_pose": CAMERA}, name="quiet.yaml"))
     assert abs(quiet["final_object_position"][1]) < 1e-3
+    # the estimate's error is also reported without the shove's force window and the SHOVE_SETTLE_S after it
+    cube, calm = result["estimation"]["objects"]["cube"], quiet["estimation"]["objects"]["cube"]
+    assert abs(cube["shove_ticks"] - (0.05 + SHOVE_SETTLE_S) / 0.004) <= 1 and calm["shove_ticks"] == 0
+    assert cube["estimate_outside_shoves_rms_m"] < 0.5 * cube["estimate_rms_m"]  # the flung cube is the error
+    assert calm["estimate_outside_shoves_rms_m"] == calm["estimate_rms_m"]
 
 
 @pytest.mark.parametrize("mode, words", [("freeze", "the sensor froze"), ("nan", "not finite")])

@@ -16,7 +16,7 @@ from nextage_qp.sweep.keys import yaml_scalar
 from nextage_qp.sweep.run import plan, replay_commands, run_sweep
 from nextage_qp.sweep.spec import SweepSpec
 from nextage_qp.sweep.store import SweepStore
-from nextage_qp.sweep.summary import by_target_clearance, summarize, wilson
+from nextage_qp.sweep.summary import by_target_clearance, estimation, summarize, wilson
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "tests" / "data" / "quick_push.yaml"
@@ -181,6 +181,22 @@ def test_success_is_split_by_target_clearance():
     assert (clear["episodes"], clear["successes"], tight["episodes"], tight["successes"]) == (2, 1, 3, 1)
     assert tight["success_rate_ci95"] == pytest.approx(list(wilson(1, 3)))
     assert by_target_clearance([ep(0, "success", None)]) == []  # no obstacle in the scene: no split
+
+
+def test_estimation_errors_pool_over_episodes_with_and_without_the_shoves():
+    def ep(i, est, outside, raw, ticks):
+        cube = {"estimate_rms_m": est, "estimate_outside_shoves_rms_m": outside, "raw_rms_m": raw,
+                "held_rms_m": 2 * raw, "dropouts": 1, "measurements": 10, "shove_ticks": ticks}
+        return Episode(i, i, {}, [], "success", result={"estimation": {"objects": {"cube": cube}},
+                                                         "shoves": [{"body": "cube"}] if ticks else []})
+
+    est = estimation([ep(0, 0.003, 0.001, 0.004, 5), ep(1, 0.001, 0.001, 0.002, 0)])
+    assert est["estimate_rms_m"] == pytest.approx(np.sqrt((0.003**2 + 0.001**2) / 2))
+    assert est["estimate_outside_shoves_rms_m"] == pytest.approx(0.001)
+    assert est["estimate_outside_shoves_over_raw"] == pytest.approx(0.001 / np.sqrt((0.004**2 + 0.002**2) / 2))
+    assert est["estimate_over_held"] == pytest.approx(est["estimate_over_raw"] / 2)
+    assert (est["shove_ticks"], est["shoves"], est["episodes"]) == (5, 1, 2)
+    assert estimation([Episode(0, 0, {}, [], "success", result={"estimation": None})]) is None
 
 
 def test_wilson_interval_known_values():

@@ -25,6 +25,7 @@ from nextage_qp.commands.common import (
     output_file,
 )
 from nextage_qp.errors import ConfigError
+from nextage_qp.estimate_errors import SHOVE_SETTLE_S
 from nextage_qp.json_out import dumps
 from nextage_qp.sweep.episode import Episode
 from nextage_qp.sweep.run import plan, run_sweep
@@ -184,6 +185,10 @@ def _print_summary(s: dict[str, Any], console: Console, *, only: bool, episodes:
         console.print(f"object estimate RMS {_mm(est['estimate_rms_m'])} mm ({ratios}); raw {_mm(est['raw_rms_m'])} "
                       f"mm, held {_mm(est['held_rms_m'])} mm; {est['dropouts']}/{est['measurements']} measurements "
                       f"dropped; {est['shoves']} shoves", markup=False)
+        if est["shoves"] and est.get("estimate_outside_shoves_over_raw") is not None:
+            console.print(f"outside the {SHOVE_SETTLE_S:g} s after each shove ({est['shove_ticks']} ticks): estimate "
+                          f"RMS {_mm(est['estimate_outside_shoves_rms_m'])} mm "
+                          f"({est['estimate_outside_shoves_over_raw']:.2f} of raw)", markup=False)
     for row in s["by_target_clearance"]:
         lo, hi = row["success_rate_ci95"]
         rate = "-" if row["success_rate"] is None else f"{100 * row['success_rate']:.1f} %"

@@ -16,6 +16,7 @@ from typing import Any
 
 from nextage_qp.control import load_gains
 from nextage_qp.errors import ConfigError, NextageQPError, PhaseError, UnknownNameError
+from nextage_qp.estimate_errors import SHOVE_SETTLE_S
 from nextage_qp.ik import QPIK
 from nextage_qp.manipulation.config import ManipulationConfig
 from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, summarize
@@ -164,7 +165,8 @@ class Runner:
         return summarize(task=c.task, robot=self.robot, sim=self.sim, monitor=self.monitor, records=self.records,
                          obj=c.object, target=c.target, criteria=c.success, error=self.error, wall_s=self.wall_s,
                          extra={"target_clearance_m": self.placement.target_clearance_m,
-                                "estimation": self.sensors.report() if self.sensors is not None else None,
+                                "estimation": None if self.sensors is None else self.sensors.report(
+                                    self.shoves.windows(SHOVE_SETTLE_S) if self.shoves is not None else ()),
                                 "shoves": self.shoves.applied if self.shoves is not None else []})
 
 

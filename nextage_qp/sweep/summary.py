@@ -130,21 +130,23 @@ def by_target_clearance(episodes: Sequence[Episode]) -> list[dict[str, Any]]:
 def estimation(episodes: Sequence[Episode]) -> dict[str, Any] | None:
     """Object-estimation errors over the episodes that ran with faults (None when none did).
 
-    Per error kind (``estimate``, ``raw``, ``held``: see ``FaultySensors.report``) the RMS over episodes of
-    each episode's RMS [m], and the estimate's ratio to the raw and held errors.
+    Per error kind (``estimate``, ``estimate_outside_shoves``, ``raw``, ``held``: see
+    ``EstimateErrors.report``) the RMS over episodes of each episode's RMS [m], and the ratios of the estimate
+    (and of the estimate outside the shoves) to the raw and held errors.
     """
     rows = [o for e in episodes if e.result and e.result.get("estimation")
             for o in e.result["estimation"]["objects"].values()]
     if not rows:
         return None
     out: dict[str, Any] = {"episodes": len(rows)}
-    for kind in ("estimate", "raw", "held"):
+    for kind in ("estimate", "estimate_outside_shoves", "raw", "held"):
         values = [r[f"{kind}_rms_m"] for r in rows if r.get(f"{kind}_rms_m") is not None]
         out[f"{kind}_rms_m"] = float(np.sqrt(np.mean(np.square(values)))) if values else None
-    if out["estimate_rms_m"] is not None:
+    for est in ("estimate", "estimate_outside_shoves"):
         for kind in ("raw", "held"):
-            ref = out[f"{kind}_rms_m"]
-            out[f"estimate_over_{kind}"] = out["estimate_rms_m"] / ref if ref else None
+            ref, value = out[f"{kind}_rms_m"], out[f"{est}_rms_m"]
+            out[f"{est}_over_{kind}"] = value / ref if ref and value is not None else None
+    out["shove_ticks"] = int(sum(r.get("shove_ticks", 0) for r in rows))
     out["dropouts"] = int(sum(r["dropouts"] for r in rows))
     out["measurements"] = int(sum(r["measurements"] for r in rows))
     out["shoves"] = int(sum(len(e.result.get("shoves", [])) for e in episodes if e.result))
