@@ -161,6 +161,11 @@ class FaultySensors:
 
     # -- joints and wrenches --------------------------------------------------------------------------------
 
+    @property
+    def joints_exact(self) -> bool:
+        """True without ``joint_sensors`` noise."""
+        return self.faults.joint_sensors is None
+
     def joints(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Noisy joint state; one draw per time stamp (the PD law and the phases see the same values)."""
         js = self.faults.joint_sensors

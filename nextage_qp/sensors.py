@@ -114,6 +114,10 @@ class SensorWatch:
 class Sensors(Protocol):
     """The seam between physics and controller (default: :class:`PerfectSensors`)."""
 
+    @property
+    def joints_exact(self) -> bool:
+        """Whether :meth:`joints` reports the true joint state (else robot frames come from the measured joints)."""
+
     def joints(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Measured joint positions [rad] and velocities [rad/s] at time ``t`` [s] (every control tick)."""
 
@@ -126,6 +130,8 @@ class Sensors(Protocol):
 
 class PerfectSensors:
     """Sensors that report the simulator's state exactly."""
+
+    joints_exact = True
 
     def joints(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
         return q, qd

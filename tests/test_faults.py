@@ -65,6 +65,16 @@ def test_no_faults_block_changes_nothing(tmp_path):
     assert runner.sensors is None
 
 
+def test_noisy_encoders_put_the_robot_frames_where_the_measured_joints_say(tmp_path):
+    for faults, exact in (({"object_pose": CAMERA, "joint_sensors": JOINTS}, False), ({"object_pose": CAMERA}, True)):
+        runner = Runner(load_config(short_config(tmp_path, faults, seconds=0.1), []), "faults.yaml")
+        runner.run()
+        d, site = runner.sim.data, runner.robot.model.site("left_tool").id
+        gap = float(np.linalg.norm(runner.view.frame_pose("left_tool").pos - d.site_xpos[site]))
+        assert runner.sensors.joints_exact is exact
+        assert gap == 0.0 if exact else 0.0 < gap < 0.002  # 0.5 mrad per joint: a fraction of a millimetre
+
+
 def test_a_shove_moves_the_object_and_is_reported(tmp_path):
     shove = {"body": "cube", "at_s": 0.2, "impulse_ns": [0.0, 0.15, 0.0]}
     path = short_config(tmp_path, {"object_pose": CAMERA, "shoves": [shove]})

@@ -54,6 +54,8 @@ class SimView:
         return Pose(d.xpos[bid].copy(), d.xmat[bid].reshape(3, 3).copy())
 
     def frame_pose(self, name: str) -> Pose:  # noqa: D102
+        if not self._sim.sensors.joints_exact:  # noisy encoders: the frame where the measured joints put it
+            return self.pose_at(name, self._sim.measured.q)
         kind, fid = self.robot.frame(name)
         d = self._sim.data
         if kind == "site":
