@@ -41,10 +41,14 @@ class Kinematics:
         self.data = mujoco.MjData(robot.model)
         self._jacp = np.zeros((3, robot.model.nv))
         self._jacr = np.zeros((3, robot.model.nv))
+        self._q: np.ndarray | None = None  # the joints the data's kinematics were last computed for
 
     def _update(self, q: np.ndarray) -> None:
+        if self._q is not None and np.array_equal(q, self._q):  # several frames of one joint vector: once
+            return
         self.data.qpos[self.robot.qpos_idx] = q
         mujoco.mj_kinematics(self.robot.model, self.data)
+        self._q = q.copy()
 
     def fk(self, frame: str, q: np.ndarray) -> Pose:
         """World pose of a body or site at joint vector ``q`` [rad] (15 robot joints).
