@@ -23,6 +23,7 @@ every physics step. A NaN or a joint faster than ``max_speed`` stops the loop wi
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 
 import mujoco
@@ -73,6 +74,8 @@ class Simulation:
         substep_hooks: Functions called as ``hook(sim)`` at every physics step, once its contacts are
             computed (e.g. to count steps with a contact).
         timer: A :class:`StageTimer` to profile the loop, or None.
+        physics_s: Wall time spent inside ``mj_step`` since the last :meth:`reset` [s] (every call timed where
+            it is made), so a run can report the share of its wall time its physics takes.
     """
 
     def __init__(
@@ -123,6 +126,7 @@ class Simulation:
         self._force = np.zeros((self.n_substeps, robot.nq))
         self._raw: RefState | None = None
         self._step = 0
+        self.physics_s = 0.0
         self.reset(robot.keyframe_q("home"))
 
     @property
@@ -167,7 +171,7 @@ class Simulation:
         self.pd.reset_counters()
         self.watch.reset()
         self.recorder.clear()
-        self._raw, self._step = None, 0
+        self._raw, self._step, self.physics_s = None, 0, 0.0
         self._measure()
 
     def set_target(self, q_des: np.ndarray, qd_des: np.ndarray | None = None, *, shaped: bool = True) -> None:
@@ -217,14 +221,18 @@ class Simulation:
         self.recorder.record(self.time, q, qd, start.q, start.qd, None, self._frame_poses(), self._object_rows())
         if timer:
             timer.lap("pd+record")
-        ctrl, force, hooks = self._ctrl, self._force, self.substep_hooks
+        ctrl, force, hooks, clock, step = self._ctrl, self._force, self.substep_hooks, time.perf_counter, mujoco.mj_step
+        physics = 0.0
         for k in range(n):
             ctrl[:] = ramp[k]
-            mujoco.mj_step(m, d)
+            t0 = clock()
+            step(m, d)
+            physics += clock() - t0
             force[k] = self._act_force
             self._step += 1
             for hook in hooks:
                 hook(self)
+        self.physics_s += physics
         if timer:
             timer.lap("physics")
         self.pd.count(force)

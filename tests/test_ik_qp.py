@@ -279,3 +279,59 @@ def test_frame_target_validation() -> None:
         FrameTarget("left_wrist")
     with pytest.raises(ConfigError, match="position_cost"):
         FrameTarget("left_wrist", pos=np.zeros(3), position_cost=-1.0)
+
+
+def test_objective_equals_minks_build_ik(robot: Robot, kin: Kinematics) -> None:
+    """The reused-array objective is mink's (H, c) for frame, posture, relative-frame and axis tasks alike."""
+    import mink
+
+    from nextage_qp.ik.objective import Objective
+
+    ik = QPIK(robot, IKConfig(lm_damping=0.3))
+    objective = Objective(ik.model)
+    rng, home = np.random.default_rng(11), robot.keyframe_q("home")
+    posture = mink.PostureTask(ik.model, cost=0.05, lm_damping=0.2)
+    relative = mink.RelativeFrameTask("left_pad", "site", "right_pad", "site", position_cost=2.0,
+                                      orientation_cost=0.5)
+    axis = mink.AxisAlignTask("right_tool", "site", lm_damping=0.1)
+    for k in range(30):
+        q = np.clip(home + rng.normal(0.0, 0.4, robot.nq), robot.lower, robot.upper)
+        ik.configuration.update(q)
+        goal = np.clip(q + rng.normal(0.0, 0.3, robot.nq), robot.lower, robot.upper)
+        targets = [FrameTarget(f, pos=kin.fk(f, goal).pos, rot=kin.fk(f, goal).rot if k % 2 else None)
+                   for f in ("left_wrist", "right_wrist")]
+        posture.set_target(goal)
+        relative.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(np.eye(3)),
+                                                                   rng.normal(0, 0.1, 3)))
+        axis.set_axis(np.array([1.0, 0, 0]))
+        axis.set_target(np.array([0.0, 0.0, -1.0]))
+        tasks = [*ik.tasks.frames(targets, ik.configuration.data), posture, relative, axis][: 3 + k % 3]
+        H, c = objective.build(ik.configuration, tasks, 1e-6)
+        ref = mink.build_ik(ik.configuration, tasks, 0.004, damping=1e-6, limits=[])
+        assert H == pytest.approx(ref.P, rel=1e-10, abs=1e-12)
+        assert c == pytest.approx(ref.q, rel=1e-10, abs=1e-12)
+
+
+def test_step_equals_plain_minks_solve_ik(robot: Robot, kin: Kinematics) -> None:
+    """Without collision pairs, one IK step is plain mink.solve_ik's with the same tasks and limits."""
+    import mink
+
+    cfg = IKConfig(velocity_limit=1.0, limit_margin=0.0)
+    ik = QPIK(robot, cfg)
+    config = mink.Configuration(ik.model)
+    posture = mink.PostureTask(ik.model, cost=cfg.posture_cost)
+    posture.set_target(robot.keyframe_q("home"))
+    names = [ik.model.joint(i).name for i in range(ik.model.njnt)]
+    limits = [mink.ConfigurationLimit(ik.model, gain=cfg.limit_gain, min_distance_from_limits=0.0),
+              mink.VelocityLimit(ik.model, dict.fromkeys(names, 1.0))]
+    rng, home = np.random.default_rng(2), robot.keyframe_q("home")
+    for _ in range(40):
+        q = np.clip(home + rng.normal(0.0, 0.4, robot.nq), robot.lower, robot.upper)
+        goal = np.clip(q + rng.normal(0.0, 0.2, robot.nq), robot.lower, robot.upper)
+        targets = [FrameTarget(f, pos=kin.fk(f, goal).pos, rot=kin.fk(f, goal).rot)
+                   for f in ("left_wrist", "right_wrist")]
+        v = ik.step(q, targets, 0.004)
+        config.update(q)
+        tasks = [*ik.tasks.frames(targets, config.data), posture]
+        ref = mink.solve_ik(config, tasks, 0.004, "daqp", damping=cfg.damping, limits=limits)
+        assert v == pytest.approx(ref, abs=1e-7)

@@ -7,7 +7,9 @@ Measured in one run on one core:
   -> MuJoCo, with recording) on reach motions of the left wrist, as simulated seconds per wall second;
 * the same loop with the simulation's stage timer on, timing the servo (IK) and each stage of the real
   ``Simulation.tick`` separately (median and p99 per call);
-* with ``--task CONFIG``, the same stage profile of a whole task run (the manipulation runner), plus the time
+* with ``--task CONFIG``, the physics share of a whole task run at the config's own settings (the wall time
+  spent inside ``mj_step``, every call timed where the simulation makes it, over the run's wall time), and the
+  same stage profile of that run (the manipulation runner), plus the time
   between ticks, where the phase computes its next command and may plan offline (``phase+plan``); ``--set``
   overrides keys of those configs (e.g. ``--set timing.ctrl_dt=0.01``); and the ceilings this profile puts on
   the run's ratio to bare physics (its own physics alone, and physics plus IK).
@@ -131,6 +133,7 @@ def task_costs(config: str, sets: list[str]) -> tuple[dict[str, dict[str, float]
         last_end[:] = [time.perf_counter()]
 
     runner.tick = timed_tick  # type: ignore[method-assign]
+    last_end[:] = [time.perf_counter()]  # the first phase's start (and its planning) counts too
     result = runner.run()
     stats = _stats({"servo (ik)": servo_s, **timer.samples, "phase+plan": between})
     return stats, float(result["real_time_factor"] or 0.0)
@@ -181,10 +184,12 @@ def main() -> None:
         cfg = load_config(config, args.overrides)
         scene = str(cfg.scene.file)
         task_bare = float(np.median([bare_rtf(scene, args.duration) for _ in range(3)]))
-        plain = float(Runner(cfg, config).run()["real_time_factor"] or 0.0)  # no stage timer
+        result = Runner(cfg, config).run()  # no stage timer
+        plain, share = float(result["real_time_factor"] or 0.0), float(result["physics_share"] or 0.0)
         task_stages, timed = task_costs(config, args.overrides)
         out["tasks"][config] = {"scene": scene, "set": args.overrides, "ctrl_dt_s": cfg.timing.ctrl_dt,
                                 "bare_mj_step_rtf_median": task_bare, "real_time_factor": plain,
+                                "physics_share": share, "success": bool(result["success"]),
                                 "task_over_bare_ratio": plain / task_bare, "real_time_factor_with_timer": timed,
                                 "per_call_us": task_stages,
                                 "ceilings": ceilings(task_stages, task_bare, cfg.timing.sim_dt, cfg.timing.ctrl_dt)}
@@ -205,6 +210,8 @@ def main() -> None:
               f"bare mj_step on its scene "
               f"({task['scene']}) {task['bare_mj_step_rtf_median']:.1f}x; ratio {task['task_over_bare_ratio']:.3f} "
               f"(stage-timed run: {task['real_time_factor_with_timer']:.1f}x)")
+        print(f"physics share: {task['physics_share']:.3f} of the run's wall time inside mj_step (every call timed "
+              f"where it is made; success {task['success']})")
         _print_stages(task["per_call_us"])
         c = task["ceilings"]
         print(f"ceilings: its own physics alone {c['task_step_us']:.1f} us per mj_step against {c['bare_step_us']:.1f} "

@@ -149,7 +149,8 @@ def _print_summary(result: dict[str, Any], console: Console) -> None:
         ("final object position [m]", " ".join(f"{v:.4f}" for v in result["final_object_position"])),
         ("target position [m]", " ".join(f"{v:.4f}" for v in result["target_position"])),
         ("simulated / wall time", f"{result['sim_time_s']:.2f} s / {result['wall_time_s']:.2f} s "
-                                  f"(x{result['real_time_factor']:.1f} real time)"),
+                                  f"(x{result['real_time_factor']:.1f} real time, "
+                                  f"{result['physics_share'] * 100:.0f} % of it in the physics)"),
         ("min obstacle clearance", "n/a" if clearance is None else f"{clearance * 1e3:.1f} mm"),
         ("obstacle contacts [steps]", str(result["obstacle_contacts"])),
         ("object dropped", str(result["object_dropped"])),

@@ -1,4 +1,9 @@
-"""Solve one IK QP with a qpsolvers backend; DAQP is called directly with the joint box as simple bounds."""
+r"""Solve one IK QP with a qpsolvers backend; DAQP is called directly on reused arrays.
+
+The problem is :math:`\min_x \tfrac12 x^T H x + c^T x` subject to :math:`lb \le x \le ub` (the joint box) and
+:math:`G x \le h` (collision rows). DAQP takes the box as its native simple bounds and the rows as general
+inequalities; its bound and sense vectors are kept between calls, so a step allocates only what DAQP returns.
+"""
 
 from __future__ import annotations
 
@@ -10,22 +15,45 @@ try:
 except ImportError:  # pragma: no cover - daqp is a dependency, other backends still work
     daqp = None
 
-
-def solve_qp(problem: qpsolvers.Problem, solver: str) -> np.ndarray | None:
-    """The minimiser of ``problem`` (``lb``/``ub`` box plus ``G x <= h`` rows), or None if none was found."""
-    if solver == "daqp" and daqp is not None:
-        return _solve_daqp(problem)
-    result = qpsolvers.solve_problem(problem, solver=solver)
-    return result.x if result.found else None
+_NO_LOWER = -1e30
+"""DAQP's 'no lower bound' for a one-sided row."""
 
 
-def _solve_daqp(problem: qpsolvers.Problem) -> np.ndarray | None:
-    """DAQP without qpsolvers' conversion: the box as DAQP's native simple bounds, rows as inequalities."""
-    n = len(problem.q)
-    rows = 0 if problem.G is None else len(problem.G)
-    a_mat = np.zeros((0, n)) if problem.G is None else np.ascontiguousarray(problem.G)
-    upper = np.concatenate([problem.ub, problem.h]) if problem.h is not None else np.asarray(problem.ub)
-    lower = np.concatenate([problem.lb, np.full(rows, -1e30)])
-    sense = np.zeros(n + rows, dtype=np.int32)
-    x, _, exitflag, _ = daqp.solve(problem.P, problem.q, a_mat, upper, lower, sense)
-    return x if exitflag > 0 else None
+class QPSolver:
+    """A reusable solver for IK QPs of ``n`` variables (any installed qpsolvers backend; DAQP called directly).
+
+    Args:
+        solver: qpsolvers backend name.
+        n: Number of variables.
+    """
+
+    def __init__(self, solver: str, n: int) -> None:
+        self.solver, self.n = solver, n
+        self._direct = solver == "daqp" and daqp is not None
+        self._no_rows = np.zeros((0, n))
+        self._resize(16)
+
+    def _resize(self, rows: int) -> None:
+        n = self.n
+        self._upper, self._lower = np.empty(n + rows), np.full(n + rows, _NO_LOWER)
+        self._sense = np.zeros(n + rows, dtype=np.int32)
+
+    def solve(self, H: np.ndarray, c: np.ndarray, lb: np.ndarray, ub: np.ndarray, G: np.ndarray | None = None,
+              h: np.ndarray | None = None) -> np.ndarray | None:
+        """The minimiser, or None when the solver found none (infeasible or failed)."""
+        if not self._direct:
+            result = qpsolvers.solve_problem(qpsolvers.Problem(H, c, G, h, lb=lb, ub=ub), solver=self.solver)
+            return result.x if result.found else None
+        n = self.n
+        rows = 0 if G is None or h is None else len(h)
+        if n + rows > len(self._upper):
+            self._resize(2 * rows)
+        upper, lower = self._upper[: n + rows], self._lower[: n + rows]
+        upper[:n], lower[:n] = ub, lb
+        lower[n:] = _NO_LOWER
+        if rows:
+            upper[n:] = h
+        a_mat = self._no_rows if not rows else np.ascontiguousarray(G)
+        x, _, exitflag, _ = daqp.solve(H, c, a_mat, upper, lower, self._sense[: n + rows])
+        return x if exitflag > 0 else None
+

@@ -95,13 +95,12 @@ class ActiveCollisionLimit(mink.Limit):
         self._lever_inf = bool(np.isinf(self._lever).any())
         self._lists = (self.geom1.tolist(), self.geom2.tolist(), self.detection_distance.tolist(),
                        self.min_distance.tolist())
-        self._fromto, self._normal = np.empty(6), np.empty(3)
-        self._from, self._to = self._fromto[:3], self._fromto[3:]  # views: the witness points of the last query
-        self._jac1, self._jac2 = np.empty((3, model.nv)), np.empty((3, model.nv))
-        self._rows = np.empty((len(keys), model.nv))  # the rows of one call, filled in place
+        self._witness = np.empty((len(keys), 6))  # witness points (from, to) of the active pairs of one call
         # Body of each geom, or -1 where no joint moves it (welded to the world, or a mocap object): its witness
         # point has a zero Jacobian, so that side of a row costs nothing.
         self._body = [int(b) if moved_by_a_joint(model, int(b)) else -1 for b in model.geom_bodyid]
+        # Per active pair of one call: the point Jacobians of its two witness points (geom2's, then geom1's).
+        self._jacs = np.zeros((len(keys), 2, 3, model.nv))
         self.enabled = np.ones(len(keys), dtype=bool)
         """Pairs watched at the next call (see :meth:`allow`)."""
         self._allowed_geoms: np.ndarray | None = None
@@ -181,7 +180,7 @@ class ActiveCollisionLimit(mink.Limit):
 
         ``box_bounds`` is the joint box's ``(lb, ub)`` at this configuration when the caller has it already.
         """
-        model, data, fromto, rows = self.model, configuration.data, self._fromto, self._rows
+        model, data, witness = self.model, configuration.data, self._witness
         bounds: list[float] = []
         self.active, self.slack = [], 0
         near, lower = self._near(data)
@@ -202,48 +201,52 @@ class ActiveCollisionLimit(mink.Limit):
             self.slack = int(np.count_nonzero(cannot))
             near, reach = near[~cannot], pair_reach[~cannot].tolist()
         geom1, geom2, detect, minimum = self._lists
-        travel, base, gain, margin = self._travel, self._base, self.gain, self.margin
+        gain, margin, distance = self.gain, self.margin, mujoco.mj_geomDistance
         self.queries = len(near)
+        dists: list[float] = []
+        body, jacs, jac = self._body, self._jacs, mujoco.mj_jac
         for k, idx in enumerate(near.tolist()):
             g1, g2, dmax = geom1[idx], geom2[idx], detect[idx]
-            dist = mujoco.mj_geomDistance(model, data, g1, g2, dmax + margin, fromto)
-            base[idx] = dist + travel[g1] + travel[g2]
+            i = len(bounds)
+            fromto = witness[i]
+            dist = distance(model, data, g1, g2, dmax + margin, fromto)
+            dists.append(dist)
             if dist >= dmax:
                 continue
             bound = gain * max(dist - minimum[idx], 0.0)
             if reach is not None and bound > reach[k]:
                 self.slack += 1
                 continue
-            self._row(data, g1, g2, dist, rows[len(bounds)])
+            # The witness points' Jacobians (zero on a side no joint moves): geom2's ("to"), then geom1's ("from").
+            b1, b2 = body[g1], body[g2]
+            if b2 >= 0:
+                jac(model, data, jacs[i, 0], None, fromto[3:], b2)
+            else:
+                jacs[i, 0] = 0.0
+            if b1 >= 0:
+                jac(model, data, jacs[i, 1], None, fromto[:3], b1)
+            else:
+                jacs[i, 1] = 0.0
             bounds.append(bound)
             self.active.append((idx, dist))
+        if dists:
+            self._remember(near, np.array(dists))
         if not bounds:
             return Constraint()
-        return Constraint(G=rows[: len(bounds)].copy(), h=np.array(bounds))
+        return Constraint(G=self._rows(len(bounds)), h=np.array(bounds))
 
-    def _row(self, data: mujoco.MjData, g1: int, g2: int, dist: float, out: np.ndarray) -> None:
-        """Write the row :math:`-n^T (J_2 - J_1)` of a pair whose witness points are in ``self._fromto`` to ``out``.
+    def _rows(self, k: int) -> np.ndarray:
+        r"""The rows :math:`s\,n^T (J_2(p_2) - J_1(p_1))` of the ``k`` pairs in :attr:`active`, in one product.
 
-        As mink's ``compute_contact_normal_jacobian`` (sign flipped for a penetrating pair), without the
-        Jacobian of a side no joint moves.
+        As mink's ``compute_contact_normal_jacobian``: :math:`n` the unit vector from witness point :math:`p_1`
+        to :math:`p_2`, :math:`s = -1` (sign flipped, :math:`+1`, for a penetrating pair).
         """
-        start, end, normal = self._from, self._to, self._normal
-        np.subtract(end, start, out=normal)
-        mujoco.mju_normalize3(normal)
-        b1, b2 = self._body[g1], self._body[g2]
-        if b2 >= 0:
-            mujoco.mj_jac(self.model, data, self._jac2, None, end, b2)
-            if b1 >= 0:
-                mujoco.mj_jac(self.model, data, self._jac1, None, start, b1)
-                self._jac2 -= self._jac1
-            np.matmul(normal, self._jac2, out=out)
-            if dist >= 0:
-                np.negative(out, out=out)
-        else:
-            mujoco.mj_jac(self.model, data, self._jac1, None, start, b1)
-            np.matmul(normal, self._jac1, out=out)
-            if dist < 0:
-                np.negative(out, out=out)
+        witness = self._witness[:k]
+        normal = witness[:, 3:] - witness[:, :3]
+        sign = np.fromiter((-1.0 if d >= 0.0 else 1.0 for _, d in self.active), dtype=float, count=k)
+        normal *= (sign / np.sqrt(np.einsum("ij,ij->i", normal, normal)))[:, None]
+        jacs = self._jacs[:k]
+        return np.matmul(normal[:, None, :], jacs[:, 0] - jacs[:, 1])[:, 0]
 
     def violated(self, model: mujoco.MjModel) -> list[str]:
         """One line per pair at or below its minimum distance at the last call."""

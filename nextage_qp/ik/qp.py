@@ -1,7 +1,7 @@
 """Differential IK of both wrists and the shared chest as one QP, built on mink.
 
-Each step assembles mink's objective (frame, axis-align, posture and extra tasks via :func:`mink.build_ik`)
-and adds what mink lacks: the joint limits as a solver box (``lb``/``ub``, :mod:`nextage_qp.ik.limits`) and
+Each step assembles mink's objective (frame, axis-align, posture and extra tasks; the same :math:`(H, c)` as
+:func:`mink.build_ik`, built in reused arrays by :mod:`nextage_qp.ik.objective`) and adds what mink lacks: the joint limits as a solver box (``lb``/``ub``, :mod:`nextage_qp.ik.limits`) and
 collision rows only for pairs that can bind (:mod:`nextage_qp.ik.collision`). :meth:`QPIK.solve` integrates the
 steps to a tolerance with a backtracking guard that never accepts a q closing a pair below its minimum distance.
 """
@@ -15,11 +15,12 @@ import mink
 import numpy as np
 
 from nextage_qp.errors import UnknownNameError
-from nextage_qp.ik.backend import solve_qp
+from nextage_qp.ik.backend import QPSolver
 from nextage_qp.ik.collision import ActiveCollisionLimit
 from nextage_qp.ik.config import IKConfig
 from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.ik.model import Frame, ObjectPoses, chain_dofs, kinematic_model, resolve_frame, set_object_poses
+from nextage_qp.ik.objective import Objective
 from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, RelativeTarget, worst_errors
 from nextage_qp.ik.tasks import TaskCache
 from nextage_qp.robot import Robot, per_joint
@@ -62,6 +63,8 @@ class QPIK:
         self.collision = ActiveCollisionLimit(self.model, pairs, config.collision_gain, self.box) if pairs else None
         self._frames: dict[str, Frame] = {}
         self.tasks = TaskCache(config.lm_damping, config.position_cost, config.orientation_cost, self.frame)
+        self.objective = Objective(self.model)
+        self.qp = QPSolver(config.solver, self.model.nv)
 
     def _allowed(self, groups: frozenset[str]) -> np.ndarray:
         """Boolean geom mask of the named collision groups (cached per set of names)."""
@@ -120,19 +123,19 @@ class QPIK:
         tasks = [*self.tasks.frames(targets, self.configuration.data), self.posture, *extra_tasks]
         q = self.configuration.data.qpos
         lb, ub = self.box.bounds(q, dt)
-        # mink builds the objective; the box goes to the solver as bounds and the collision rows are added here
-        # (computed with the same box, so it is evaluated once).
-        problem = mink.build_ik(self.configuration, tasks, dt, damping=self.config.damping, limits=[])
+        if (lb > ub + 1e-12).any():
+            raise IKInfeasibleError(self._explain(q, lb, ub))
+        # mink's objective; the box goes to the solver as bounds and the collision rows are added here (computed
+        # with the same box, so it is evaluated once).
+        H, c = self.objective.build(self.configuration, tasks, self.config.damping)
+        G = h = None
         if self.collision is not None:
             rows = self.collision.compute_qp_inequalities(self.configuration, dt, (lb, ub))
             if not rows.inactive:
-                problem.G, problem.h = rows.G, rows.h
-        problem.lb, problem.ub = lb, ub
-        if (lb > ub + 1e-12).any():
-            raise IKInfeasibleError(self._explain(q, lb, ub))
-        x = solve_qp(problem, self.config.solver)
+                G, h = rows.G, rows.h
+        x = self.qp.solve(H, c, lb, ub, G, h)
         if x is None:
-            raise IKInfeasibleError(self._explain(q, problem.lb, problem.ub))
+            raise IKInfeasibleError(self._explain(q, lb, ub))
         return np.asarray(x) / dt
 
     def _explain(self, q: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> str:

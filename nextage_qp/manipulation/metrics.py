@@ -228,6 +228,7 @@ def summarize(
         "sim_time_s": sim_t,
         "wall_time_s": wall_s,
         "real_time_factor": sim_t / wall_s if wall_s > 0 else None,
+        "physics_share": sim.physics_s / wall_s if wall_s > 0 else None,
         "min_obstacle_clearance_m": monitor.min_clearance,
         "obstacle_contacts": contacts,
         "object_dropped": monitor.dropped,

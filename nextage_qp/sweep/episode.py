@@ -19,7 +19,7 @@ STATUSES = ("success", "failed", "refused", "error")
 """``success``/``failed``: the task ran and met / missed its criteria; ``refused``: the run rejected its scene
 before moving (exit 2); ``error``: an exception, a crash or the wall-time limit stopped the episode."""
 
-TIMING_KEYS = ("wall_time_s", "real_time_factor")
+TIMING_KEYS = ("wall_time_s", "real_time_factor", "physics_share")
 """Result fields that measure the machine, not the episode (left out when episodes are compared)."""
 
 
