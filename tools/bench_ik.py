@@ -109,12 +109,13 @@ def bench_step(robot: Robot, n: int, seed: int, collisions: bool) -> dict[str, f
         states += [(q_prev + (goal - q_prev) * (k / ticks), targets) for k in range(1, ticks + 1)]
         q_prev = goal
     for q, targets in states[:n]:
-        for task, t in zip(tasks, targets, strict=True):
-            assert t.rot is not None and t.pos is not None
-            task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(t.rot), t.pos))
+        # Both sides are timed from the targets as the caller has them (position, rotation matrix) to the velocity.
         t0 = time.perf_counter()
         ours.step(q, targets, dt)
         t1 = time.perf_counter()
+        for task, t in zip(tasks, targets, strict=True):
+            assert t.rot is not None and t.pos is not None
+            task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(t.rot), t.pos))
         config.update(q)
         mink.solve_ik(config, [*tasks, posture], dt, "daqp", damping=cfg.damping, limits=limits)
         t2 = time.perf_counter()

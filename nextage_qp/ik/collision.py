@@ -91,8 +91,13 @@ class ActiveCollisionLimit(mink.Limit):
         self._rbound_chord = rbound / np.sqrt(2.0)  # ||R1 - R2||_F / sqrt(2) bounds a unit vector's shift
         # Per pair: the distance lower bound last stored plus both geoms' travel at that moment (-inf: none).
         self._base = np.full(len(keys), -np.inf)
-        self._lever = lever_bounds(model)
-        self._lever_inf = bool(np.isinf(self._lever).any())
+        # Per pair, how far each dof's step can bring its two geoms together [m per rad]: the lever arms of both
+        # geoms, but 0 for a dof that moves both (a motion of both alike keeps their distance; its column of the
+        # row, n^T (J2 - J1) = n^T (w x (p2 - p1)), is exactly 0 as p2 - p1 is along n).
+        lever = lever_bounds(model)
+        shared = (lever[self.geom1] > 0) & (lever[self.geom2] > 0)
+        self._pair_lever = np.where(shared, 0.0, lever[self.geom1] + lever[self.geom2])
+        self._lever_inf = bool(np.isinf(self._pair_lever).any())
         self._lists = (self.geom1.tolist(), self.geom2.tolist(), self.detection_distance.tolist(),
                        self.min_distance.tolist())
         self._witness = np.empty((len(keys), 6))  # witness points (from, to) of the active pairs of one call
@@ -101,6 +106,8 @@ class ActiveCollisionLimit(mink.Limit):
         self._body = [int(b) if moved_by_a_joint(model, int(b)) else -1 for b in model.geom_bodyid]
         # Per active pair of one call: the point Jacobians of its two witness points (geom2's, then geom1's).
         self._jacs = np.zeros((len(keys), 2, 3, model.nv))
+        # Per slot, views made once: the witness row (from, to), its two points, and the two Jacobians.
+        self._slots = [(w, w[:3], w[3:], j[0], j[1]) for w, j in zip(self._witness, self._jacs, strict=True)]
         self.enabled = np.ones(len(keys), dtype=bool)
         """Pairs watched at the next call (see :meth:`allow`)."""
         self._allowed_geoms: np.ndarray | None = None
@@ -128,10 +135,10 @@ class ActiveCollisionLimit(mink.Limit):
 
     def lower_bounds(self, data: mujoco.MjData) -> np.ndarray:
         """Lower bounds [m] on the distance of every watched pair now: the travel bound or the spheres' gap."""
-        travel = self._update_travel(data)
-        delta = data.geom_xpos[self.geom1] - data.geom_xpos[self.geom2]
-        sphere = np.sqrt(np.einsum("ij,ij->i", delta, delta)) - self._rsum
-        return np.maximum(self._base - travel[self.geom1] - travel[self.geom2], sphere)
+        travel, pos = self._update_travel(data), data.geom_xpos
+        delta = pos.take(self.geom1, axis=0) - pos.take(self.geom2, axis=0)
+        sphere = np.sqrt(np.vecdot(delta, delta)) - self._rsum
+        return np.maximum(self._base - travel.take(self.geom1) - travel.take(self.geom2), sphere)
 
     def distances(self, data: mujoco.MjData, indices: Sequence[int] | np.ndarray) -> np.ndarray:
         """Signed distances [m] of the given pairs, capped at their detection distance."""
@@ -153,26 +160,31 @@ class ActiveCollisionLimit(mink.Limit):
     def moved(self, data: mujoco.MjData, pos0: np.ndarray, mat0: np.ndarray) -> np.ndarray:
         """How far [m] any point of each geom moved from ``pos0``, ``mat0``: centre shift + radius x chord."""
         dpos, dmat = data.geom_xpos - pos0, data.geom_xmat - mat0
-        chord = np.sqrt(np.einsum("ij,ij->i", dmat, dmat))
-        return np.sqrt(np.einsum("ij,ij->i", dpos, dpos)) + self._rbound_chord * chord
+        chord = np.sqrt(np.vecdot(dmat, dmat))
+        return np.sqrt(np.vecdot(dpos, dpos)) + self._rbound_chord * chord
 
     def _near(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-        """Pairs that may be within detection distance, with a lower bound [m]: travel bound, then spheres."""
+        """Pairs that may be within detection distance, with a lower bound [m]: travel bound, then spheres.
+
+        (Gathers use ``take``: several times faster than fancy indexing on arrays this small.)
+        """
         travel, pos = self._update_travel(data), data.geom_xpos
-        lower = self._base - travel[self.geom1] - travel[self.geom2]
+        lower = self._base - travel.take(self.geom1) - travel.take(self.geom2)
         idx = np.flatnonzero(lower < self.detection_distance)
         if not idx.size:
             return idx, lower[idx]
-        g1, g2 = self.geom1[idx], self.geom2[idx]
-        delta = pos[g1] - pos[g2]
-        sphere = np.sqrt(np.einsum("ij,ij->i", delta, delta)) - self._rsum[idx]
-        far = sphere >= self.detection_distance[idx]
+        g1, g2 = self.geom1.take(idx), self.geom2.take(idx)
+        delta = pos.take(g1, axis=0) - pos.take(g2, axis=0)
+        sphere = np.sqrt(np.vecdot(delta, delta)) - self._rsum.take(idx)
+        far = sphere >= self.detection_distance.take(idx)
         self._remember(idx[far], sphere[far])
-        return idx[~far], np.maximum(lower[idx], sphere)[~far]
+        near = ~far
+        return idx[near], np.maximum(lower.take(idx), sphere)[near]
 
-    def _remember(self, idx: np.ndarray | int, lower: np.ndarray | float) -> None:
+    def _remember(self, idx: np.ndarray, lower: np.ndarray) -> None:
         """Store a lower bound on the distance of pairs ``idx`` at the current geom travel."""
-        self._base[idx] = lower + self._travel[self.geom1[idx]] + self._travel[self.geom2[idx]]
+        travel = self._travel
+        self._base[idx] = lower + travel.take(self.geom1.take(idx)) + travel.take(self.geom2.take(idx))
 
     def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float,
                                 box_bounds: tuple[np.ndarray, np.ndarray] | None = None) -> Constraint:
@@ -180,35 +192,34 @@ class ActiveCollisionLimit(mink.Limit):
 
         ``box_bounds`` is the joint box's ``(lb, ub)`` at this configuration when the caller has it already.
         """
-        model, data, witness = self.model, configuration.data, self._witness
+        model, data = self.model, configuration.data
         bounds: list[float] = []
         self.active, self.slack = [], 0
         near, lower = self._near(data)
-        keep = self.enabled[near]
+        keep = self.enabled.take(near)
         near, lower = near[keep], lower[keep]
         # Reach bound: how far the two geoms can approach in one step of the box; a pair whose gap bound
         # exceeds it cannot bind. Checked on the distance's lower bound first (no narrow phase), then on it.
         reach: list[float] | None = None
         if self.box is not None and near.size:
             lb, ub = box_bounds if box_bounds is not None else self.box.bounds(configuration.q, dt)
+            step = np.maximum(np.abs(lb), np.abs(ub))
             if self._lever_inf:
                 with np.errstate(invalid="ignore"):  # inf lever x 0 step (non-hinge dof): NaN, never prunes
-                    approach = self._lever @ np.maximum(np.abs(lb), np.abs(ub))
+                    pair_reach = self._pair_lever.take(near, axis=0) @ step
             else:
-                approach = self._lever @ np.maximum(np.abs(lb), np.abs(ub))
-            pair_reach = approach[self.geom1[near]] + approach[self.geom2[near]]
-            cannot = self.gain * (lower - self.min_distance[near]) > pair_reach
+                pair_reach = self._pair_lever.take(near, axis=0) @ step
+            cannot = self.gain * (lower - self.min_distance.take(near)) > pair_reach
             self.slack = int(np.count_nonzero(cannot))
             near, reach = near[~cannot], pair_reach[~cannot].tolist()
         geom1, geom2, detect, minimum = self._lists
         gain, margin, distance = self.gain, self.margin, mujoco.mj_geomDistance
         self.queries = len(near)
         dists: list[float] = []
-        body, jacs, jac = self._body, self._jacs, mujoco.mj_jac
+        body, slots, jac = self._body, self._slots, mujoco.mj_jac
         for k, idx in enumerate(near.tolist()):
             g1, g2, dmax = geom1[idx], geom2[idx], detect[idx]
-            i = len(bounds)
-            fromto = witness[i]
+            fromto, start, end, jac2, jac1 = slots[len(bounds)]
             dist = distance(model, data, g1, g2, dmax + margin, fromto)
             dists.append(dist)
             if dist >= dmax:
@@ -220,13 +231,13 @@ class ActiveCollisionLimit(mink.Limit):
             # The witness points' Jacobians (zero on a side no joint moves): geom2's ("to"), then geom1's ("from").
             b1, b2 = body[g1], body[g2]
             if b2 >= 0:
-                jac(model, data, jacs[i, 0], None, fromto[3:], b2)
+                jac(model, data, jac2, None, end, b2)
             else:
-                jacs[i, 0] = 0.0
+                jac2.fill(0.0)
             if b1 >= 0:
-                jac(model, data, jacs[i, 1], None, fromto[:3], b1)
+                jac(model, data, jac1, None, start, b1)
             else:
-                jacs[i, 1] = 0.0
+                jac1.fill(0.0)
             bounds.append(bound)
             self.active.append((idx, dist))
         if dists:
@@ -244,7 +255,7 @@ class ActiveCollisionLimit(mink.Limit):
         witness = self._witness[:k]
         normal = witness[:, 3:] - witness[:, :3]
         sign = np.fromiter((-1.0 if d >= 0.0 else 1.0 for _, d in self.active), dtype=float, count=k)
-        normal *= (sign / np.sqrt(np.einsum("ij,ij->i", normal, normal)))[:, None]
+        normal *= (sign / np.sqrt(np.vecdot(normal, normal)))[:, None]
         jacs = self._jacs[:k]
         return np.matmul(normal[:, None, :], jacs[:, 0] - jacs[:, 1])[:, 0]
 

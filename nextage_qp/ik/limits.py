@@ -26,14 +26,21 @@ class JointBoxLimit(mink.Limit):
 
     def __init__(self, lower: np.ndarray, upper: np.ndarray, vmax: np.ndarray, gain: float = 0.95) -> None:
         self.lower, self.upper, self.vmax, self.gain = lower, upper, vmax, gain
+        self._dt, self._step = 0.0, vmax * 0.0  # the step bound vmax dt [rad] of the last dt
         n = len(lower)
         self._G = np.vstack([np.eye(n), -np.eye(n)])
 
     def bounds(self, q: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         r"""``(lb, ub)`` of :math:`\Delta q` at configuration ``q`` for a step of ``dt`` [s]."""
-        step = self.vmax * dt
-        lb = np.maximum(-self.gain * (q - self.lower), -step)
-        ub = np.minimum(self.gain * (self.upper - q), step)
+        if dt != self._dt:
+            self._dt, self._step = dt, self.vmax * dt
+        step = self._step
+        lb = q - self.lower
+        lb *= -self.gain
+        np.maximum(lb, -step, out=lb)
+        ub = self.upper - q
+        ub *= self.gain
+        np.minimum(ub, step, out=ub)
         return lb, ub
 
     def violated(self, q: np.ndarray, lb: np.ndarray, ub: np.ndarray, names: Sequence[str]) -> list[str]:

@@ -54,6 +54,14 @@ class Frame(NamedTuple):
     kind: str
     id: int
 
+    def xpos(self, data: mujoco.MjData) -> np.ndarray:
+        """World position [m] of the frame in ``data`` (a view)."""
+        return data.site_xpos[self.id] if self.kind == "site" else data.xpos[self.id]
+
+    def xmat(self, data: mujoco.MjData) -> np.ndarray:
+        """Row-major world rotation matrix (9,) of the frame in ``data`` (a view)."""
+        return data.site_xmat[self.id] if self.kind == "site" else data.xmat[self.id]
+
     def pose(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         """World position [m] and rotation matrix of the frame in ``data`` (after kinematics)."""
         if self.kind == "site":

@@ -36,43 +36,24 @@ _FRAME = {
 }
 
 
-class _FrameRows:
-    """The weighted rows of one :class:`mink.FrameTask`, written in place."""
+class _Frame:
+    """Where a :class:`mink.FrameTask`'s frame lives in the model: its id, Jacobian function and pose arrays."""
 
     def __init__(self, model: mujoco.MjModel, task: mink.FrameTask) -> None:
-        obj, self.jac_fn, pos_attr, mat_attr = _FRAME[task.frame_type]
-        self.task, self.model = task, model
+        obj, self.jac_fn, self.pos_attr, self.mat_attr = _FRAME[task.frame_type]
+        self.task = task
         name = task.frame_name
         self.id = name if isinstance(name, int) else mujoco.mj_name2id(model, obj, name)
         if not 0 <= self.id < getattr(model, {"site": "nsite", "body": "nbody", "geom": "ngeom"}[task.frame_type]):
             raise mink.InvalidFrame(task.frame_name, task.frame_type, model)
-        self.pos_attr, self.mat_attr = pos_attr, mat_attr
-        self.jac = np.empty((6, model.nv))
-
-    def fill(self, data: mujoco.MjData, w: np.ndarray, e: np.ndarray) -> float:
-        """Write :math:`W` (6, nv) and :math:`e` (6,) of the task at ``data``; returns :math:`\\mu`."""
-        task, i, jac = self.task, self.id, self.jac
-        target = task.transform_target_to_world
-        if target is None:
-            raise mink.TargetNotSet(type(task).__name__)
-        xpos, xmat = getattr(data, self.pos_attr)[i], getattr(data, self.mat_attr)[i]
-        frame = _native.xmat_xpos_to_wxyz_xyz(xmat, xpos)
-        goal = target.wxyz_xyz
-        error = _native.se3_rminus(goal, frame)
-        self.jac_fn(self.model, data, jac[:3], jac[3:], i)
-        # -J_log(T*^-1 T) A_fw (the world-aligned MuJoCo Jacobian turned into the frame's own), weighted by C.
-        left = _native.se3_jlog(_native.se3_inverse_multiply(goal, frame)) @ _native.se3_rotation_adjoint_from_xmat(
-            xmat)
-        cost = task.cost
-        left *= -cost[:, None]
-        np.matmul(left, jac, out=w)
-        np.multiply(cost, error, out=e)
-        e *= -task.gain
-        return float(task.lm_damping * (e @ e))
 
 
 class Objective:
     """Builds :math:`(H, c)` of the IK QP for a list of mink tasks (the same objective as :func:`mink.build_ik`).
+
+    Frame tasks are done together: per frame the compiled SE(3) operations write its error, its
+    :math:`J_{log} A_{fw}` and its MuJoCo Jacobian into stacked arrays, then one batched product gives every
+    frame's weighted rows.
 
     Args:
         model: The IK's kinematic model.
@@ -81,33 +62,68 @@ class Objective:
     def __init__(self, model: mujoco.MjModel) -> None:
         self.model, nv = model, model.nv
         self.H, self.c = np.empty((nv, nv)), np.empty(nv)
-        self._rows = np.empty((12, nv))
-        self._errors = np.empty(12)
-        self._frames: dict[int, _FrameRows] = {}
-        self._posture_error = np.empty(nv)
         self._diag = self.H.reshape(-1)[:: nv + 1]  # a view of H's diagonal
+        self._frames: dict[int, _Frame] = {}
+        self._posture_error = np.empty(nv)
+        self._alloc(2)
 
-    def _frame(self, task: mink.FrameTask) -> _FrameRows:
-        rows = self._frames.get(id(task))
-        if rows is None or rows.task is not task:
-            rows = self._frames[id(task)] = _FrameRows(self.model, task)
-        return rows
+    def _alloc(self, n: int) -> None:
+        nv = self.model.nv
+        self._left, self._jac, self._rows = np.empty((n, 6, 6)), np.empty((n, 6, nv)), np.empty((n, 6, nv))
+        self._error, self._cost, self._scale = np.empty((n, 6)), np.empty((n, 6)), np.empty((n, 1))
+        # Views made once per frame slot: its Jacobian's two halves and its J_log A.
+        self._slots = [(j[:3], j[3:], left) for j, left in zip(self._jac, self._left, strict=True)]
+
+    def _frame(self, task: mink.FrameTask) -> _Frame:
+        frame = self._frames.get(id(task))
+        if frame is None or frame.task is not task:
+            frame = self._frames[id(task)] = _Frame(self.model, task)
+        return frame
+
+    def _frame_rows(self, data: mujoco.MjData, frames: Sequence[mink.FrameTask]) -> tuple[np.ndarray, np.ndarray, float]:
+        """The stacked weighted rows :math:`W` (6m, nv) and errors :math:`e` (6m,) of m frame tasks, and their
+        summed Levenberg-Marquardt term."""
+        m = len(frames)
+        if m > len(self._left):
+            self._alloc(m)
+        left, jac, error, cost, scale = self._left[:m], self._jac[:m], self._error[:m], self._cost[:m], self._scale[:m]
+        lm = np.empty(m)
+        for k, task in enumerate(frames):
+            f, target = self._frame(task), task.transform_target_to_world
+            if target is None:
+                raise mink.TargetNotSet(type(task).__name__)
+            jacp, jacr, left_k = self._slots[k]
+            xpos, xmat = getattr(data, f.pos_attr)[f.id], getattr(data, f.mat_attr)[f.id]
+            pose, goal = _native.xmat_xpos_to_wxyz_xyz(xmat, xpos), target.wxyz_xyz
+            error[k] = _native.se3_rminus(goal, pose)
+            f.jac_fn(self.model, data, jacp, jacr, f.id)
+            # J_log(T*^-1 T) A_fw: A_fw turns MuJoCo's world-aligned Jacobian into the frame's own.
+            np.matmul(_native.se3_jlog(_native.se3_inverse_multiply(goal, pose)),
+                      _native.se3_rotation_adjoint_from_xmat(xmat), out=left_k)
+            cost[k], scale[k], lm[k] = task.cost, task.gain, task.lm_damping
+        rows = self._rows[:m]
+        np.matmul(left, jac, out=rows)
+        np.negative(cost, out=cost)  # -C from here on
+        rows *= cost[:, :, None]  # W = -C J_log A J
+        error *= cost
+        error *= scale  # e = -alpha C eps
+        return rows.reshape(6 * m, -1), error.reshape(-1), float(lm @ np.vecdot(error, error))
 
     def build(self, configuration: mink.Configuration, tasks: Sequence[mink.Task],
               damping: float) -> tuple[np.ndarray, np.ndarray]:
         """:math:`(H, c)` at the configuration (arrays owned by this object, overwritten by the next call)."""
-        data, nv = configuration.data, self.model.nv
+        data, H, c = configuration.data, self.H, self.c
         frames = [t for t in tasks if type(t) is mink.FrameTask] if _native is not None else []
-        if len(frames) * 6 > len(self._rows):
-            self._rows, self._errors = np.empty((6 * len(frames), nv)), np.empty(6 * len(frames))
-        mu, n = damping, 6 * len(frames)
-        w, e = self._rows[:n], self._errors[:n]
-        for k, task in enumerate(frames):
-            mu += self._frame(task).fill(data, w[6 * k : 6 * k + 6], e[6 * k : 6 * k + 6])
-        H, c = self.H, self.c
-        np.matmul(w.T, w, out=H)
-        np.matmul(e, w, out=c)
-        np.negative(c, out=c)
+        if frames:
+            w, e, mu = self._frame_rows(data, frames)
+            np.matmul(w.T, w, out=H)
+            np.matmul(e, w, out=c)
+            np.negative(c, out=c)
+        else:
+            H.fill(0.0)
+            c.fill(0.0)
+            mu = 0.0
+        mu += damping
         for task in tasks:
             if frames and type(task) is mink.FrameTask:
                 continue

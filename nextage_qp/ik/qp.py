@@ -123,8 +123,6 @@ class QPIK:
         tasks = [*self.tasks.frames(targets, self.configuration.data), self.posture, *extra_tasks]
         q = self.configuration.data.qpos
         lb, ub = self.box.bounds(q, dt)
-        if (lb > ub + 1e-12).any():
-            raise IKInfeasibleError(self._explain(q, lb, ub))
         # mink's objective; the box goes to the solver as bounds and the collision rows are added here (computed
         # with the same box, so it is evaluated once).
         H, c = self.objective.build(self.configuration, tasks, self.config.damping)
@@ -134,7 +132,7 @@ class QPIK:
             if not rows.inactive:
                 G, h = rows.G, rows.h
         x = self.qp.solve(H, c, lb, ub, G, h)
-        if x is None:
+        if x is None:  # also where the box itself is empty (q outside its limits): lb > ub
             raise IKInfeasibleError(self._explain(q, lb, ub))
         return np.asarray(x) / dt
 

@@ -38,17 +38,21 @@ class TaskCache:
             task = self._frame_tasks.get(frame.name)
             if task is None:
                 task = mink.FrameTask(frame.name, frame.kind, 1.0, 1.0, lm_damping=self.lm_damping)
+                # The task owns this target; every tick rewrites its array in place.
+                task.transform_target_to_world = mink.SE3(wxyz_xyz=np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]))
                 self._frame_tasks[frame.name] = task
-            pos, rot = frame.pose(data)
             pcost = self.position_cost if target.position_cost is None else target.position_cost
             ocost = self.orientation_cost if target.orientation_cost is None else target.orientation_cost
-            task.cost[:3] = pcost if target.pos is not None else 0.0
-            task.cost[3:] = ocost if target.rot is not None else 0.0
+            cost = task.cost
+            cost[:3] = pcost if target.pos is not None else 0.0
+            cost[3:] = ocost if target.rot is not None else 0.0
             # Without a rotation target, aim at the current rotation so the error twist is a pure translation.
-            wxyz_xyz = np.empty(7)
-            mujoco.mju_mat2Quat(wxyz_xyz[:4], (target.rot if target.rot is not None else rot).reshape(-1))
-            wxyz_xyz[4:] = target.pos if target.pos is not None else pos
-            task.transform_target_to_world = mink.SE3(wxyz_xyz=wxyz_xyz)
+            goal = task.transform_target_to_world.wxyz_xyz
+            if target.rot is not None:
+                mujoco.mju_mat2Quat(goal[:4], target.rot.reshape(9))
+            else:
+                mujoco.mju_mat2Quat(goal[:4], frame.xmat(data))
+            goal[4:] = target.pos if target.pos is not None else frame.xpos(data)
             tasks.append(task)
             if target.axis is not None:
                 axis_task = self._axis_tasks.get(frame.name)

@@ -101,7 +101,7 @@ class OutcomeMonitor:
         # Bounding spheres first (vectorised): only pairs whose spheres come within the best clearance so far
         # (or within CONTACT_WATCH) need the narrow phase, nearest first so the bound tightens early.
         delta = d.geom_xpos[self._pair1] - d.geom_xpos[self._pair2]
-        gap = np.sqrt(np.einsum("ij,ij->i", delta, delta)) - self._pair_rsum
+        gap = np.sqrt(np.vecdot(delta, delta)) - self._pair_rsum
         cut = max(best, CONTACT_WATCH)
         nearest = CONTACT_WATCH
         for k in np.argsort(gap)[: int(np.count_nonzero(gap <= cut))].tolist():
