@@ -88,6 +88,7 @@ class ActiveCollisionLimit(mink.Limit):
         self._last_pos = np.full((model.ngeom, 3), np.nan)
         self._last_mat = np.full((model.ngeom, 9), np.nan)
         self._first = True
+        self._exact, self._exact_any = np.zeros(len(keys), dtype=bool), False  # see measured()
         self._rbound_chord = rbound / np.sqrt(2.0)  # ||R1 - R2||_F / sqrt(2) bounds a unit vector's shift
         # Per pair: the distance lower bound last stored plus both geoms' travel at that moment (-inf: none).
         self._base = np.full(len(keys), -np.inf)
@@ -142,17 +143,29 @@ class ActiveCollisionLimit(mink.Limit):
 
     def distances(self, data: mujoco.MjData, indices: Sequence[int] | np.ndarray) -> np.ndarray:
         """Signed distances [m] of the given pairs, capped at their detection distance."""
-        out = np.empty(len(indices))
-        for k, idx in enumerate(indices):
-            dmax = float(self.detection_distance[idx])
-            out[k] = mujoco.mj_geomDistance(self.model, data, int(self.geom1[idx]), int(self.geom2[idx]), dmax, None)
-        return out
+        geom1, geom2, detect, _ = self._lists
+        model, distance = self.model, mujoco.mj_geomDistance
+        idx = indices.tolist() if isinstance(indices, np.ndarray) else indices
+        return np.array([distance(model, data, geom1[i], geom2[i], detect[i], None) for i in idx], dtype=float)
+
+    def sphere_gaps(self, data: mujoco.MjData, indices: np.ndarray) -> np.ndarray:
+        """Lower bounds [m] on the distance of the given pairs now from their bounding spheres."""
+        pos = data.geom_xpos
+        delta = pos.take(self.geom1.take(indices), axis=0) - pos.take(self.geom2.take(indices), axis=0)
+        return np.sqrt(np.vecdot(delta, delta)) - self._rsum.take(indices)
+
+    def measured(self) -> np.ndarray:
+        """Boolean mask of the pairs whose stored bound is their narrow-phase distance at the current configuration
+        (queried by the last :meth:`compute_qp_inequalities`, with no geom moved since)."""
+        return self._exact
 
     def _update_travel(self, data: mujoco.MjData) -> np.ndarray:
         """Add every geom's motion since the last call to its travel; returns the travel (ngeom,) [m]."""
         moved = self.moved(data, self._last_pos, self._last_mat)
         if self._first:  # no pose stored yet (NaN), and no bound to void
             moved[:], self._first = 0.0, False
+        if self._exact_any and moved.any():
+            self._exact[:], self._exact_any = False, False
         self._travel += moved
         self._last_pos[:], self._last_mat[:] = data.geom_xpos, data.geom_xmat
         return self._travel
@@ -242,6 +255,7 @@ class ActiveCollisionLimit(mink.Limit):
             self.active.append((idx, dist))
         if dists:
             self._remember(near, np.array(dists))
+            self._exact[near], self._exact_any = True, True
         if not bounds:
             return Constraint()
         return Constraint(G=self._rows(len(bounds)), h=np.array(bounds))

@@ -86,14 +86,22 @@ def chain_dofs(model: mujoco.MjModel, frame: Frame) -> np.ndarray:
     return mask
 
 
-def set_object_poses(model: mujoco.MjModel, data: mujoco.MjData, poses: ObjectPoses) -> None:
+def mocap_ids(model: mujoco.MjModel) -> dict[str, int]:
+    """Mocap body name -> mocap id."""
+    return {model.body(b).name: int(model.body_mocapid[b]) for b in range(model.nbody) if model.body_mocapid[b] >= 0}
+
+
+def set_object_poses(model: mujoco.MjModel, data: mujoco.MjData, poses: ObjectPoses,
+                     mocap: Mapping[str, int] | None = None) -> None:
     """Place mocap objects (by body name) in ``data``; kinematics must be run afterwards.
+
+    ``mocap`` is :func:`mocap_ids` of the model, for a caller that places objects often.
 
     Raises:
         UnknownNameError: A name is not a mocap object of the model; the message lists those that are.
         ConfigError: A position or quaternion has the wrong shape.
     """
-    mocap = {model.body(b).name: int(model.body_mocapid[b]) for b in range(model.nbody) if model.body_mocapid[b] >= 0}
+    mocap = mocap_ids(model) if mocap is None else mocap
     for name, (pos, quat) in poses.items():
         if name not in mocap:
             raise UnknownNameError("object", name, mocap)

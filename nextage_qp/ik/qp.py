@@ -12,6 +12,7 @@ import time
 from collections.abc import Sequence
 
 import mink
+import mujoco
 import numpy as np
 
 from nextage_qp.errors import UnknownNameError
@@ -19,7 +20,15 @@ from nextage_qp.ik.backend import QPSolver
 from nextage_qp.ik.collision import ActiveCollisionLimit
 from nextage_qp.ik.config import IKConfig
 from nextage_qp.ik.limits import JointBoxLimit
-from nextage_qp.ik.model import Frame, ObjectPoses, chain_dofs, kinematic_model, resolve_frame, set_object_poses
+from nextage_qp.ik.model import (
+    Frame,
+    ObjectPoses,
+    chain_dofs,
+    kinematic_model,
+    mocap_ids,
+    resolve_frame,
+    set_object_poses,
+)
 from nextage_qp.ik.objective import Objective
 from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, RelativeTarget, worst_errors
 from nextage_qp.ik.tasks import TaskCache
@@ -32,14 +41,17 @@ class QPIK:
     Args:
         robot: The robot and its scene (objects become mocap bodies of the IK model).
         config: Costs, limits and solver.
+        model: The robot's kinematic model (:func:`kinematic_model`) when another IK of the same robot has it
+            already (e.g. a planner beside the servo's IK); compiled otherwise.
 
     Raises:
         UnknownNameError: A geom group, joint or keyframe named in the config is not in the robot.
     """
 
-    def __init__(self, robot: Robot, config: IKConfig) -> None:
+    def __init__(self, robot: Robot, config: IKConfig, *, model: mujoco.MjModel | None = None) -> None:
         self.robot, self.config = robot, config
-        self.model = kinematic_model(robot)
+        self.model = kinematic_model(robot) if model is None else model
+        self._mocap = mocap_ids(self.model)
         self.configuration = mink.Configuration(self.model, robot.keyframe_q("home"))
         if isinstance(config.posture_target, str):
             q_posture = robot.keyframe_q(config.posture_target)
@@ -80,7 +92,7 @@ class QPIK:
 
     def set_object_poses(self, poses: ObjectPoses) -> None:
         """Place objects (cube, dumbbell, ...) for collision avoidance: name -> (pos [m], quat wxyz)."""
-        set_object_poses(self.model, self.configuration.data, poses)
+        set_object_poses(self.model, self.configuration.data, poses, self._mocap)
         self.configuration.update()
 
     def frame(self, name: str) -> Frame:
@@ -114,7 +126,7 @@ class QPIK:
             self.collision.allow(self._allowed(allow))
         self.posture.set_target(self.default_posture if posture is None else posture)
         if object_poses:
-            set_object_poses(self.model, self.configuration.data, object_poses)
+            set_object_poses(self.model, self.configuration.data, object_poses, self._mocap)
         self.configuration.update(np.asarray(q, dtype=float))
         return self._step(targets, dt, self.tasks.relative(relative))
 
@@ -180,7 +192,7 @@ class QPIK:
         if self.collision is not None:
             self.collision.allow(self._allowed(allow))
         if object_poses:
-            set_object_poses(self.model, self.configuration.data, object_poses)
+            set_object_poses(self.model, self.configuration.data, object_poses, self._mocap)
         frames = [self.frame(t.frame) for t in targets]
         rng = np.random.default_rng(cfg.seed)
         q, total, best = np.array(q0, dtype=float), 0, None
@@ -238,26 +250,30 @@ class QPIK:
 
         A pair already below its minimum distance may not get closer; every other pair must stay at or above it.
         Only pairs whose distance bound before the step, less how far their geoms moved in it, is not already
-        above that floor are measured after it: the others cannot have dropped below.
+        above that floor, and whose bounding spheres after it are not either, are measured after it: the others
+        cannot have dropped below.
         """
         watch, data = self.collision, self.configuration.data
         if watch is None:
             q_new = np.clip(q + dq, self.box.lower, self.box.upper)
             self.configuration.update(q_new)
             return q_new
-        # Bounds before the step: travel since the last measurement or bounding spheres (measured where a pair may
-        # be below its minimum); after it, how far each geom moved.
+        # Bounds before the step: travel since the last measurement or bounding spheres, measured where a pair may
+        # be below its minimum (unless the step's own rows measured it here already); after it, how far each geom
+        # moved.
         before = watch.lower_bounds(data)
-        low = np.flatnonzero((before < watch.min_distance) & watch.enabled)
+        low = np.flatnonzero((before < watch.min_distance) & watch.enabled & ~watch.measured())
         before[low] = watch.distances(data, low)
         floor = np.minimum(before, watch.min_distance)
         pos0, mat0 = data.geom_xpos.copy(), data.geom_xmat.copy()
+        geom1, geom2 = watch.geom1, watch.geom2
         for _ in range(8):
             q_new = np.clip(q + dq, self.box.lower, self.box.upper)
             self.configuration.update(q_new)
             moved = watch.moved(data, pos0, mat0)
-            check = np.flatnonzero(~(before - moved[watch.geom1] - moved[watch.geom2] >= floor) & watch.enabled)
-            if np.all(watch.distances(data, check) >= floor[check] - 1e-6):
+            check = np.flatnonzero(~(before - moved.take(geom1) - moved.take(geom2) >= floor) & watch.enabled)
+            check = check[watch.sphere_gaps(data, check) < floor.take(check)]
+            if np.all(watch.distances(data, check) >= floor.take(check) - 1e-6):
                 return q_new
             dq = dq * 0.5
         self.configuration.update(q)

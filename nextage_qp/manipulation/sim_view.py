@@ -80,7 +80,7 @@ class SimView:
              allow: frozenset[str] = frozenset(), pos_tol: float | None = None) -> np.ndarray | None:
         if self._planner is None:
             config = self._servo.ik.config.model_copy(update={"restarts": 4, "max_iters": 80})
-            self._planner = QPIK(self.robot, config)
+            self._planner = QPIK(self.robot, config, model=self._servo.ik.model)
         poses = {name: (p.pos, p.quat) for name, p in self._sim.measured.objects.items()}
         q0 = np.array(self._servo.q_cmd if start is None else start)
         tol = REACH_POS_TOL if pos_tol is None else pos_tol
