@@ -242,8 +242,16 @@ class QPIK:
             if since_best >= cfg.stall_iters:
                 return (*best, iters, "stalled")
             dq = self._step(targets, cfg.dt, extra_tasks) * cfg.dt
-            q = self._advance(q, dq)
+            q_prev, q = q, self._advance(q, dq)
             iters, since_best = iters + 1, since_best + 1
+            if q is q_prev:
+                # Every halving of the step ran into a collision pair: the next steps would start from the same q
+                # and be the same, with no progress, until the cap or the stall test ends the descent. End it now
+                # with the same outcome and iteration count.
+                ahead = min(cap - iters, cfg.stall_iters - since_best)
+                if ahead > 0:
+                    iters, since_best = iters + ahead, since_best + ahead
+                return (*best, iters, "max_iters" if iters >= cap else "stalled")
 
     def _advance(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """Q + dq inside the joint limits, halving dq while a collision pair would drop below its minimum.
