@@ -40,6 +40,7 @@ class WrenchSensor:
         self.body = int(model.site_bodyid[self.site])
         self.mass = float(model.body_mass[self.body])
         self.force_adr, self.torque_adr = int(model.sensor_adr[force_sensor]), int(model.sensor_adr[torque_sensor])
+        self._force, self._torque = slice(self.force_adr, self.force_adr + 3), slice(self.torque_adr, self.torque_adr + 3)
         self.gravity = np.array(model.opt.gravity)
         self._weight = self.mass * self.gravity
         w = self._weight
@@ -47,11 +48,13 @@ class WrenchSensor:
 
     def read(self, data: mujoco.MjData) -> Wrench:
         """The contact wrench now, in the world frame."""
-        rot = data.site_xmat[self.site].reshape(3, 3)
-        force = -(rot @ data.sensordata[self.force_adr : self.force_adr + 3]) - self._weight
-        lever = data.xipos[self.body] - data.site_xpos[self.site]
+        rot, sensed = data.site_xmat[self.site].reshape(3, 3), data.sensordata
+        force = rot @ sensed[self._force]
+        force += self._weight
+        np.negative(force, out=force)
         # -(lever x weight) = weight x lever
-        torque = self._weight_cross @ lever - rot @ data.sensordata[self.torque_adr : self.torque_adr + 3]
+        torque = self._weight_cross @ (data.xipos[self.body] - data.site_xpos[self.site])
+        torque -= rot @ sensed[self._torque]
         return Wrench(force, torque)
 
     @staticmethod
@@ -96,11 +99,11 @@ class SensorWatch:
         """Raise :class:`~nextage_qp.errors.SensorError` for a NaN or frozen reading at ``t`` [s]."""
         for name, w in wrenches.items():
             reading = np.concatenate([w.force, w.torque])
-            if not np.all(np.isfinite(reading)):
+            if not np.isfinite(reading.sum()):  # a NaN or inf anywhere
                 raise SensorError(f"t={t:.3f} s: force/torque sensor {name} returned {reading[:3].tolist()} "
                                   f"(not finite); the sensor failed")
             last = self._last.get(name)
-            if last is None or not np.array_equal(last[0], reading):
+            if last is None or not (last[0] == reading).all():
                 self._last[name] = (reading, t)
             elif t - last[1] >= self.frozen_s - 1e-9:
                 raise SensorError(f"t={t:.3f} s: force/torque sensor {name} has read the same value "

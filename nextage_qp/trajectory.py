@@ -153,9 +153,11 @@ class JointTrajectory:
             TrajectoryError: The target is not finite or lies outside the joint limits given.
         """
         q_target = np.asarray(q_target, dtype=float)
-        if q_target.shape != (self.n,) or not np.all(np.isfinite(q_target)):
+        if q_target.shape != (self.n,) or not np.isfinite(q_target.sum()):  # NaN or inf anywhere
             raise TrajectoryError(f"target must be {self.n} finite joint positions, got {q_target}")
-        if self.lower is not None and self.upper is not None:
+        if self.lower is not None and self.upper is not None and not (
+            (q_target >= self.lower - 1e-9) & (q_target <= self.upper + 1e-9)
+        ).all():
             bad = np.flatnonzero((q_target < self.lower - 1e-9) | (q_target > self.upper + 1e-9))
             if bad.size:
                 detail = ", ".join(
@@ -175,7 +177,7 @@ class JointTrajectory:
         prev = self._state
         result = self._update(ruckig.Synchronization.Time)
         new = self._output()
-        if not all(np.isfinite(a).all() for a in new):
+        if not np.isfinite(new[0].sum() + new[1].sum() + new[2].sum()):  # NaN or inf anywhere
             # Ruckig can return a non-finite step for a rare synchronised profile; redo the step from the last
             # good state without synchronisation (each joint's own profile honours every limit).
             self._inp.current_position, self._inp.current_velocity = prev.q.tolist(), prev.qd.tolist()
@@ -206,7 +208,8 @@ class JointTrajectory:
         modes = (first,) if first == ruckig.Synchronization.No else (first, ruckig.Synchronization.No)
         try:
             for i, mode in enumerate(modes):
-                self._inp.synchronization = mode
+                if mode != ruckig.Synchronization.Time:  # the input is left time-synchronised between calls
+                    self._inp.synchronization = mode
                 try:
                     result = self._otg.update(self._inp, self._out)
                     break
@@ -214,7 +217,8 @@ class JointTrajectory:
                     if i == len(modes) - 1:
                         raise joint_error(exc, "reference update", self.names) from None
         finally:
-            self._inp.synchronization = ruckig.Synchronization.Time
+            if modes[-1] != ruckig.Synchronization.Time:
+                self._inp.synchronization = ruckig.Synchronization.Time
         check_result(result, "reference update")
         return result
 
