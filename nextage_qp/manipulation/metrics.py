@@ -36,8 +36,11 @@ class PhaseRecord:
 
 
 CONTACT_WATCH = 0.02
-"""Obstacle clearance [m] below which every physics step is checked for contact (farther, none can occur
-within one control period: that would take 5 m/s)."""
+"""Obstacle clearance [m] below which every physics step is checked for contact, at the least (farther, none can
+occur within one control period: that would take 5 m/s at 250 Hz)."""
+CONTACT_WATCH_SPEED = 2.0
+"""Speed [m/s] no point of the robot or a held object reaches: at slower control rates the clearance watched is
+this speed times the control period, where that is more than :data:`CONTACT_WATCH`."""
 
 
 class OutcomeMonitor:
@@ -78,8 +81,9 @@ class OutcomeMonitor:
     def on_substep(self, sim: Simulation) -> None:
         """Hook run at every physics step: count the steps in which anything touches the obstacle.
 
-        Skipped while the last tick found every mover farther than ``CONTACT_WATCH`` from the obstacle (nothing
-        here moves that far within one control period).
+        Skipped while the last tick found every mover farther than the watched clearance from the obstacle
+        (``CONTACT_WATCH``, or ``CONTACT_WATCH_SPEED`` times the control period: nothing here moves that far
+        within one control period).
         """
         d = sim.data
         if not self._watch or d.ncon == 0:
@@ -99,19 +103,20 @@ class OutcomeMonitor:
         d, m = sim.data, self.model
         best = self.min_clearance if self.min_clearance is not None else 1.0
         # Bounding spheres first (vectorised): only pairs whose spheres come within the best clearance so far
-        # (or within CONTACT_WATCH) need the narrow phase, nearest first so the bound tightens early.
+        # (or within the watched clearance) need the narrow phase, nearest first so the bound tightens early.
         delta = d.geom_xpos[self._pair1] - d.geom_xpos[self._pair2]
         gap = np.sqrt(np.vecdot(delta, delta)) - self._pair_rsum
-        cut = max(best, CONTACT_WATCH)
-        nearest = CONTACT_WATCH
+        watch = max(CONTACT_WATCH, CONTACT_WATCH_SPEED * sim.ctrl_dt)
+        cut = max(best, watch)
+        nearest = watch
         for k in np.argsort(gap)[: int(np.count_nonzero(gap <= cut))].tolist():
             if gap[k] > cut:
                 break
             dist = float(mujoco.mj_geomDistance(m, d, int(self._pair1[k]), int(self._pair2[k]), cut, self._fromto))
             best, nearest = min(best, dist), min(nearest, dist)
-            cut = max(best, CONTACT_WATCH)
+            cut = max(best, watch)
         self.min_clearance = best
-        self._watch = nearest < CONTACT_WATCH
+        self._watch = nearest < watch
 
     def check_hold(self, sim: Simulation, grip: Grip) -> None:
         """Flag a drop when the clamped object is far from the midpoint of the clamp pads (true poses)."""
