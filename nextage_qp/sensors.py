@@ -40,7 +40,8 @@ class WrenchSensor:
         self.body = int(model.site_bodyid[self.site])
         self.mass = float(model.body_mass[self.body])
         self.force_adr, self.torque_adr = int(model.sensor_adr[force_sensor]), int(model.sensor_adr[torque_sensor])
-        self._force, self._torque = slice(self.force_adr, self.force_adr + 3), slice(self.torque_adr, self.torque_adr + 3)
+        self._force = slice(self.force_adr, self.force_adr + 3)
+        self._torque = slice(self.torque_adr, self.torque_adr + 3)
         self.gravity = np.array(model.opt.gravity)
         self._weight = self.mass * self.gravity
         w = self._weight

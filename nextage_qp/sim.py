@@ -30,7 +30,8 @@ import mujoco
 import numpy as np
 
 from nextage_qp.control import Gains, PDController
-from nextage_qp.errors import ConfigError, SimulationError
+from nextage_qp.divergence import raise_divergence
+from nextage_qp.errors import ConfigError
 from nextage_qp.mj_warnings import MUJOCO_WARNINGS
 from nextage_qp.recorder import FrameRows, Recorder, StageTimer
 from nextage_qp.robot import Robot
@@ -222,16 +223,25 @@ class Simulation:
         if timer:
             timer.lap("pd+record")
         ctrl, force, hooks, clock, step = self._ctrl, self._force, self.substep_hooks, time.perf_counter, mujoco.mj_step
-        physics = 0.0
-        for k in range(n):
-            ctrl[:] = ramp[k]
-            t0 = clock()
-            step(m, d)
-            physics += clock() - t0
-            force[k] = self._act_force
-            self._step += 1
-            for hook in hooks:
-                hook(self)
+        act_force, physics = self._act_force, 0.0
+        if hooks:
+            for k in range(n):
+                ctrl[:] = ramp[k]
+                t0 = clock()
+                step(m, d)
+                physics += clock() - t0
+                force[k] = act_force
+                self._step += 1
+                for hook in tuple(hooks):
+                    hook(self)
+        else:
+            for k in range(n):
+                ctrl[:] = ramp[k]
+                t0 = clock()
+                step(m, d)
+                physics += clock() - t0
+                force[k] = act_force
+            self._step += n
         self.physics_s += physics
         if timer:
             timer.lap("physics")
@@ -255,29 +265,8 @@ class Simulation:
 
     def _check(self) -> None:
         d = self.data
-        q, qd = d.qpos[self.robot.qpos_idx], d.qvel[self.robot.dof_idx]
-        bad_warn = any(w.number for w in self._bad_warnings)
         # Fast path: a NaN fails both comparisons below, so only a healthy state returns here.
-        if not bad_warn and np.abs(qd).max() <= self.max_speed and np.isfinite(d.qpos).all():
+        if not any(w.number for w in self._bad_warnings) and np.abs(d.qvel[self._di]).max() <= self.max_speed \
+                and np.isfinite(d.qpos).all():
             return
-        finite = np.isfinite(q) & np.isfinite(qd)
-        fast = np.abs(np.nan_to_num(qd, nan=np.inf)) > self.max_speed
-        names, t = self.robot.joint_names, self.time
-        if not finite.all():
-            # NaN spreads to every joint within a step: name the joint already bad at the start of the tick.
-            ts, qs, qds = self.recorder.recent(1)
-            if qs.size and not (np.isfinite(qs[0]).all() and np.isfinite(qds[0]).all()):
-                t, q, qd = float(ts[0]), qs[0], qds[0]
-                finite = np.isfinite(q) & np.isfinite(qd)
-            j = int(np.flatnonzero(~finite)[0])
-            what = f"joint {names[j]} state is not finite (q={q[j]}, qd={qd[j]})"
-        elif fast.any():
-            j = int(np.argmax(np.abs(qd)))
-            what = f"joint {names[j]} velocity {qd[j]:.3g} rad/s exceeds {self.max_speed:g} rad/s"
-        else:
-            what = "MuJoCo reported a bad position, velocity or acceleration (an object's state is not finite)"
-        if bad_warn and MUJOCO_WARNINGS:
-            what += f" (MuJoCo: {MUJOCO_WARNINGS[0].rstrip('.')})"
-        msg = f"t={t:.3f} s: {what}; the simulation diverged (gains too stiff for sim_dt={self.sim_dt} s?)"
-        self.recorder.meta["error"] = msg
-        raise SimulationError(msg)
+        raise_divergence(self)

@@ -161,7 +161,8 @@ def main() -> None:
     print(f"machine: {machine['platform']}, {machine['cpu_count']} CPUs, Python {machine['python']}; "
           + ", ".join(f"{p} {machine[p]}" for p in ("mujoco", "mink", "qpsolvers", "daqp", "numpy")))
     if success:
-        print(f"success at 1 mm / 1 deg on {args.targets} random reachable targets per set (seed {args.seed}), from home:")
+        print(f"success at 1 mm / 1 deg on {args.targets} random reachable targets per set (seed {args.seed}), "
+              "from home:")
         print(f"{'set':10} {'method':6} {'success':>8} {'iters med':>9} {'iters p99':>9} {'ms med':>8} {'ms p99':>8}")
     for set_name, methods in success.items():
         for name, r in methods.items():

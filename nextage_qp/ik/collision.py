@@ -3,13 +3,12 @@
 :class:`ActiveCollisionLimit` is mink's ``CollisionAvoidanceLimit`` with per-pair distances and three filters
 in front of the narrow phase, each exact (a filtered pair could not have produced an active row):
 
-1. **Travel bound.** Every narrow-phase distance is kept as a lower bound; each geom's travel since then
-   (centre shift + bounding radius × rotation chord, summed over the configurations seen) is subtracted from
-   it. A pair whose bound still exceeds its detection distance is skipped with one vectorised subtraction
-   (:meth:`ActiveCollisionLimit.lower_bounds` gives these bounds to the planner's collision-safe steps).
-2. **Bounding spheres** for the rest, as in mink's broadphase.
+1. **Travel bound** and 2. **bounding spheres** (:class:`~nextage_qp.ik.broadphase.PairBounds`): a pair whose
+   distance bound exceeds its detection distance is skipped with a few vectorised operations.
 3. **Reach bound.** With the joint box of the same QP, a pair within detection distance whose gap bound
    exceeds how far its two geoms can approach in one step of the box gets no row: it could never bind.
+
+:meth:`ActiveCollisionLimit.advance` is the offline solver's collision-safe step on the same bounds.
 """
 
 from __future__ import annotations
@@ -27,6 +26,7 @@ from mink.limits.collision_avoidance_limit import (
 )
 from mink.limits.limit import Constraint
 
+from nextage_qp.ik.broadphase import PairBounds
 from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.ik.model import lever_bounds, moved_by_a_joint
 
@@ -79,19 +79,8 @@ class ActiveCollisionLimit(mink.Limit):
         self.geom2 = np.array([k[1] for k in keys], dtype=int)
         self.min_distance = np.array([pairs[k][0] for k in keys])
         self.detection_distance = np.array([pairs[k][1] for k in keys])
-        rbound = model.geom_rbound
-        # A plane has rbound 0 (unbounded): the sphere test never filters it.
-        self._rsum = np.where((rbound[self.geom1] == 0) | (rbound[self.geom2] == 0), np.inf,
-                              rbound[self.geom1] + rbound[self.geom2])  # fmt: skip
-        # Travel bookkeeping per geom: cumulative travel [m], and the pose it was last measured at.
-        self._travel = np.zeros(model.ngeom)
-        self._last_pos = np.full((model.ngeom, 3), np.nan)
-        self._last_mat = np.full((model.ngeom, 9), np.nan)
-        self._first = True
-        self._exact, self._exact_any = np.zeros(len(keys), dtype=bool), False  # see measured()
-        self._rbound_chord = rbound / np.sqrt(2.0)  # ||R1 - R2||_F / sqrt(2) bounds a unit vector's shift
-        # Per pair: the distance lower bound last stored plus both geoms' travel at that moment (-inf: none).
-        self._base = np.full(len(keys), -np.inf)
+        self.bounds = PairBounds(model, self.geom1, self.geom2)
+        """The pairs' distance lower bounds (travel and bounding spheres)."""
         # Per pair, how far each dof's step can bring its two geoms together [m per rad]: the lever arms of both
         # geoms, but 0 for a dof that moves both (a motion of both alike keeps their distance; its column of the
         # row, n^T (J2 - J1) = n^T (w x (p2 - p1)), is exactly 0 as p2 - p1 is along n).
@@ -134,13 +123,6 @@ class ActiveCollisionLimit(mink.Limit):
         """Number of geom pairs watched."""
         return len(self.geom1)
 
-    def lower_bounds(self, data: mujoco.MjData) -> np.ndarray:
-        """Lower bounds [m] on the distance of every watched pair now: the travel bound or the spheres' gap."""
-        travel, pos = self._update_travel(data), data.geom_xpos
-        delta = pos.take(self.geom1, axis=0) - pos.take(self.geom2, axis=0)
-        sphere = np.sqrt(np.vecdot(delta, delta)) - self._rsum
-        return np.maximum(self._base - travel.take(self.geom1) - travel.take(self.geom2), sphere)
-
     def distances(self, data: mujoco.MjData, indices: Sequence[int] | np.ndarray) -> np.ndarray:
         """Signed distances [m] of the given pairs, capped at their detection distance."""
         geom1, geom2, detect, _ = self._lists
@@ -148,56 +130,35 @@ class ActiveCollisionLimit(mink.Limit):
         idx = indices.tolist() if isinstance(indices, np.ndarray) else indices
         return np.array([distance(model, data, geom1[i], geom2[i], detect[i], None) for i in idx], dtype=float)
 
-    def sphere_gaps(self, data: mujoco.MjData, indices: np.ndarray) -> np.ndarray:
-        """Lower bounds [m] on the distance of the given pairs now from their bounding spheres."""
-        pos = data.geom_xpos
-        delta = pos.take(self.geom1.take(indices), axis=0) - pos.take(self.geom2.take(indices), axis=0)
-        return np.sqrt(np.vecdot(delta, delta)) - self._rsum.take(indices)
+    def advance(self, configuration: mink.Configuration, q: np.ndarray, dq: np.ndarray,
+                lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        """``clip(q + dq, lower, upper)``, halving ``dq`` while a watched pair would drop below its minimum.
 
-    def measured(self) -> np.ndarray:
-        """Boolean mask of the pairs whose stored bound is their narrow-phase distance at the current configuration
-        (queried by the last :meth:`compute_qp_inequalities`, with no geom moved since)."""
-        return self._exact
-
-    def _update_travel(self, data: mujoco.MjData) -> np.ndarray:
-        """Add every geom's motion since the last call to its travel; returns the travel (ngeom,) [m]."""
-        moved = self.moved(data, self._last_pos, self._last_mat)
-        if self._first:  # no pose stored yet (NaN), and no bound to void
-            moved[:], self._first = 0.0, False
-        if self._exact_any and moved.any():
-            self._exact[:], self._exact_any = False, False
-        self._travel += moved
-        self._last_pos[:], self._last_mat[:] = data.geom_xpos, data.geom_xmat
-        return self._travel
-
-    def moved(self, data: mujoco.MjData, pos0: np.ndarray, mat0: np.ndarray) -> np.ndarray:
-        """How far [m] any point of each geom moved from ``pos0``, ``mat0``: centre shift + radius x chord."""
-        dpos, dmat = data.geom_xpos - pos0, data.geom_xmat - mat0
-        chord = np.sqrt(np.vecdot(dmat, dmat))
-        return np.sqrt(np.vecdot(dpos, dpos)) + self._rbound_chord * chord
-
-    def _near(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-        """Pairs that may be within detection distance, with a lower bound [m]: travel bound, then spheres.
-
-        (Gathers use ``take``: several times faster than fancy indexing on arrays this small.)
+        A pair already below its minimum distance may not get closer; every other pair must stay at or above it.
+        Only pairs whose distance bound before the step, less how far their geoms moved in it, is not already
+        above that floor, and whose bounding spheres after it are not either, are measured after it: the others
+        cannot have dropped below. Returns ``q`` itself (the configuration back at it) when eight halvings all
+        fail.
         """
-        travel, pos = self._update_travel(data), data.geom_xpos
-        lower = self._base - travel.take(self.geom1) - travel.take(self.geom2)
-        idx = np.flatnonzero(lower < self.detection_distance)
-        if not idx.size:
-            return idx, lower[idx]
-        g1, g2 = self.geom1.take(idx), self.geom2.take(idx)
-        delta = pos.take(g1, axis=0) - pos.take(g2, axis=0)
-        sphere = np.sqrt(np.vecdot(delta, delta)) - self._rsum.take(idx)
-        far = sphere >= self.detection_distance.take(idx)
-        self._remember(idx[far], sphere[far])
-        near = ~far
-        return idx[near], np.maximum(lower.take(idx), sphere)[near]
-
-    def _remember(self, idx: np.ndarray, lower: np.ndarray) -> None:
-        """Store a lower bound on the distance of pairs ``idx`` at the current geom travel."""
-        travel = self._travel
-        self._base[idx] = lower + travel.take(self.geom1.take(idx)) + travel.take(self.geom2.take(idx))
+        data, bounds, enabled = configuration.data, self.bounds, self.enabled
+        # Floors: bounds before the step, measured where a pair may be below its minimum (unless the step's own
+        # rows measured it here already); after it, how far each geom moved.
+        before = bounds.lower(data)
+        low = np.flatnonzero((before < self.min_distance) & enabled & ~bounds.exact)
+        before[low] = self.distances(data, low)
+        floor = np.minimum(before, self.min_distance)
+        pos0, mat0 = data.geom_xpos.copy(), data.geom_xmat.copy()
+        for _ in range(8):
+            q_new = np.clip(q + dq, lower, upper)
+            configuration.update(q_new)
+            moved = bounds.moved(data, pos0, mat0)
+            check = np.flatnonzero(~(before - moved.take(self.geom1) - moved.take(self.geom2) >= floor) & enabled)
+            check = check[bounds.sphere_gaps(data, check) < floor.take(check)]
+            if np.all(self.distances(data, check) >= floor.take(check) - 1e-6):
+                return q_new
+            dq = dq * 0.5
+        configuration.update(q)
+        return q
 
     def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float,
                                 box_bounds: tuple[np.ndarray, np.ndarray] | None = None) -> Constraint:
@@ -208,7 +169,7 @@ class ActiveCollisionLimit(mink.Limit):
         model, data = self.model, configuration.data
         bounds: list[float] = []
         self.active, self.slack = [], 0
-        near, lower = self._near(data)
+        near, lower = self.bounds.near(data, self.detection_distance)
         keep = self.enabled.take(near)
         near, lower = near[keep], lower[keep]
         # Reach bound: how far the two geoms can approach in one step of the box; a pair whose gap bound
@@ -253,9 +214,7 @@ class ActiveCollisionLimit(mink.Limit):
                 jac1.fill(0.0)
             bounds.append(bound)
             self.active.append((idx, dist))
-        if dists:
-            self._remember(near, np.array(dists))
-            self._exact[near], self._exact_any = True, True
+        self.bounds.remember(near, np.array(dists), exact=True)
         if not bounds:
             return Constraint()
         return Constraint(G=self._rows(len(bounds)), h=np.array(bounds))

@@ -27,7 +27,7 @@ import numpy as np
 try:  # mink's compiled SE(3) operations (the same ones mink's FrameTask calls)
     from mink.lie import _lie_ops_c as _native
 except ImportError:  # pragma: no cover - a mink build without them: every task takes mink's own path
-    _native = None
+    _native = None  # type: ignore[assignment]
 
 _FRAME = {
     "site": (mujoco.mjtObj.mjOBJ_SITE, mujoco.mj_jacSite, "site_xpos", "site_xmat"),
@@ -80,9 +80,9 @@ class Objective:
             frame = self._frames[id(task)] = _Frame(self.model, task)
         return frame
 
-    def _frame_rows(self, data: mujoco.MjData, frames: Sequence[mink.FrameTask]) -> tuple[np.ndarray, np.ndarray, float]:
-        """The stacked weighted rows :math:`W` (6m, nv) and errors :math:`e` (6m,) of m frame tasks, and their
-        summed Levenberg-Marquardt term."""
+    def _frame_rows(self, data: mujoco.MjData,
+                    frames: Sequence[mink.FrameTask]) -> tuple[np.ndarray, np.ndarray, float]:
+        """Stacked weighted rows :math:`W` (6m, nv), errors :math:`e` (6m,) and summed LM term of m frame tasks."""
         m = len(frames)
         if m > len(self._left):
             self._alloc(m)

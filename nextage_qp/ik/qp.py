@@ -1,8 +1,9 @@
 """Differential IK of both wrists and the shared chest as one QP, built on mink.
 
 Each step assembles mink's objective (frame, axis-align, posture and extra tasks; the same :math:`(H, c)` as
-:func:`mink.build_ik`, built in reused arrays by :mod:`nextage_qp.ik.objective`) and adds what mink lacks: the joint limits as a solver box (``lb``/``ub``, :mod:`nextage_qp.ik.limits`) and
-collision rows only for pairs that can bind (:mod:`nextage_qp.ik.collision`). :meth:`QPIK.solve` integrates the
+:func:`mink.build_ik`, built in reused arrays by :mod:`nextage_qp.ik.objective`) and adds what mink lacks: the
+joint limits as a solver box (``lb``/``ub``, :mod:`nextage_qp.ik.limits`) and collision rows only for pairs that
+can bind (:mod:`nextage_qp.ik.collision`). :meth:`QPIK.solve` integrates the
 steps to a tolerance with a backtracking guard that never accepts a q closing a pair below its minimum distance.
 """
 
@@ -254,35 +255,9 @@ class QPIK:
                 return (*best, iters, "max_iters" if iters >= cap else "stalled")
 
     def _advance(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """Q + dq inside the joint limits, halving dq while a collision pair would drop below its minimum.
-
-        A pair already below its minimum distance may not get closer; every other pair must stay at or above it.
-        Only pairs whose distance bound before the step, less how far their geoms moved in it, is not already
-        above that floor, and whose bounding spheres after it are not either, are measured after it: the others
-        cannot have dropped below.
-        """
-        watch, data = self.collision, self.configuration.data
-        if watch is None:
+        """Q + dq inside the joint limits, collision-safe (:meth:`ActiveCollisionLimit.advance`)."""
+        if self.collision is None:
             q_new = np.clip(q + dq, self.box.lower, self.box.upper)
             self.configuration.update(q_new)
             return q_new
-        # Bounds before the step: travel since the last measurement or bounding spheres, measured where a pair may
-        # be below its minimum (unless the step's own rows measured it here already); after it, how far each geom
-        # moved.
-        before = watch.lower_bounds(data)
-        low = np.flatnonzero((before < watch.min_distance) & watch.enabled & ~watch.measured())
-        before[low] = watch.distances(data, low)
-        floor = np.minimum(before, watch.min_distance)
-        pos0, mat0 = data.geom_xpos.copy(), data.geom_xmat.copy()
-        geom1, geom2 = watch.geom1, watch.geom2
-        for _ in range(8):
-            q_new = np.clip(q + dq, self.box.lower, self.box.upper)
-            self.configuration.update(q_new)
-            moved = watch.moved(data, pos0, mat0)
-            check = np.flatnonzero(~(before - moved.take(geom1) - moved.take(geom2) >= floor) & watch.enabled)
-            check = check[watch.sphere_gaps(data, check) < floor.take(check)]
-            if np.all(watch.distances(data, check) >= floor.take(check) - 1e-6):
-                return q_new
-            dq = dq * 0.5
-        self.configuration.update(q)
-        return q
+        return self.collision.advance(self.configuration, q, dq, self.box.lower, self.box.upper)

@@ -47,7 +47,9 @@ class TaskCache:
             cost[:3] = pcost if target.pos is not None else 0.0
             cost[3:] = ocost if target.rot is not None else 0.0
             # Without a rotation target, aim at the current rotation so the error twist is a pure translation.
-            goal = task.transform_target_to_world.wxyz_xyz
+            owned = task.transform_target_to_world
+            assert owned is not None  # set when the task was made
+            goal = owned.wxyz_xyz
             if target.rot is not None:
                 mujoco.mju_mat2Quat(goal[:4], target.rot.reshape(9))
             else:

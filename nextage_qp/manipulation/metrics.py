@@ -73,7 +73,11 @@ class OutcomeMonitor:
         self._watch = True  # something may touch the obstacle before the next tick: check every physics step
 
     def attach(self, sim: Simulation) -> None:
-        """Register the monitor's hooks with a simulation (the contact hook only when there is an obstacle)."""
+        """Register the monitor's hooks with a simulation.
+
+        The contact hook runs at every physics step only while something is within the watched clearance of the
+        obstacle (:meth:`on_tick` adds and removes it), so the physics loop carries no hook the rest of the time.
+        """
         sim.hooks.append(self.on_tick)
         if self.obstacle is not None:
             sim.substep_hooks.append(self.on_substep)
@@ -117,6 +121,11 @@ class OutcomeMonitor:
             cut = max(best, watch)
         self.min_clearance = best
         self._watch = nearest < watch
+        hooked = self.on_substep in sim.substep_hooks
+        if self._watch and not hooked:
+            sim.substep_hooks.append(self.on_substep)
+        elif hooked and not self._watch:
+            sim.substep_hooks.remove(self.on_substep)
 
     def check_hold(self, sim: Simulation, grip: Grip) -> None:
         """Flag a drop when the clamped object is far from the midpoint of the clamp pads (true poses)."""
