@@ -132,7 +132,7 @@ def test_stale_pose_after_a_joints_phase(tmp_path):
     assert result["error"] is None, result["error"]
     assert np.linalg.norm(first["setpoint"] - first["measured"]) < 1e-3
     # the move started from the pose at the commanded joints of that tick (one step from rest: accel x dt^2)
-    assert np.linalg.norm(first["setpoint"] - first["commanded_at_start"]) == pytest.approx(1.0 * 0.004**2)
+    assert np.linalg.norm(first["setpoint"] - first["commanded_at_start"]) == pytest.approx(1.0 * runner.sim.ctrl_dt**2)
     rec = runner.sim.recorder.arrays()
     during = rec["t"] >= first["t"] - runner.sim.ctrl_dt
     p = rec["frame_left_tool"][during, :3]  # one row per control tick
