@@ -16,7 +16,9 @@ posture task weighs, the frame tasks' curvature makes it overshoot: with targets
 can then jump back and forth between two configurations for ever (at 50 Hz a 20 mrad cycle at the velocity
 limit, so the arm never settles). When the command is the same as on the last tick and a fast step (one joint at
 ``FAST`` of its velocity limit or more) turns back on the last one (cosine below ``REVERSAL``), :math:`s` halves
-(down to ``MIN_SCALE``); on every other tick it doubles back towards 1. Off (the default), :math:`s = 1`.
+(down to ``MIN_SCALE``) and stays at most there while the command stays the same (a cycle of two steps each way
+turns back only every other tick: growing back at once would restart it); on every other tick it doubles back
+towards that cap, which a new command lifts to 1 again. Off (the default), :math:`s = 1`.
 
 Then :math:`q_{cmd}` becomes Ruckig's target. :meth:`Servo.commanded_pose` is always the pose at the current
 :math:`q_{cmd}`, so a phase that starts after a joint goal starts from where the robot is being sent.
@@ -93,6 +95,7 @@ class Servo:
         self._last: tuple[Command, np.ndarray] | None = None  # the last IK command and its (scaled) step
         self.scale = 1.0
         """The IK step's trust-region scale (see the module doc)."""
+        self._cap = 1.0  # the largest scale the region may grow back to under the current command
 
     @property
     def q_cmd(self) -> np.ndarray:
@@ -128,11 +131,18 @@ class Servo:
     def _trust(self, command: Command, dq: np.ndarray, speed: float) -> np.ndarray:
         """The step ``dq`` [rad] scaled by the trust region; ``speed``: its largest fraction of a velocity limit."""
         last, self._last = self._last, None
+        same = last is not None and same_command(command, last[0])
         cycling = False
-        if last is not None and speed >= FAST and same_command(command, last[0]):
+        if same and speed >= FAST:
+            assert last is not None
             norms = float(np.linalg.norm(dq)) * float(np.linalg.norm(last[1]))
             cycling = norms > 0.0 and float(dq @ last[1]) < REVERSAL * norms
-        self.scale = max(self.scale * 0.5, MIN_SCALE) if cycling else min(self.scale * 2.0, 1.0)
+        if not same:
+            self._cap = 1.0
+        if cycling:
+            self.scale = self._cap = max(self.scale * 0.5, MIN_SCALE)
+        else:
+            self.scale = min(self.scale * 2.0, self._cap)
         dq = dq * self.scale
         self._last = (command, dq)
         return dq

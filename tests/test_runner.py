@@ -235,3 +235,28 @@ def test_no_module_over_about_250_lines():
     long = {str(p.relative_to(ROOT)): n for p in (ROOT / "nextage_qp").rglob("*.py")
             if (n := len(p.read_text().splitlines())) > 275}
     assert not long
+
+
+class _TwoStepCyclingIK(_CyclingIK):
+    """An IK whose full-speed step turns back every second call: two steps each way, a cycle of four ticks."""
+
+    def __init__(self, box) -> None:
+        super().__init__(box)
+        self.calls = 0
+
+    def step(self, q, targets, dt, **_):
+        self.calls += 1
+        return (1.0 if self.calls % 4 in (1, 2) else -1.0) * self.v
+
+
+def test_servo_trust_region_keeps_a_slower_cycle_damped_until_the_command_changes(servo):
+    servo.ik = _TwoStepCyclingIK(servo.ik.box)
+    hold_here = Command((FrameTarget("left_tool", pos=np.array([0.3, 0.2, 1.0])),))
+    scales = []
+    for _ in range(12):
+        servo.step(hold_here)
+        scales.append(servo.scale)
+    # each reversal halves the scale and the ticks between do not grow it back: the swing keeps shrinking
+    assert scales == [1.0, 1.0, 0.5, 0.5, 0.25, 0.25, 0.125, 0.125, 1 / 16, 1 / 16, 1 / 32, 1 / 32]
+    servo.step(Command((FrameTarget("left_tool", pos=np.array([0.3, 0.2, 1.01])),)))  # a new command
+    assert servo.scale == pytest.approx(1 / 16)  # grows back again (doubling, up to 1)

@@ -90,16 +90,20 @@ class ActiveCollisionLimit(mink.Limit):
         self._lever_inf = bool(np.isinf(self._pair_lever).any())
         self._lists = (self.geom1.tolist(), self.geom2.tolist(), self.detection_distance.tolist(),
                        self.min_distance.tolist())
-        self._witness = np.empty((len(keys), 6))  # witness points (from, to) of the active pairs of one call
+        # Per pair, its last narrow-phase measurement: distance [m] and witness points (from, to), with views of
+        # them made once; valid while the pair's bound is exact (PairBounds.exact).
+        self._kept = np.empty((len(keys), 7))
+        self._kept_fromto = list(self._kept[:, 1:])
+        self._kept_points = [(w[:3], w[3:]) for w in self._kept_fromto]
         # Body of each geom, or -1 where no joint moves it (welded to the world, or a mocap object): its witness
         # point has a zero Jacobian, so that side of a row costs nothing.
         self._body = [int(b) if moved_by_a_joint(model, int(b)) else -1 for b in model.geom_bodyid]
         # Per active pair of one call: the point Jacobians of its two witness points (geom2's, then geom1's).
         self._jacs = np.zeros((len(keys), 2, 3, model.nv))
-        # Per slot, views made once: the witness row (from, to), its two points, and the two Jacobians.
-        self._slots = [(w, w[:3], w[3:], j[0], j[1]) for w, j in zip(self._witness, self._jacs, strict=True)]
+        self._jac_slots = [(j[0], j[1]) for j in self._jacs]  # views made once
         self.enabled = np.ones(len(keys), dtype=bool)
         """Pairs watched at the next call (see :meth:`allow`)."""
+        self._watch_within = self.detection_distance.copy()
         self._allowed_geoms: np.ndarray | None = None
         self.active: list[tuple[int, float]] = []
         """(pair index, distance [m]) of the pairs sent to the QP at the last call."""
@@ -117,6 +121,7 @@ class ActiveCollisionLimit(mink.Limit):
             return
         self._allowed_geoms = geoms
         self.enabled = ~(geoms[self.geom1] | geoms[self.geom2])
+        self._watch_within = np.where(self.enabled, self.detection_distance, -np.inf)  # no pair allowed is near
 
     @property
     def num_pairs(self) -> int:
@@ -130,6 +135,19 @@ class ActiveCollisionLimit(mink.Limit):
         idx = indices.tolist() if isinstance(indices, np.ndarray) else indices
         return np.array([distance(model, data, geom1[i], geom2[i], detect[i], None) for i in idx], dtype=float)
 
+    def _measure(self, data: mujoco.MjData, pairs: np.ndarray) -> np.ndarray:
+        """Distances [m] of ``pairs`` as the rows' narrow phase measures them, kept with their witness points.
+
+        :meth:`compute_qp_inequalities` takes a kept measurement instead of measuring again while the pair's bound
+        is exact (nothing moved since).
+        """
+        geom1, geom2, detect, _ = self._lists
+        model, distance, margin, kept, fromto = self.model, mujoco.mj_geomDistance, self.margin, self._kept, \
+            self._kept_fromto
+        for i in pairs.tolist():
+            kept[i, 0] = distance(model, data, geom1[i], geom2[i], detect[i] + margin, fromto[i])
+        return kept[pairs, 0]
+
     def advance(self, configuration: mink.Configuration, q: np.ndarray, dq: np.ndarray,
                 lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
         """``clip(q + dq, lower, upper)``, halving ``dq`` while a watched pair would drop below its minimum.
@@ -138,7 +156,7 @@ class ActiveCollisionLimit(mink.Limit):
         Only pairs whose distance bound before the step, less how far their geoms moved in it, is not already
         above that floor, and whose bounding spheres after it are not either, are measured after it: the others
         cannot have dropped below. Returns ``q`` itself (the configuration back at it) when eight halvings all
-        fail.
+        fail. The measurements of the configuration it accepts are kept for the next call's rows.
         """
         data, bounds, enabled = configuration.data, self.bounds, self.enabled
         # Floors: bounds before the step, measured where a pair may be below its minimum (unless the step's own
@@ -154,30 +172,27 @@ class ActiveCollisionLimit(mink.Limit):
             moved = bounds.moved(data, pos0, mat0)
             check = np.flatnonzero(~(before - moved.take(self.geom1) - moved.take(self.geom2) >= floor) & enabled)
             check = check[bounds.sphere_gaps(data, check) < floor.take(check)]
-            if np.all(self.distances(data, check) >= floor.take(check) - 1e-6):
+            dists = self._measure(data, check)
+            if np.all(dists >= floor.take(check) - 1e-6):
+                bounds.update(data)
+                bounds.remember(check, dists, exact=True)
                 return q_new
             dq = dq * 0.5
         configuration.update(q)
         return q
 
-    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float,
-                                box_bounds: tuple[np.ndarray, np.ndarray] | None = None) -> Constraint:
-        """Rows of the pairs that can bind only; an inactive constraint when there are none.
-
-        ``box_bounds`` is the joint box's ``(lb, ub)`` at this configuration when the caller has it already.
-        """
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
+        """Rows of the pairs that can bind only; an inactive constraint when there are none."""
         model, data = self.model, configuration.data
         bounds: list[float] = []
         self.active, self.slack = [], 0
-        near, lower = self.bounds.near(data, self.detection_distance)
-        keep = self.enabled.take(near)
-        near, lower = near[keep], lower[keep]
-        # Reach bound: how far the two geoms can approach in one step of the box; a pair whose gap bound
-        # exceeds it cannot bind. Checked on the distance's lower bound first (no narrow phase), then on it.
+        near, lower = self.bounds.near(data, self._watch_within)
+        # Reach bound: how far the two geoms can approach in one step of the box (each joint at most its speed
+        # limit times dt); a pair whose gap bound exceeds it cannot bind. Checked on the distance's lower bound
+        # first (no narrow phase), then on it.
         reach: list[float] | None = None
         if self.box is not None and near.size:
-            lb, ub = box_bounds if box_bounds is not None else self.box.bounds(configuration.q, dt)
-            step = np.maximum(np.abs(lb), np.abs(ub))
+            step = self.box.step_bound(dt)
             if self._lever_inf:
                 with np.errstate(invalid="ignore"):  # inf lever x 0 step (non-hinge dof): NaN, never prunes
                     pair_reach = self._pair_lever.take(near, axis=0) @ step
@@ -190,11 +205,15 @@ class ActiveCollisionLimit(mink.Limit):
         gain, margin, distance = self.gain, self.margin, mujoco.mj_geomDistance
         self.queries = len(near)
         dists: list[float] = []
-        body, slots, jac = self._body, self._slots, mujoco.mj_jac
+        body, jacs, jac = self._body, self._jac_slots, mujoco.mj_jac
+        exact, kept, kept_fromto, points = self.bounds.exact, self._kept, self._kept_fromto, self._kept_points
         for k, idx in enumerate(near.tolist()):
             g1, g2, dmax = geom1[idx], geom2[idx], detect[idx]
-            fromto, start, end, jac2, jac1 = slots[len(bounds)]
-            dist = distance(model, data, g1, g2, dmax + margin, fromto)
+            if exact[idx]:  # measured here already (by the collision-safe step that led here, or a call here)
+                dist = float(kept[idx, 0])
+            else:
+                dist = distance(model, data, g1, g2, dmax + margin, kept_fromto[idx])
+                kept[idx, 0] = dist
             dists.append(dist)
             if dist >= dmax:
                 continue
@@ -203,6 +222,8 @@ class ActiveCollisionLimit(mink.Limit):
                 self.slack += 1
                 continue
             # The witness points' Jacobians (zero on a side no joint moves): geom2's ("to"), then geom1's ("from").
+            jac2, jac1 = jacs[len(bounds)]
+            start, end = points[idx]
             b1, b2 = body[g1], body[g2]
             if b2 >= 0:
                 jac(model, data, jac2, None, end, b2)
@@ -225,7 +246,7 @@ class ActiveCollisionLimit(mink.Limit):
         As mink's ``compute_contact_normal_jacobian``: :math:`n` the unit vector from witness point :math:`p_1`
         to :math:`p_2`, :math:`s = -1` (sign flipped, :math:`+1`, for a penetrating pair).
         """
-        witness = self._witness[:k]
+        witness = self._kept[[i for i, _ in self.active], 1:]
         normal = witness[:, 3:] - witness[:, :3]
         sign = np.fromiter((-1.0 if d >= 0.0 else 1.0 for _, d in self.active), dtype=float, count=k)
         normal *= (sign / np.sqrt(np.vecdot(normal, normal)))[:, None]

@@ -30,11 +30,16 @@ class JointBoxLimit(mink.Limit):
         n = len(lower)
         self._G = np.vstack([np.eye(n), -np.eye(n)])
 
-    def bounds(self, q: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        r"""``(lb, ub)`` of :math:`\Delta q` at configuration ``q`` for a step of ``dt`` [s]."""
+    def step_bound(self, dt: float) -> np.ndarray:
+        r""":math:`v_{max}\,dt` [rad]: no step of ``dt`` [s] in the box moves a joint farther (a read-only array)."""
         if dt != self._dt:
             self._dt, self._step = dt, self.vmax * dt
-        step = self._step
+            self._step.setflags(write=False)
+        return self._step
+
+    def bounds(self, q: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        r"""``(lb, ub)`` of :math:`\Delta q` at configuration ``q`` for a step of ``dt`` [s]."""
+        step = self.step_bound(dt)
         lb = q - self.lower
         lb *= -self.gain
         np.maximum(lb, -step, out=lb)

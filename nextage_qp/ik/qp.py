@@ -60,6 +60,7 @@ class QPIK:
             q_posture = robot.q_from_names(config.posture_target, base=robot.keyframe_q("home"))
         self.posture = mink.PostureTask(self.model, cost=config.posture_cost)
         self.posture.set_target(q_posture)
+        self._posture_goal: np.ndarray | None = None  # the array last given to the posture task by step()
         self.default_posture = q_posture
         default = float(IKConfig.model_fields["velocity_limit"].default)
         vmax = per_joint(config.velocity_limit, default, robot.joint_names)
@@ -117,7 +118,8 @@ class QPIK:
 
         ``allow`` names collision groups whose pairs are not avoided on this step (e.g. the object a push is
         in contact with); ``posture`` replaces the configured posture target on this step (e.g. a configuration a
-        planner found for where the motion is going, so the redundancy heads there).
+        planner found for where the motion is going, so the redundancy heads there; an array not changed in place
+        afterwards: passing the same array again keeps the target as set).
 
         Raises:
             IKInfeasibleError: The QP has no solution; the message names the active limits.
@@ -125,7 +127,10 @@ class QPIK:
         """
         if self.collision is not None:
             self.collision.allow(self._allowed(allow))
-        self.posture.set_target(self.default_posture if posture is None else posture)
+        goal = self.default_posture if posture is None else posture
+        if goal is not self._posture_goal:  # the same array as last time: the task holds it already
+            self.posture.set_target(goal)
+            self._posture_goal = goal
         if object_poses:
             set_object_poses(self.model, self.configuration.data, object_poses, self._mocap)
         self.configuration.update(np.asarray(q, dtype=float))
@@ -141,7 +146,7 @@ class QPIK:
         H, c = self.objective.build(self.configuration, tasks, self.config.damping)
         G = h = None
         if self.collision is not None:
-            rows = self.collision.compute_qp_inequalities(self.configuration, dt, (lb, ub))
+            rows = self.collision.compute_qp_inequalities(self.configuration, dt)
             if not rows.inactive:
                 G, h = rows.G, rows.h
         x = self.qp.solve(H, c, lb, ub, G, h)
