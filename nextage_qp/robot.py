@@ -68,7 +68,7 @@ class Robot:
     @classmethod
     def from_scene(cls, scene: str | Path = "scene", overrides: SceneOverrides | None = None) -> Robot:
         """Load a bundled scene by name (``scene``, ``push_cube``, ``dock_dumbbell``, ``nextage``) or path."""
-        return cls(compile_scene(scene, overrides), scene=str(scene), overrides=overrides)
+        return cls(compile_scene(scene, overrides, touch=("obstacle",)), scene=str(scene), overrides=overrides)
 
     # Names and indices.
 

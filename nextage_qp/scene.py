@@ -81,13 +81,34 @@ def _yaw_quat(yaw: float) -> np.ndarray:
     return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
 
 
-def compile_scene(scene: str | Path, overrides: SceneOverrides | None = None) -> mujoco.MjModel:
+TOUCH_SUFFIX = "__touch"
+"""Name suffix of the contact sensor :func:`compile_scene` adds to a body it is asked to watch."""
+
+
+def touch_sensor(body: str) -> str:
+    """Name of the contact sensor that watches ``body``: its data are (contacts found, nearest distance [m])."""
+    return body + TOUCH_SUFFIX
+
+
+def compile_scene(scene: str | Path, overrides: SceneOverrides | None = None,
+                  touch: tuple[str, ...] = ()) -> mujoco.MjModel:
     """Compile a scene MJCF with optional pose, mass and friction overrides.
+
+    Every body of ``touch`` that the scene has gets a contact sensor (:func:`touch_sensor`): MuJoCo then reports
+    at every physics step whether anything touches it, with no Python in the physics loop.
 
     Raises:
         ConfigError: The scene is missing or an override names a body that is not in it.
     """
     spec = scene_spec(scene, overrides)
+    names = {b.name for b in spec.bodies}
+    for body in touch:
+        if body in names:
+            # found + dist of the nearest contact (reduce: mindist), one slot
+            found_dist = (1 << int(mujoco.mjtConDataField.mjCONDATA_FOUND)) | (
+                1 << int(mujoco.mjtConDataField.mjCONDATA_DIST))
+            spec.add_sensor(name=touch_sensor(body), type=mujoco.mjtSensor.mjSENS_CONTACT,
+                            objtype=mujoco.mjtObj.mjOBJ_BODY, objname=body, intprm=[found_dist, 1, 1])
     try:
         return spec.compile()
     except ValueError as exc:

@@ -9,11 +9,14 @@ Levenberg-Marquardt term :math:`\mu_i = \lambda_i \|e_i\|^2`. The objective of :
     H = \sum_i W_i^T W_i + \Big(\delta + \sum_i \mu_i\Big) I, \qquad c = -\sum_i W_i^T e_i
 
 with Tikhonov damping :math:`\delta`. :class:`Objective` computes exactly this. The terms that every tick has
-take a short path: a :class:`mink.FrameTask` writes its rows into a reused buffer with mink's own compiled SE(3)
-operations (the error :math:`\epsilon = T^* \ominus T`, the Jacobian :math:`-J_{log}(T^{*-1} T)\,{}_B J`), and
-a :class:`mink.PostureTask` (Jacobian :math:`I`) adds :math:`C^2` to the diagonal of :math:`H` instead of
-stacking an identity. Every other task (relative frames, axis alignment, a user's own) goes through its
-``compute_qp_residual`` (or ``compute_qp_objective``) as in mink.
+take a short path: a :class:`mink.FrameTask` and a :class:`mink.RelativeFrameTask` write their rows into reused
+buffers with mink's own compiled SE(3) operations, exactly as mink's tasks compute them (frame: the error
+:math:`\epsilon = T^* \ominus T`, the Jacobian :math:`-J_{log}(T^{*-1} T)\,{}_B J`; relative: the error
+:math:`\epsilon = T_{rf} \ominus T^*` of the frame in the root's frame, the Jacobian
+:math:`J_{log}(T^{*-1} T_{rf})\,({}_f J_f - \mathrm{Ad}(T_{rf}^{-1})\,{}_r J_r)`), and a :class:`mink.PostureTask`
+(Jacobian :math:`I`) adds :math:`C^2` to the diagonal of :math:`H` instead of stacking an identity. Every other
+task (axis alignment, a user's own) goes through its ``compute_qp_residual`` (or ``compute_qp_objective``) as in
+mink.
 """
 
 from __future__ import annotations
@@ -37,23 +40,34 @@ _FRAME = {
 
 
 class _Frame:
-    """Where a :class:`mink.FrameTask`'s frame lives in the model: its id, Jacobian function and pose arrays."""
+    """Where a frame lives in the model: its id, Jacobian function and pose arrays."""
 
-    def __init__(self, model: mujoco.MjModel, task: mink.FrameTask) -> None:
-        obj, self.jac_fn, self.pos_attr, self.mat_attr = _FRAME[task.frame_type]
-        self.task = task
-        name = task.frame_name
+    def __init__(self, model: mujoco.MjModel, name: str | int, kind: str) -> None:
+        obj, self.jac_fn, self.pos_attr, self.mat_attr = _FRAME[kind]
         self.id = name if isinstance(name, int) else mujoco.mj_name2id(model, obj, name)
-        if not 0 <= self.id < getattr(model, {"site": "nsite", "body": "nbody", "geom": "ngeom"}[task.frame_type]):
-            raise mink.InvalidFrame(task.frame_name, task.frame_type, model)
+        if not 0 <= self.id < getattr(model, {"site": "nsite", "body": "nbody", "geom": "ngeom"}[kind]):
+            raise mink.InvalidFrame(name, kind, model)
+
+    def pose(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+        """The frame's pose as wxyz_xyz (7,) and its row-major rotation matrix (9,)."""
+        xmat = getattr(data, self.mat_attr)[self.id]
+        return _native.xmat_xpos_to_wxyz_xyz(xmat, getattr(data, self.pos_attr)[self.id]), xmat
+
+    def local_jacobian(self, model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarray, xmat: np.ndarray,
+                       out: np.ndarray) -> np.ndarray:
+        """The frame's Jacobian in its own axes (mink's ``get_frame_jacobian``), via ``jac`` (6, nv) as scratch."""
+        self.jac_fn(model, data, jac[:3], jac[3:], self.id)
+        return np.matmul(_native.se3_rotation_adjoint_from_xmat(xmat), jac, out=out)
+
+
+_FAST = (mink.FrameTask, mink.RelativeFrameTask)
 
 
 class Objective:
     """Builds :math:`(H, c)` of the IK QP for a list of mink tasks (the same objective as :func:`mink.build_ik`).
 
-    Frame tasks are done together: per frame the compiled SE(3) operations write its error, its
-    :math:`J_{log} A_{fw}` and its MuJoCo Jacobian into stacked arrays, then one batched product gives every
-    frame's weighted rows.
+    Frame and relative-frame tasks are done together: each writes its error and weighted Jacobian rows into
+    stacked arrays (the compiled SE(3) operations and MuJoCo's Jacobians), then one product gives :math:`H`.
 
     Args:
         model: The IK's kinematic model.
@@ -63,48 +77,61 @@ class Objective:
         self.model, nv = model, model.nv
         self.H, self.c = np.empty((nv, nv)), np.empty(nv)
         self._diag = self.H.reshape(-1)[:: nv + 1]  # a view of H's diagonal
-        self._frames: dict[int, _Frame] = {}
+        self._frames: dict[tuple[str | int, str], _Frame] = {}
         self._posture_error = np.empty(nv)
+        self._scratch, self._local = np.empty((6, nv)), np.empty((6, nv))
         self._alloc(2)
 
     def _alloc(self, n: int) -> None:
         nv = self.model.nv
-        self._left, self._jac, self._rows = np.empty((n, 6, 6)), np.empty((n, 6, nv)), np.empty((n, 6, nv))
+        self._rows = np.empty((n, 6, nv))
         self._error, self._cost, self._scale = np.empty((n, 6)), np.empty((n, 6)), np.empty((n, 1))
-        # Views made once per frame slot: its Jacobian's two halves and its J_log A.
-        self._slots = [(j[:3], j[3:], left) for j, left in zip(self._jac, self._left, strict=True)]
+        self._slots = list(self._rows)  # views made once
 
-    def _frame(self, task: mink.FrameTask) -> _Frame:
-        frame = self._frames.get(id(task))
-        if frame is None or frame.task is not task:
-            frame = self._frames[id(task)] = _Frame(self.model, task)
+    def _frame(self, name: str | int, kind: str) -> _Frame:
+        frame = self._frames.get((name, kind))
+        if frame is None:
+            frame = self._frames[(name, kind)] = _Frame(self.model, name, kind)
         return frame
 
-    def _frame_rows(self, data: mujoco.MjData,
-                    frames: Sequence[mink.FrameTask]) -> tuple[np.ndarray, np.ndarray, float]:
-        """Stacked weighted rows :math:`W` (6m, nv), errors :math:`e` (6m,) and summed LM term of m frame tasks."""
-        m = len(frames)
-        if m > len(self._left):
+    def _stacked_rows(self, data: mujoco.MjData,
+                      tasks: Sequence[mink.Task]) -> tuple[np.ndarray, np.ndarray, float]:
+        """Stacked weighted rows :math:`W` (6m, nv), errors :math:`e` (6m,) and summed LM term of m frame and
+        relative-frame tasks."""
+        m, model, scratch = len(tasks), self.model, self._scratch
+        if m > len(self._slots):
             self._alloc(m)
-        left, jac, error, cost, scale = self._left[:m], self._jac[:m], self._error[:m], self._cost[:m], self._scale[:m]
+        error, cost, scale = self._error[:m], self._cost[:m], self._scale[:m]
         lm = np.empty(m)
-        for k, task in enumerate(frames):
-            f, target = self._frame(task), task.transform_target_to_world
-            if target is None:
-                raise mink.TargetNotSet(type(task).__name__)
-            jacp, jacr, left_k = self._slots[k]
-            xpos, xmat = getattr(data, f.pos_attr)[f.id], getattr(data, f.mat_attr)[f.id]
-            pose, goal = _native.xmat_xpos_to_wxyz_xyz(xmat, xpos), target.wxyz_xyz
-            error[k] = _native.se3_rminus(goal, pose)
-            f.jac_fn(self.model, data, jacp, jacr, f.id)
-            # J_log(T*^-1 T) A_fw: A_fw turns MuJoCo's world-aligned Jacobian into the frame's own.
-            np.matmul(_native.se3_jlog(_native.se3_inverse_multiply(goal, pose)),
-                      _native.se3_rotation_adjoint_from_xmat(xmat), out=left_k)
+        for k, task in enumerate(tasks):
+            rows = self._slots[k]
+            if type(task) is mink.FrameTask:
+                target = task.transform_target_to_world
+                if target is None:
+                    raise mink.TargetNotSet(type(task).__name__)
+                f = self._frame(task.frame_name, task.frame_type)
+                pose, xmat = f.pose(data)
+                goal = target.wxyz_xyz
+                error[k] = _native.se3_rminus(goal, pose)
+                local = f.local_jacobian(model, data, scratch, xmat, self._local)
+                np.matmul(_native.se3_jlog(_native.se3_inverse_multiply(goal, pose)), local, out=rows)
+                np.negative(rows, out=rows)  # J = -J_log(T*^-1 T) B_J
+            else:
+                target = task.transform_target_to_root
+                if target is None:
+                    raise mink.TargetNotSet(type(task).__name__)
+                f, r = self._frame(task.frame_name, task.frame_type), self._frame(task.root_name, task.root_type)
+                (frame_pose, frame_mat), (root_pose, root_mat) = f.pose(data), r.pose(data)
+                relative, goal = _native.se3_inverse_multiply(root_pose, frame_pose), target.wxyz_xyz
+                error[k] = _native.se3_rminus(relative, goal)
+                root_local = r.local_jacobian(model, data, scratch, root_mat, self._local)
+                local = _native.se3_adjoint(_native.se3_inverse(relative)) @ root_local
+                np.subtract(f.local_jacobian(model, data, scratch, frame_mat, self._local), local, out=local)
+                np.matmul(_native.se3_jlog(_native.se3_inverse_multiply(goal, relative)), local, out=rows)
             cost[k], scale[k], lm[k] = task.cost, task.gain, task.lm_damping
         rows = self._rows[:m]
-        np.matmul(left, jac, out=rows)
-        np.negative(cost, out=cost)  # -C from here on
-        rows *= cost[:, :, None]  # W = -C J_log A J
+        rows *= cost[:, :, None]  # W = C J
+        np.negative(cost, out=cost)
         error *= cost
         error *= scale  # e = -alpha C eps
         return rows.reshape(6 * m, -1), error.reshape(-1), float(lm @ np.vecdot(error, error))
@@ -113,9 +140,9 @@ class Objective:
               damping: float) -> tuple[np.ndarray, np.ndarray]:
         """:math:`(H, c)` at the configuration (arrays owned by this object, overwritten by the next call)."""
         data, H, c = configuration.data, self.H, self.c
-        frames = [t for t in tasks if type(t) is mink.FrameTask] if _native is not None else []
-        if frames:
-            w, e, mu = self._frame_rows(data, frames)
+        stacked = [t for t in tasks if type(t) in _FAST] if _native is not None else []
+        if stacked:
+            w, e, mu = self._stacked_rows(data, stacked)
             np.matmul(w.T, w, out=H)
             np.matmul(e, w, out=c)
             np.negative(c, out=c)
@@ -125,7 +152,7 @@ class Objective:
             mu = 0.0
         mu += damping
         for task in tasks:
-            if frames and type(task) is mink.FrameTask:
+            if stacked and type(task) in _FAST:
                 continue
             if type(task) is mink.PostureTask and task._v_ids is None and task.target_q is not None:
                 # W = C (diagonal): W^T W = C^2 on the diagonal, -W^T e = C^2 alpha (q - q*).

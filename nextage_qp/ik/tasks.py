@@ -8,6 +8,7 @@ import mink
 import mujoco
 import numpy as np
 
+from nextage_qp.errors import ConfigError
 from nextage_qp.ik.model import Frame
 from nextage_qp.ik.targets import FrameTarget, RelativeTarget
 
@@ -77,9 +78,17 @@ class TaskCache:
                 frame, root = self.frame(target.frame), self.frame(target.root)
                 task = mink.RelativeFrameTask(frame.name, frame.kind, root.name, root.kind,
                                               position_cost=target.cost, orientation_cost=target.cost)
+                # The task owns this target; every tick rewrites its array in place.
+                task.transform_target_to_root = mink.SE3(wxyz_xyz=np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]))
                 self._relative_tasks[key] = task
-            task.set_position_cost(target.cost)
-            task.set_orientation_cost(target.cost)
-            task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(target.rot), target.pos))
+            if not target.cost >= 0.0:
+                raise ConfigError(f"relative target {target.frame!r} in {target.root!r}: cost must be >= 0, "
+                                  f"got {target.cost}")
+            task.cost[:] = target.cost
+            owned = task.transform_target_to_root
+            assert owned is not None  # set when the task was made
+            goal = owned.wxyz_xyz
+            mujoco.mju_mat2Quat(goal[:4], np.ascontiguousarray(target.rot, dtype=float).reshape(9))
+            goal[4:] = target.pos
             tasks.append(task)
         return tasks

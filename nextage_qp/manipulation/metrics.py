@@ -15,6 +15,7 @@ from nextage_qp.geometry import wrap
 from nextage_qp.manipulation.config import SuccessCriteria
 from nextage_qp.manipulation.context import Grip
 from nextage_qp.robot import Robot
+from nextage_qp.scene import touch_sensor
 from nextage_qp.sim import Simulation
 
 
@@ -70,6 +71,8 @@ class OutcomeMonitor:
         self.obstacle_contacts = 0
         self.dropped = False
         self._fromto = np.zeros(6)
+        sensor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, touch_sensor("obstacle"))
+        self._touch = None if sensor < 0 else slice(int(m.sensor_adr[sensor]), int(m.sensor_adr[sensor]) + 2)
         self._watch = True  # something may touch the obstacle before the next tick: check every physics step
 
     def attach(self, sim: Simulation) -> None:
@@ -87,10 +90,18 @@ class OutcomeMonitor:
 
         Skipped while the last tick found every mover farther than the watched clearance from the obstacle
         (``CONTACT_WATCH``, or ``CONTACT_WATCH_SPEED`` times the control period: nothing here moves that far
-        within one control period).
+        within one control period). Reads the obstacle's contact sensor where the model has one
+        (:func:`~nextage_qp.scene.touch_sensor`), else MuJoCo's contact list.
         """
         d = sim.data
-        if not self._watch or d.ncon == 0:
+        if not self._watch:
+            return
+        if self._touch is not None:
+            found, dist = d.sensordata[self._touch]
+            if found > 0 and dist < 0:
+                self.obstacle_contacts += 1
+            return
+        if d.ncon == 0:
             return
         geoms = d.contact.geom[: d.ncon]
         touching = self._is_obstacle[geoms]
