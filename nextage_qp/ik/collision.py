@@ -166,17 +166,27 @@ class ActiveCollisionLimit(mink.Limit):
         before[low] = self.distances(data, low)
         floor = np.minimum(before, self.min_distance)
         pos0, mat0 = data.geom_xpos.copy(), data.geom_xmat.copy()
+        violators = np.zeros(0, dtype=int)  # pairs below their floor after the last step tried
         for _ in range(8):
             q_new = np.clip(q + dq, lower, upper)
             configuration.update(q_new)
+            if violators.size:  # the pairs that failed the last try, first: one still below rejects this try too
+                dists = self._measure(data, violators)
+                still = dists < floor.take(violators) - 1e-6
+                if still.any():
+                    violators = violators[still]
+                    dq = dq * 0.5
+                    continue
             moved = bounds.moved(data, pos0, mat0)
             check = np.flatnonzero(~(before - moved.take(self.geom1) - moved.take(self.geom2) >= floor) & enabled)
             check = check[bounds.sphere_gaps(data, check) < floor.take(check)]
             dists = self._measure(data, check)
-            if np.all(dists >= floor.take(check) - 1e-6):
+            ok = dists >= floor.take(check) - 1e-6
+            if ok.all():
                 bounds.update(data)
                 bounds.remember(check, dists, exact=True)
                 return q_new
+            violators = check[~ok]
             dq = dq * 0.5
         configuration.update(q)
         return q
