@@ -8,6 +8,7 @@ adds for objects.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import NamedTuple
@@ -128,7 +129,7 @@ class Robot:
             return "body", bid
         raise UnknownFrameError(name, self.frame_names)
 
-    @property
+    @functools.cached_property
     def object_names(self) -> tuple[str, ...]:
         """Free bodies of the scene (the manipulated objects, e.g. ``cube``, ``dumbbell``)."""
         free = self.model.jnt_type == mujoco.mjtJoint.mjJNT_FREE

@@ -124,7 +124,7 @@ class Servo:
             dq = v * dt
             if self.ik.config.trust_region:
                 dq = self._trust(command, dq, float(np.max(np.abs(v) / self.ik.box.vmax)))
-            self._q = np.clip(self._q + dq, r.lower, r.upper)
+            self._q = np.minimum(np.maximum(self._q + dq, r.lower), r.upper)  # np.clip costs more
         self.sim.set_target(self._q)
         return self.q_cmd
 

@@ -8,7 +8,7 @@ in front of the narrow phase, each exact (a filtered pair could not have produce
 3. **Reach bound.** With the joint box of the same QP, a pair within detection distance whose gap bound
    exceeds how far its two geoms can approach in one step of the box gets no row: it could never bind.
 
-:meth:`ActiveCollisionLimit.advance` is the offline solver's collision-safe step on the same bounds.
+The offline solver's collision-safe step on the same bounds is :func:`nextage_qp.ik.safe_step.advance`.
 """
 
 from __future__ import annotations
@@ -135,11 +135,11 @@ class ActiveCollisionLimit(mink.Limit):
         idx = indices.tolist() if isinstance(indices, np.ndarray) else indices
         return np.array([distance(model, data, geom1[i], geom2[i], detect[i], None) for i in idx], dtype=float)
 
-    def _measure(self, data: mujoco.MjData, pairs: np.ndarray) -> np.ndarray:
+    def measure(self, data: mujoco.MjData, pairs: np.ndarray) -> np.ndarray:
         """Distances [m] of ``pairs`` as the rows' narrow phase measures them, kept with their witness points.
 
         :meth:`compute_qp_inequalities` takes a kept measurement instead of measuring again while the pair's bound
-        is exact (nothing moved since).
+        is exact (nothing moved since; the caller marks it with ``bounds.remember(..., exact=True)``).
         """
         geom1, geom2, detect, _ = self._lists
         model, distance, margin, kept, fromto = self.model, mujoco.mj_geomDistance, self.margin, self._kept, \
@@ -147,49 +147,6 @@ class ActiveCollisionLimit(mink.Limit):
         for i in pairs.tolist():
             kept[i, 0] = distance(model, data, geom1[i], geom2[i], detect[i] + margin, fromto[i])
         return kept[pairs, 0]
-
-    def advance(self, configuration: mink.Configuration, q: np.ndarray, dq: np.ndarray,
-                lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-        """``clip(q + dq, lower, upper)``, halving ``dq`` while a watched pair would drop below its minimum.
-
-        A pair already below its minimum distance may not get closer; every other pair must stay at or above it.
-        Only pairs whose distance bound before the step, less how far their geoms moved in it, is not already
-        above that floor, and whose bounding spheres after it are not either, are measured after it: the others
-        cannot have dropped below. Returns ``q`` itself (the configuration back at it) when eight halvings all
-        fail. The measurements of the configuration it accepts are kept for the next call's rows.
-        """
-        data, bounds, enabled = configuration.data, self.bounds, self.enabled
-        # Floors: bounds before the step, measured where a pair may be below its minimum (unless the step's own
-        # rows measured it here already); after it, how far each geom moved.
-        before = bounds.lower(data)
-        low = np.flatnonzero((before < self.min_distance) & enabled & ~bounds.exact)
-        before[low] = self.distances(data, low)
-        floor = np.minimum(before, self.min_distance)
-        pos0, mat0 = data.geom_xpos.copy(), data.geom_xmat.copy()
-        violators = np.zeros(0, dtype=int)  # pairs below their floor after the last step tried
-        for _ in range(8):
-            q_new = np.clip(q + dq, lower, upper)
-            configuration.update(q_new)
-            if violators.size:  # the pairs that failed the last try, first: one still below rejects this try too
-                dists = self._measure(data, violators)
-                still = dists < floor.take(violators) - 1e-6
-                if still.any():
-                    violators = violators[still]
-                    dq = dq * 0.5
-                    continue
-            moved = bounds.moved(data, pos0, mat0)
-            check = np.flatnonzero(~(before - moved.take(self.geom1) - moved.take(self.geom2) >= floor) & enabled)
-            check = check[bounds.sphere_gaps(data, check) < floor.take(check)]
-            dists = self._measure(data, check)
-            ok = dists >= floor.take(check) - 1e-6
-            if ok.all():
-                bounds.update(data)
-                bounds.remember(check, dists, exact=True)
-                return q_new
-            violators = check[~ok]
-            dq = dq * 0.5
-        configuration.update(q)
-        return q
 
     def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
         """Rows of the pairs that can bind only; an inactive constraint when there are none."""

@@ -96,8 +96,7 @@ class Objective:
 
     def _stacked_rows(self, data: mujoco.MjData,
                       tasks: Sequence[mink.Task]) -> tuple[np.ndarray, np.ndarray, float]:
-        """Stacked weighted rows :math:`W` (6m, nv), errors :math:`e` (6m,) and summed LM term of m frame and
-        relative-frame tasks."""
+        """Stacked weighted rows :math:`W` (6m, nv), errors :math:`e` (6m,) and LM term of m (relative) frame tasks."""
         m, model, scratch = len(tasks), self.model, self._scratch
         if m > len(self._slots):
             self._alloc(m)
@@ -105,7 +104,7 @@ class Objective:
         lm = np.empty(m)
         for k, task in enumerate(tasks):
             rows = self._slots[k]
-            if type(task) is mink.FrameTask:
+            if isinstance(task, mink.FrameTask):
                 target = task.transform_target_to_world
                 if target is None:
                     raise mink.TargetNotSet(type(task).__name__)
@@ -117,6 +116,7 @@ class Objective:
                 np.matmul(_native.se3_jlog(_native.se3_inverse_multiply(goal, pose)), local, out=rows)
                 np.negative(rows, out=rows)  # J = -J_log(T*^-1 T) B_J
             else:
+                assert isinstance(task, mink.RelativeFrameTask)
                 target = task.transform_target_to_root
                 if target is None:
                     raise mink.TargetNotSet(type(task).__name__)

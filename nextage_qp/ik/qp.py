@@ -31,6 +31,7 @@ from nextage_qp.ik.model import (
     set_object_poses,
 )
 from nextage_qp.ik.objective import Objective
+from nextage_qp.ik.safe_step import advance
 from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, RelativeTarget, worst_errors
 from nextage_qp.ik.tasks import TaskCache
 from nextage_qp.robot import Robot, per_joint
@@ -260,9 +261,9 @@ class QPIK:
                 return (*best, iters, "max_iters" if iters >= cap else "stalled")
 
     def _advance(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """Q + dq inside the joint limits, collision-safe (:meth:`ActiveCollisionLimit.advance`)."""
+        """Q + dq inside the joint limits, collision-safe (:func:`~nextage_qp.ik.safe_step.advance`)."""
         if self.collision is None:
             q_new = np.clip(q + dq, self.box.lower, self.box.upper)
             self.configuration.update(q_new)
             return q_new
-        return self.collision.advance(self.configuration, q, dq, self.box.lower, self.box.upper)
+        return advance(self.collision, self.configuration, q, dq, self.box.lower, self.box.upper)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -78,7 +79,7 @@ def _is_rotation(rot: np.ndarray) -> bool:
 
 def _vector(value: np.ndarray, where: str) -> np.ndarray:
     vec = np.asarray(value, dtype=float).reshape(-1)
-    if vec.shape != (3,) or not np.all(np.isfinite(vec)):
+    if vec.shape != (3,) or not math.isfinite(vec[0] + vec[1] + vec[2]):  # NaN or inf anywhere
         raise ConfigError(f"{where} must be 3 finite numbers, got {np.asarray(value).tolist()}")
     return vec
 
@@ -146,14 +147,14 @@ def target_errors(target: FrameTarget, pos: np.ndarray, rot: np.ndarray) -> tupl
     The orientation error is the angle of :math:`R_t^T R` for a full rotation target, and the angle
     :math:`\arccos(\hat d \cdot R a)` between the tool axis and the direction for an axis target.
     """
-    pos_err = 0.0 if target.pos is None else float(np.linalg.norm(pos - target.pos))
+    pos_err = 0.0 if target.pos is None else math.dist(pos, target.pos)
     if target.rot is not None:
-        cos = (np.trace(target.rot.T @ rot) - 1.0) / 2.0
+        cos = (float(np.vecdot(target.rot.reshape(9), rot.reshape(9))) - 1.0) / 2.0  # trace(R_t^T R)
     elif target.axis is not None and target.direction is not None:
         cos = float(target.direction @ (rot @ target.axis))
     else:
         return pos_err, 0.0
-    return pos_err, float(np.arccos(np.clip(cos, -1.0, 1.0)))
+    return pos_err, math.acos(min(1.0, max(-1.0, cos)))
 
 
 def worst_errors(targets: Sequence[FrameTarget], poses: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[float, float]:
