@@ -158,6 +158,7 @@ class PDController:
         self.torque_limit = np.asarray(torque_limit, dtype=float).copy()
         if self.torque_limit.shape != gains.kp.shape or np.any(self.torque_limit <= 0):
             raise ConfigError(f"torque limits must be {gains.kp.size} values > 0 N m, got {self.torque_limit}")
+        self._saturated = self.torque_limit - 1e-9  # a force this large counts as clamped
         self.reset_counters()
 
     def install(self, model: Any, actuator_ids: np.ndarray) -> None:
@@ -207,7 +208,7 @@ class PDController:
         """Count physics steps' applied actuator forces [N·m], (15,) or (steps, 15), in the saturation counters."""
         force = np.atleast_2d(force)
         self.ticks += force.shape[0]
-        sat = np.abs(force) >= self.torque_limit - 1e-9
+        sat = np.abs(force) >= self._saturated
         if sat.any():
             self.saturated_ticks += sat.sum(axis=0)
             self.any_saturated_ticks += int(sat.any(axis=1).sum())

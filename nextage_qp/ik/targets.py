@@ -67,9 +67,12 @@ class FrameTarget:
         return self.rot is not None or self.axis is not None
 
 
+_EYE = np.eye(3)
+
+
 def _is_rotation(rot: np.ndarray) -> bool:
     """True for a finite 3x3 rotation matrix (orthonormal to 1e-6, determinant +1); cheap, called every tick."""
-    ortho = np.abs(rot.T @ rot - np.eye(3)).max()
+    ortho = np.abs(rot.T @ rot - _EYE).max()
     if not ortho <= 1e-6:  # also False for NaN
         return False
     a, b, c = rot[0].tolist(), rot[1].tolist(), rot[2].tolist()

@@ -67,6 +67,7 @@ class OutcomeMonitor:
         pairs = np.array([(og, g) for og in (self.obstacle or ()) for g in self.movers], dtype=int).reshape(-1, 2)
         self._pair1, self._pair2 = pairs[:, 0], pairs[:, 1]
         self._pair_rsum = m.geom_rbound[self._pair1] + m.geom_rbound[self._pair2]
+        self._pairs1, self._pairs2 = self._pair1.tolist(), self._pair2.tolist()
         self.min_clearance: float | None = None
         self.obstacle_contacts = 0
         self.dropped = False
@@ -119,15 +120,18 @@ class OutcomeMonitor:
         best = self.min_clearance if self.min_clearance is not None else 1.0
         # Bounding spheres first (vectorised): only pairs whose spheres come within the best clearance so far
         # (or within the watched clearance) need the narrow phase, nearest first so the bound tightens early.
-        delta = d.geom_xpos[self._pair1] - d.geom_xpos[self._pair2]
+        pos = d.geom_xpos
+        delta = pos.take(self._pair1, axis=0) - pos.take(self._pair2, axis=0)
         gap = np.sqrt(np.vecdot(delta, delta)) - self._pair_rsum
         watch = max(CONTACT_WATCH, CONTACT_WATCH_SPEED * sim.ctrl_dt)
         cut = max(best, watch)
         nearest = watch
-        for k in np.argsort(gap)[: int(np.count_nonzero(gap <= cut))].tolist():
-            if gap[k] > cut:
+        close = np.flatnonzero(gap <= cut)
+        distance, pair1, pair2, gaps = mujoco.mj_geomDistance, self._pairs1, self._pairs2, gap.tolist()
+        for k in close[np.argsort(gap.take(close))].tolist():
+            if gaps[k] > cut:
                 break
-            dist = float(mujoco.mj_geomDistance(m, d, int(self._pair1[k]), int(self._pair2[k]), cut, self._fromto))
+            dist = distance(m, d, pair1[k], pair2[k], cut, self._fromto)
             best, nearest = min(best, dist), min(nearest, dist)
             cut = max(best, watch)
         self.min_clearance = best

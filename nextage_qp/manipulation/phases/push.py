@@ -17,6 +17,8 @@ A small state machine, every step driven by the live object pose:
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from nextage_qp.errors import PhaseError
@@ -87,8 +89,12 @@ class Push(Phase):
         return Command((target,), allow=frozenset({self.spec.object}) if allow else frozenset(), done=done)
 
     def _rot(self, yaw: float) -> np.ndarray:
+        return rot_z(yaw) @ self._pitch
+
+    @functools.cached_property
+    def _pitch(self) -> np.ndarray:
         c, s = np.cos(self.spec.pitch), np.sin(self.spec.pitch)
-        return rot_z(yaw) @ np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+        return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
     def _turn_tool(self, view: View) -> None:  # towards the goal at the turn rate
         step = self.spec.turn_rate * view.dt
