@@ -107,6 +107,7 @@ class ActiveCollisionLimit(mink.Limit):
         self._allowed_geoms: np.ndarray | None = None
         self.active: list[tuple[int, float]] = []
         """(pair index, distance [m]) of the pairs sent to the QP at the last call."""
+        self._active_pairs: list[int] = []  # the same pairs' indices
         self.queries = 0
         """Narrow-phase distance queries made at the last call."""
         self.slack = 0
@@ -153,6 +154,7 @@ class ActiveCollisionLimit(mink.Limit):
         model, data = self.model, configuration.data
         bounds: list[float] = []
         self.active, self.slack = [], 0
+        self._active_pairs = active_pairs = []
         near, lower = self.bounds.near(data, self._watch_within)
         # Reach bound: how far the two geoms can approach in one step of the box (each joint at most its speed
         # limit times dt); a pair whose gap bound exceeds it cannot bind. Checked on the distance's lower bound
@@ -202,6 +204,7 @@ class ActiveCollisionLimit(mink.Limit):
                 jac1.fill(0.0)
             bounds.append(bound)
             self.active.append((idx, dist))
+            active_pairs.append(idx)
         self.bounds.remember(near, np.array(dists), exact=True)
         if not bounds:
             return Constraint()
@@ -213,10 +216,9 @@ class ActiveCollisionLimit(mink.Limit):
         As mink's ``compute_contact_normal_jacobian``: :math:`n` the unit vector from witness point :math:`p_1`
         to :math:`p_2`, :math:`s = -1` (sign flipped, :math:`+1`, for a penetrating pair).
         """
-        witness = self._kept[[i for i, _ in self.active], 1:]
-        normal = witness[:, 3:] - witness[:, :3]
-        sign = np.fromiter((-1.0 if d >= 0.0 else 1.0 for _, d in self.active), dtype=float, count=k)
-        normal *= (sign / np.sqrt(np.vecdot(normal, normal)))[:, None]
+        kept = self._kept.take(self._active_pairs, axis=0)  # per row: distance, from, to
+        normal = kept[:, 4:] - kept[:, 1:4]
+        normal *= (np.copysign(1.0, -kept[:, 0]) / np.sqrt(np.vecdot(normal, normal)))[:, None]  # s n
         jacs = self._jacs[:k]
         return np.matmul(normal[:, None, :], jacs[:, 0] - jacs[:, 1])[:, 0]
 

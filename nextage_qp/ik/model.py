@@ -8,6 +8,7 @@ placed through ``data.mocap_pos`` / ``data.mocap_quat``. Geom and body ids equal
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import NamedTuple
 
@@ -106,10 +107,12 @@ def set_object_poses(model: mujoco.MjModel, data: mujoco.MjData, poses: ObjectPo
         if name not in mocap:
             raise UnknownNameError("object", name, mocap)
         p, qt = np.asarray(pos, dtype=float), np.asarray(quat, dtype=float)
-        if p.shape != (3,) or qt.shape != (4,) or not np.linalg.norm(qt) > 0:
+        norm = math.sqrt(float(qt @ qt)) if qt.shape == (4,) else 0.0
+        if p.shape != (3,) or not norm > 0:
             raise ConfigError(f"object {name!r}: pose must be pos (3,) and non-zero quat wxyz (4,)")
-        data.mocap_pos[mocap[name]] = p
-        data.mocap_quat[mocap[name]] = qt / np.linalg.norm(qt)
+        i = mocap[name]
+        data.mocap_pos[i] = p
+        data.mocap_quat[i] = qt / norm
 
 
 def moved_by_a_joint(model: mujoco.MjModel, body: int) -> bool:
