@@ -1,4 +1,4 @@
-"""nextage_qp: QP task-space control of the Kawada Nextage dual-arm robot in MuJoCo."""
+"""nextage_qp: QP task-space control of dual-arm robots in MuJoCo, born on the Kawada Nextage."""
 
 from nextage_qp.errors import (
     ConfigError,
@@ -11,12 +11,10 @@ from nextage_qp.errors import (
     UnknownJointError,
     UnknownNameError,
 )
-from nextage_qp.nextage import JOINT_NAMES
 from nextage_qp.robot import Robot
 from nextage_qp.scene import SceneOverrides
 
 __all__ = [
-    "JOINT_NAMES",
     "ConfigError",
     "IKError",
     "NextageQPError",

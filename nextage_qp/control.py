@@ -17,127 +17,20 @@ affine ``general`` actuator, force :math:`= c - K_p q - K_d \dot q` clamped to :
 (:meth:`PDController.ctrl`), so ``mj_step`` evaluates the feedback on the state it integrates and no torque is
 computed in Python. :meth:`PDController.torque` is the same law in numpy (tests, analysis).
 
-Gains live in YAML, one entry per joint (``configs/gains/*.yaml``)::
-
-    gravity_compensation: true
-    joints:
-      CHEST_JOINT0: {kp: 400.0, kd: 40.0}   # [N m/rad], [N m s/rad]
-      ...
+Gains come from :mod:`nextage_qp.gains` (a YAML file per robot, or a rule on the joints' inertia).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from pathlib import Path
-from typing import Annotated, Any
+from typing import Any
 
 import mujoco
 import numpy as np
-from pydantic import BaseModel, Field, field_validator
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.nextage import JOINT_NAMES
-from nextage_qp.scene import package_root
-from nextage_qp.yaml_file import STRICT, read_yaml_mapping, validate
+from nextage_qp.gains import Gains, GainsFile, gains_path, load_gains
 
-NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False, strict=True)]
-
-
-class JointGains(BaseModel):
-    """One joint's gains: ``kp`` [N·m/rad] and ``kd`` [N·m·s/rad], finite and >= 0."""
-
-    model_config = STRICT
-
-    kp: NonNegative
-    kd: NonNegative
-
-
-class GainsFile(BaseModel):
-    """The schema of a gains YAML: one entry per robot joint and the gravity-compensation switch."""
-
-    model_config = STRICT
-
-    gravity_compensation: bool = Field(default=True, strict=True)
-    joints: dict[str, JointGains]
-
-    @field_validator("joints")
-    @classmethod
-    def _every_joint(cls, joints: dict[str, JointGains]) -> dict[str, JointGains]:
-        valid = ", ".join(JOINT_NAMES)
-        if bad := [j for j in joints if j not in JOINT_NAMES]:
-            raise ValueError(f"unknown joint {bad[0]!r}; valid joints: {valid}")
-        if missing := [j for j in JOINT_NAMES if j not in joints]:
-            raise ValueError(f"missing {', '.join(missing)}; every joint needs an entry; joints: {valid}")
-        return joints
-
-
-@dataclass(frozen=True)
-class Gains:
-    """PD gains of the robot's joints, as arrays in joint order.
-
-    Attributes:
-        kp: Proportional gains [N·m/rad], one per joint (:data:`~nextage_qp.nextage.JOINT_NAMES` order).
-        kd: Derivative gains [N·m·s/rad].
-        gravity_compensation: Add MuJoCo's bias force (gravity + Coriolis) to the PD torque.
-        source: Where the gains came from (file path or ``"<code>"``).
-    """
-
-    kp: np.ndarray
-    kd: np.ndarray
-    gravity_compensation: bool = True
-    source: str = "<code>"
-
-    def __post_init__(self) -> None:
-        for name in ("kp", "kd"):
-            arr = np.array(getattr(self, name), dtype=float)
-            if arr.shape != (len(JOINT_NAMES),) or not np.all(np.isfinite(arr)) or np.any(arr < 0):
-                raise ConfigError(f"{self.source}: {name} must be {len(JOINT_NAMES)} finite values >= 0, got {arr}")
-            arr.setflags(write=False)
-            object.__setattr__(self, name, arr)
-
-    @classmethod
-    def from_file(cls, doc: GainsFile, source: str) -> Gains:
-        """Arrays in joint order from a validated gains file."""
-        kp = [doc.joints[j].kp for j in JOINT_NAMES]
-        kd = [doc.joints[j].kd for j in JOINT_NAMES]
-        return cls(np.array(kp), np.array(kd), doc.gravity_compensation, source)
-
-    def as_dict(self) -> dict[str, dict[str, float]]:
-        """``{joint: {"kp": .., "kd": ..}}``."""
-        return {j: {"kp": float(p), "kd": float(d)} for j, p, d in zip(JOINT_NAMES, self.kp, self.kd, strict=True)}
-
-
-def gains_path(name: str | Path) -> Path:
-    """Resolve a gains file given as a path or a bundled name (``default``, ``report``).
-
-    Raises:
-        ConfigError: Neither a file nor a bundled name; the message lists the bundled ones.
-    """
-    path = Path(name)
-    if path.is_file():
-        return path
-    bundled = package_root() / "configs" / "gains"
-    for cand in (bundled / path, bundled / f"{path}.yaml"):
-        if cand.is_file():
-            return cand
-    names = sorted(p.stem for p in bundled.glob("*.yaml"))
-    raise ConfigError(f"gains file {str(name)!r} not found; bundled: {', '.join(names)} (or a path to a YAML file)")
-
-
-def load_gains(path: str | Path) -> Gains:
-    """Load and validate a gains YAML file (one ``{kp, kd}`` entry for every robot joint).
-
-    Raises:
-        ConfigError: The file is missing or malformed, a joint is missing or unknown, a key is unknown,
-            or a gain is not a finite number >= 0. The message names the file, the key and the valid values.
-    """
-    file = gains_path(path)
-    doc = read_yaml_mapping(file, "a mapping with keys 'joints' and 'gravity_compensation'")
-    try:
-        shown = str(file.resolve().relative_to(package_root()))
-    except ValueError:
-        shown = str(file)
-    return Gains.from_file(validate(GainsFile, doc, str(file)), shown)
+__all__ = ["Gains", "GainsFile", "PDController", "gains_path", "load_gains"]
 
 
 class PDController:
@@ -145,7 +38,7 @@ class PDController:
 
     Args:
         gains: Per-joint gains and the gravity-compensation switch.
-        torque_limit: Actuator limit :math:`\tau^{max}` [N·m] per joint, (15,).
+        torque_limit: Actuator limit :math:`\tau^{max}` [N·m] per joint, (n,).
 
     Attributes:
         ticks: Number of torque evaluations so far.

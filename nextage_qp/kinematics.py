@@ -5,7 +5,8 @@ Two independent implementations:
 * :class:`Kinematics` evaluates MuJoCo (``mj_kinematics`` / ``mj_jac``) on a private ``MjData``, so it never
   disturbs a running simulation.
 * :func:`chain_fk` multiplies one homogeneous transform per joint along a kinematic chain built from a
-  topology map written from the spec's joint table (:data:`NEXTAGE_TOPOLOGY`), as in the report:
+  topology map written from a joint table (the Nextage's: :data:`nextage_qp.robots.nextage_chain.TOPOLOGY`), as in
+  the report:
 
   .. math::
 
@@ -25,7 +26,6 @@ import numpy as np
 
 from nextage_qp.errors import UnknownFrameError
 from nextage_qp.geometry import Pose
-from nextage_qp.nextage import JOINT_NAMES, TOPOLOGY
 from nextage_qp.robot import Robot
 
 
@@ -51,7 +51,7 @@ class Kinematics:
         self._q = q.copy()
 
     def fk(self, frame: str, q: np.ndarray) -> Pose:
-        """World pose of a body or site at joint vector ``q`` [rad] (15 robot joints).
+        """World pose of a body or site at joint vector ``q`` [rad] (the robot's joints).
 
         Raises:
             UnknownFrameError: ``frame`` is neither a site nor a body.
@@ -63,7 +63,7 @@ class Kinematics:
         return Pose(self.data.xpos[fid].copy(), self.data.xmat[fid].reshape(3, 3).copy())
 
     def jacobian(self, frame: str, q: np.ndarray) -> np.ndarray:
-        """The 6 x 15 world-frame Jacobian ``[J_v; J_w]`` of a frame's origin over the robot joints.
+        """The 6 x n world-frame Jacobian ``[J_v; J_w]`` of a frame's origin over the robot's n joints.
 
         Rows 0-2 map joint velocities [rad/s] to the origin's linear velocity [m/s], rows 3-5 to the
         frame's angular velocity [rad/s], both in world coordinates.
@@ -77,10 +77,6 @@ class Kinematics:
             mujoco.mj_jacBody(self.robot.model, self.data, self._jacp, self._jacr, fid)
         dofs = self.robot.dof_idx
         return np.vstack([self._jacp[:, dofs], self._jacr[:, dofs]])
-
-
-NEXTAGE_TOPOLOGY = TOPOLOGY
-"""joint -> (parent joint, origin [m] in the parent link frame, axis), from :mod:`nextage_qp.nextage`."""
 
 
 def axis_angle_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -99,14 +95,14 @@ def joint_transform(origin: np.ndarray, axis: np.ndarray, angle: float) -> np.nd
 
 def chain_fk(
     link: str,
-    q: Mapping[str, float] | np.ndarray,
-    topology: Mapping[str, tuple[str | None, tuple[float, ...], tuple[float, ...]]] = NEXTAGE_TOPOLOGY,
+    q: Mapping[str, float],
+    topology: Mapping[str, tuple[str | None, tuple[float, ...], tuple[float, ...]]],
 ) -> np.ndarray:
     """World transform (4 x 4) of a joint's child link frame by chaining per-joint transforms.
 
     Args:
         link: A joint name (``LARM_JOINT5``) or its link (``LARM_JOINT5_Link``).
-        q: Joint angles [rad], as a name map or a vector in :data:`~nextage_qp.nextage.JOINT_NAMES` order.
+        q: Joint angles [rad] by joint name (a joint left out is at 0).
         topology: joint -> (parent joint, origin, axis).
 
     Raises:
@@ -115,7 +111,7 @@ def chain_fk(
     joint = link.removesuffix("_Link")
     if joint not in topology:
         raise UnknownFrameError(link, [f"{j}_Link" for j in topology])
-    angles = q if isinstance(q, Mapping) else dict(zip(JOINT_NAMES, np.asarray(q, dtype=float), strict=True))
+    angles = q
     chain: list[str] = []
     node: str | None = joint
     while node is not None:

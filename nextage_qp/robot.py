@@ -1,15 +1,15 @@
-"""The Nextage robot in a MuJoCo scene: names and indices, arm groups, frames, keyframes, scene overrides.
+"""A robot in a MuJoCo scene: names and indices, arm groups, frames, keyframes, scene overrides.
 
-A :class:`Robot` wraps one compiled ``MjModel`` (the robot alone or a task scene that includes it). Every
-joint, actuator and body carries the URDF name, so the report's tables map 1:1. Robot configurations are
-15-vectors ``q`` in :data:`~nextage_qp.nextage.JOINT_NAMES` order, independent of any free joints the scene
-adds for objects.
+A :class:`Robot` wraps one compiled ``MjModel`` (a task scene composed around the robot of a robot file,
+:mod:`nextage_qp.robots`) and the robot file's description. Every joint, actuator and body keeps the model's own
+name. Robot configurations are vectors ``q`` over the robot's joints in model order (:attr:`Robot.joint_names`),
+independent of any free joints the scene adds for objects.
 """
 
 from __future__ import annotations
 
 import functools
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -17,8 +17,15 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError, UnknownFrameError, UnknownJointError, UnknownNameError
-from nextage_qp.nextage import GROUP_JOINTS, JOINT_NAMES, ROBOT_COLLISION_GROUPS, SCENE_GROUP_BODIES
-from nextage_qp.scene import SceneOverrides, compile_scene
+from nextage_qp.per_joint import PerJoint, per_joint  # noqa: F401 (re-exported)
+from nextage_qp.robots.actuation import torque_limits
+from nextage_qp.robots.description import Arm, RobotDescription, load_robot
+from nextage_qp.scene import SceneOverrides, add_touch_sensors, compile_spec
+
+SCENE_GROUP_BODIES = ("table", "obstacle")
+"""Static scene bodies that become collision groups of their own when a scene has them."""
+WATCHED_BODIES = ("obstacle",)
+"""Scene bodies that get a contact sensor (:func:`~nextage_qp.scene.add_touch_sensors`): touching them counts."""
 
 
 class GroupSpec(NamedTuple):
@@ -29,16 +36,20 @@ class GroupSpec(NamedTuple):
 
 
 class Robot:
-    """Names and indices of the Nextage in one compiled scene.
+    """Names and indices of a robot in one compiled scene.
 
     Args:
-        model: A compiled model that contains the 15 Nextage joints.
+        model: A compiled model that contains the robot's joints.
+        description: The robot file's description (default: the default robot's).
         scene: Where the model came from (for messages).
+        overrides: The scene overrides the model was compiled with.
+        spec: Rebuilds the model's spec (kinematic copies, e.g. the IK's, are compiled from it), or None.
 
     Attributes:
         model: The MuJoCo model.
+        description: The robot file's description.
         overrides: The scene overrides the model was compiled with (kinematic copies apply them too).
-        joint_ids: Model joint id of each of :data:`JOINT_NAMES`.
+        joint_ids: Model joint id of each robot joint.
         qpos_idx: Index into ``data.qpos`` of each robot joint (read-only).
         dof_idx: Index into ``data.qvel`` / ``qfrc_*`` of each robot joint (read-only).
         actuator_ids: Actuator driving each robot joint, in joint order (read-only).
@@ -46,42 +57,77 @@ class Robot:
         torque_limit: Actuator torque limit [N m] per joint (read-only).
     """
 
-    def __init__(
-        self, model: mujoco.MjModel, scene: str = "<model>", overrides: SceneOverrides | None = None
-    ) -> None:
+    def __init__(self, model: mujoco.MjModel, description: RobotDescription | None = None, scene: str = "<model>",
+                 overrides: SceneOverrides | None = None, spec: Callable[[], mujoco.MjSpec] | None = None) -> None:
         self.model = model
+        self.description = desc = description or load_robot()
         self.scene = scene
         self.overrides = overrides or SceneOverrides()
-        model_joints = [model.joint(i).name for i in range(model.njnt)]
-        missing = [j for j in JOINT_NAMES if j not in model_joints]
-        if missing:
-            raise ConfigError(f"{scene}: model lacks Nextage joints {missing}")
-        self.joint_ids = _ro(np.array([model.joint(j).id for j in JOINT_NAMES]))
+        self.spec = spec
+        model_joints = {model.joint(i).name: i for i in range(model.njnt)}
+        if missing := [j for j in desc.joints if j not in model_joints]:
+            raise ConfigError(f"{scene}: model lacks the joints {missing} of robot {desc.name!r} ({desc.source})")
+        ids = sorted(model_joints[j] for j in desc.joints)
+        for j in ids:
+            if int(model.jnt_type[j]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+                raise ConfigError(f"{desc.source}: joint {model.joint(j).name!r} is not a hinge or slide joint")
+        self._names = tuple(model.joint(j).name for j in ids)
+        self.joint_ids = _ro(np.array(ids, dtype=int))
         self.qpos_idx = _ro(model.jnt_qposadr[self.joint_ids].copy())
         self.dof_idx = _ro(model.jnt_dofadr[self.joint_ids].copy())
-        act_of_joint = {int(model.actuator_trnid[a, 0]): a for a in range(model.nu)}
-        self.actuator_ids = _ro(np.array([act_of_joint[int(j)] for j in self.joint_ids]))
-        self.lower = _ro(model.jnt_range[self.joint_ids, 0].copy())
-        self.upper = _ro(model.jnt_range[self.joint_ids, 1].copy())
-        self.torque_limit = _ro(model.actuator_ctrlrange[self.actuator_ids, 1].copy())
-        self._joint_index = {name: i for i, name in enumerate(JOINT_NAMES)}
+        act_of_joint = {int(model.actuator_trnid[a, 0]): a for a in range(model.nu)
+                        if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT}
+        if undriven := [model.joint(j).name for j in ids if j not in act_of_joint]:
+            raise ConfigError(f"{scene}: no actuator drives the joints {undriven}")
+        self.actuator_ids = _ro(np.array([act_of_joint[j] for j in ids], dtype=int))
+        limited = model.jnt_limited[self.joint_ids].astype(bool)
+        self.lower = _ro(np.where(limited, model.jnt_range[self.joint_ids, 0], -np.pi))
+        self.upper = _ro(np.where(limited, model.jnt_range[self.joint_ids, 1], np.pi))
+        self.torque_limit = _ro(torque_limits(model, self.actuator_ids, self.joint_ids, desc))
+        self._joint_index = {name: i for i, name in enumerate(self._names)}
 
     @classmethod
-    def from_scene(cls, scene: str | Path = "scene", overrides: SceneOverrides | None = None) -> Robot:
-        """Load a bundled scene by name (``scene``, ``push_cube``, ``dock_dumbbell``, ``nextage``) or path."""
-        return cls(compile_scene(scene, overrides, touch=("obstacle",)), scene=str(scene), overrides=overrides)
+    def from_scene(cls, scene: str | Path = "scene", overrides: SceneOverrides | None = None,
+                   robot: str | Path | RobotDescription | None = None) -> Robot:
+        """Compose a scene (bundled name or path) around a robot (robot file, bundled name, or the default robot).
+
+        Raises:
+            ConfigError: The robot file or the scene is invalid, or they do not compile together.
+        """
+        from nextage_qp.robots.compose import compose
+
+        desc = robot if isinstance(robot, RobotDescription) else load_robot(robot)
+        overrides = overrides or SceneOverrides()
+
+        def spec() -> mujoco.MjSpec:
+            return compose(desc, scene, overrides)
+
+        composed = spec()
+        add_touch_sensors(composed, WATCHED_BODIES)
+        model = compile_spec(composed, f"scene {str(scene)!r} with robot {desc.name!r}")
+        return cls(model, desc, scene=str(scene), overrides=overrides, spec=spec)
+
+    @property
+    def name(self) -> str:
+        """The robot's name."""
+        return self.description.name
+
+    @property
+    def arms(self) -> tuple[Arm, ...]:
+        """The robot's arms, the first one on the +y side."""
+        return self.description.arms
 
     # Names and indices.
 
     @property
     def joint_names(self) -> tuple[str, ...]:
-        """The robot's joints, in q order."""
-        return JOINT_NAMES
+        """The robot's joints, in q order (the model's)."""
+        return self._names
 
     @property
     def nq(self) -> int:
-        """Number of robot joints (15)."""
-        return len(JOINT_NAMES)
+        """Number of robot joints."""
+        return len(self._names)
 
     def joint_index(self, name: str) -> int:
         """Position of a joint in the robot's q vector.
@@ -92,13 +138,14 @@ class Robot:
         try:
             return self._joint_index[name]
         except KeyError:
-            raise UnknownJointError(name, JOINT_NAMES) from None
+            raise UnknownJointError(name, self._names) from None
 
     def group(self, name: str) -> np.ndarray:
-        """Indices into q of a joint group (``chest``, ``head``, ``left_arm``, ``right_arm``)."""
-        if name not in GROUP_JOINTS:
-            raise UnknownNameError("joint group", name, GROUP_JOINTS)
-        return np.array([self._joint_index[j] for j in GROUP_JOINTS[name]])
+        """Indices into q of a joint group (each arm's ``NAME_arm`` and the robot file's, e.g. ``chest``)."""
+        groups = self.description.groups
+        if name not in groups:
+            raise UnknownNameError("joint group", name, groups)
+        return np.array([self._joint_index[j] for j in groups[name]])
 
     @property
     def site_names(self) -> tuple[str, ...]:
@@ -152,12 +199,17 @@ class Robot:
     # Configurations.
 
     def keyframe_q(self, name: str = "home") -> np.ndarray:
-        """Robot q of a keyframe (``home``, ``zero``)."""
-        kid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_KEY, name)
-        if kid < 0:
-            valid = [self.model.key(i).name for i in range(self.model.nkey)]
-            raise UnknownNameError("keyframe", name, valid)
-        return self.model.key_qpos[kid, self.qpos_idx].copy()
+        """Robot q of a keyframe of the robot file (``home``; the model's own keyframe, or joint -> rad)."""
+        keys = self.description.keyframes
+        if name not in keys:
+            raise UnknownNameError("keyframe", name, keys)
+        key = keys[name]
+        if isinstance(key, str):  # the model's own keyframe
+            kid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_KEY, name)
+            if kid < 0:
+                raise ConfigError(f"{self.description.source}: keyframes.{name}: the model has no keyframe {name!r}")
+            return self.model.key_qpos[kid, self.qpos_idx].copy()
+        return self.q_from_names(key)
 
     def q_from_names(self, values: Mapping[str, float], base: np.ndarray | None = None) -> np.ndarray:
         """A q vector from ``{joint name: angle [rad]}`` on top of ``base`` (default: zeros)."""
@@ -168,7 +220,7 @@ class Robot:
 
     def q_to_names(self, q: Sequence[float] | np.ndarray) -> dict[str, float]:
         """``{joint name: angle [rad]}`` of a q vector."""
-        return {name: float(v) for name, v in zip(JOINT_NAMES, q, strict=True)}
+        return {name: float(v) for name, v in zip(self._names, q, strict=True)}
 
     def get_q(self, data: mujoco.MjData) -> np.ndarray:
         """Robot joint positions [rad] read from a simulation."""
@@ -191,70 +243,25 @@ class Robot:
     def collision_geoms(self, extra: Mapping[str, GroupSpec] | None = None) -> dict[str, tuple[int, ...]]:
         """Named groups of collision geom ids, for collision avoidance and contact checks.
 
-        Groups: those of :data:`~nextage_qp.nextage.ROBOT_COLLISION_GROUPS` (``left_arm`` / ``right_arm``,
-        ``left_forearm`` / ``right_forearm``, ``left_hand`` / ``right_hand``, ``torso``, ``head``), ``table`` and
-        ``obstacle`` when the scene has them, one group per object (e.g. ``cube``), and the ``extra`` groups.
+        Groups: the robot file's (e.g. ``left_arm``, ``left_hand``, ``torso``), ``table`` and ``obstacle`` when
+        the scene has them, one group per object (e.g. ``cube``), and the ``extra`` groups.
 
         Raises:
-            UnknownNameError: An extra group names a body that is not in the scene.
+            UnknownNameError: A group names a body that is not in the scene.
         """
-        m = self.model
-        colliding = [g for g in range(m.ngeom) if m.geom_contype[g] or m.geom_conaffinity[g]]
+        from nextage_qp.robots.groups import collision_geoms
 
-        def of_bodies(ids: set[int]) -> tuple[int, ...]:
-            return tuple(g for g in colliding if int(m.geom_bodyid[g]) in ids)
+        return collision_geoms(self, extra)
 
-        def ids(names: Sequence[str], strict: bool, what: str) -> set[int]:
-            found = set()
-            for n in names:
-                bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n)
-                if bid < 0 and strict:
-                    raise UnknownNameError(what, n, self.body_names)
-                if bid >= 0:
-                    found.add(bid)
-            return found
-
-        groups = {name: of_bodies(ids(bodies, False, "body")) for name, bodies in ROBOT_COLLISION_GROUPS.items()}
-        for name in (*SCENE_GROUP_BODIES, *self.object_names):
-            if found := of_bodies(ids([name], False, "body")):
-                groups[name] = found
-        for name, spec in (extra or {}).items():
-            roots = ids(spec.subtrees, True, f"body (collision group {name!r} subtree)")
-            below = {b for b in range(m.nbody) if any(descends(m, b, r) for r in roots)}
-            groups[name] = of_bodies(ids(spec.bodies, True, f"body (collision group {name!r})") | below)
-        return groups
+    @property
+    def robot_groups(self) -> tuple[str, ...]:
+        """The robot file's collision groups (the robot's own geoms)."""
+        return tuple(self.description.collision_groups)
 
 
-PerJoint = float | tuple[float, ...] | dict[str, float]
-"""A per-joint setting: one value for every joint, a list in joint order, or ``{joint: value}``."""
-
-
-def per_joint(value: PerJoint, default: float, names: Sequence[str]) -> np.ndarray:
-    """The per-joint array of a setting; joints a mapping leaves out get ``default`` (one meaning everywhere).
-
-    Raises:
-        ConfigError: A list of the wrong length or a mapping with an unknown joint.
-    """
-    if isinstance(value, dict):
-        out = np.full(len(names), float(default))
-        for joint, v in value.items():
-            if joint not in names:
-                raise UnknownJointError(joint, names)
-            out[list(names).index(joint)] = v
-        return out
-    arr = np.broadcast_to(np.asarray(value, dtype=float), (len(names),)) if np.ndim(value) == 0 else np.asarray(value)
-    if arr.shape != (len(names),):
-        raise ConfigError(f"a per-joint list needs {len(names)} values, got {len(arr)}")
-    return np.array(arr, dtype=float)
-
-
-def descends(m: mujoco.MjModel, body: int, root: int) -> bool:
-    """Whether ``body`` is ``root`` or lies in its subtree (every body descends from the world, 0)."""
-    while body > 0:
-        if body == root:
-            return True
-        body = int(m.body_parentid[body])
-    return root == 0
+def tool_frames(robot: Robot) -> tuple[str, ...]:
+    """Each arm's tool and pad frames, the frames a manipulation run records and marks (each once)."""
+    return tuple(dict.fromkeys(f for arm in robot.arms for f in (arm.tool, arm.pad)))
 
 
 def _ro(a: np.ndarray) -> np.ndarray:

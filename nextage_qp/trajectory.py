@@ -24,7 +24,6 @@ import ruckig
 from pydantic import BaseModel, field_validator
 
 from nextage_qp.errors import TrajectoryError
-from nextage_qp.nextage import JOINT_NAMES
 from nextage_qp.robot import PerJoint, per_joint
 from nextage_qp.yaml_file import STRICT
 
@@ -34,8 +33,9 @@ _OK = (ruckig.Result.Working, ruckig.Result.Finished)
 class TrajectoryLimits(BaseModel):
     """Kinematic bounds of the joint references, scalar (every joint) or per joint.
 
-    A per-joint value is a list in :data:`~nextage_qp.nextage.JOINT_NAMES` order or a mapping
-    ``{joint: value}`` (joints left out take the default of the field).
+    A per-joint value is a list in the robot's joint order or a mapping ``{joint: value}`` (joints left out take
+    the default of the field); the names and the list's length are checked against the robot
+    (:meth:`arrays`).
 
     Attributes:
         max_velocity: [rad/s]; the URDF's joint velocity limit is 1.0.
@@ -55,16 +55,15 @@ class TrajectoryLimits(BaseModel):
         values = value.values() if isinstance(value, dict) else np.atleast_1d(value)
         if any(not (np.isfinite(v) and v > 0) for v in values):
             raise ValueError(f"every limit must be finite and > 0, got {value}")
-        if isinstance(value, dict) and (bad := sorted(set(value) - set(JOINT_NAMES))):
-            raise ValueError(f"unknown joint(s) {bad}; valid: {', '.join(JOINT_NAMES)}")
-        if isinstance(value, tuple) and len(value) != len(JOINT_NAMES):
-            raise ValueError(f"a per-joint list needs {len(JOINT_NAMES)} values, got {len(value)}")
         return value
 
-    def arrays(self, names: Sequence[str] = JOINT_NAMES) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def arrays(self, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per-joint (velocity, acceleration, jerk) bounds over ``names``.
 
         Joints a mapping leaves out get the field's default.
+
+        Raises:
+            ConfigError: A list of the wrong length or a mapping with a joint not in ``names``.
         """
         defaults = type(self).model_fields
         v, a, j = (per_joint(getattr(self, f), float(defaults[f].default), names)
@@ -107,7 +106,7 @@ class JointTrajectory:
         dt: Control period [s]; each :meth:`update` advances the reference by ``dt``.
         lower: Optional joint lower limits [rad]; a target outside ``[lower, upper]`` is an error.
         upper: Optional joint upper limits [rad].
-        joint_names: Names used in error messages (default :data:`~nextage_qp.nextage.JOINT_NAMES`).
+        joint_names: The joints, in order (names used in error messages).
     """
 
     def __init__(
@@ -117,7 +116,7 @@ class JointTrajectory:
         dt: float,
         lower: np.ndarray | None = None,
         upper: np.ndarray | None = None,
-        joint_names: Sequence[str] = JOINT_NAMES,
+        joint_names: Sequence[str],
     ) -> None:
         if not dt > 0:
             raise TrajectoryError(f"control period dt must be > 0 s, got {dt}")
@@ -186,8 +185,9 @@ class JointTrajectory:
             new = self._output()
             if not all(np.isfinite(a).all() for a in new):
                 bad = int(np.flatnonzero(~(np.isfinite(new[0]) & np.isfinite(new[1]) & np.isfinite(new[2])))[0])
-                raise TrajectoryError(f"reference update: Ruckig returned a non-finite state for joint "
-                                      f"{self.names[bad]}")
+                raise TrajectoryError(
+                    f"reference update: Ruckig returned a non-finite state for joint {self.names[bad]}"
+                )
         self._result = result
         self._t0 = self._out.time - self.dt
         self._out.pass_to_input(self._inp)

@@ -13,7 +13,6 @@ import numpy as np
 import ruckig
 
 from nextage_qp.errors import TrajectoryError
-from nextage_qp.nextage import JOINT_NAMES
 from nextage_qp.trajectory import TrajectoryLimits, check_result, fill_limits, joint_error
 
 
@@ -33,13 +32,14 @@ def plan_segment(
     *,
     qd0: np.ndarray | None = None,
     qd1: np.ndarray | None = None,
-    joint_names: Sequence[str] = JOINT_NAMES,
+    joint_names: Sequence[str] = (),
 ) -> ruckig.Trajectory:
     """Time-optimal state-to-state segment from ``(q0, qd0)`` to ``(q1, qd1)`` (zero accelerations).
 
     Raises:
         TrajectoryError: Ruckig rejected the input (naming the joint) or could not plan it.
     """
+    joint_names = tuple(joint_names) or tuple(f"joint {i}" for i in range(len(q0)))
     n = len(joint_names)
     inp = ruckig.InputParameter(n)
     fill_limits(inp, limits, joint_names)
@@ -60,7 +60,7 @@ def chain_waypoints(
     *,
     dt: float,
     velocities: Sequence[np.ndarray] | None = None,
-    joint_names: Sequence[str] = JOINT_NAMES,
+    joint_names: Sequence[str] = (),
 ) -> Samples:
     """Plan through ``waypoints`` (the first is the start), one segment per pair, sampled every ``dt`` [s].
 
@@ -69,7 +69,7 @@ def chain_waypoints(
         limits: Bounds applied on every segment.
         dt: Sampling period [s].
         velocities: Optional velocity [rad/s] at each waypoint (default: stop at each one).
-        joint_names: Names used in error messages.
+        joint_names: Names used in error messages (default: ``joint 0`` ...).
 
     Raises:
         TrajectoryError: Fewer than two waypoints, or a segment could not be planned (the message
@@ -94,5 +94,5 @@ def chain_waypoints(
     starts = np.concatenate([[0.0], ends[:-1]])
     rows = [np.concatenate(segments[s].at_time(ti - starts[s])) for ti, s in zip(t, which, strict=True)]
     data = np.asarray(rows)
-    n = len(joint_names)
+    n = len(waypoints[0])
     return Samples(t, data[:, :n], data[:, n : 2 * n], data[:, 2 * n :])

@@ -9,7 +9,7 @@ from nextage_qp.robot import Robot
 
 @pytest.fixture(scope="session")
 def robot() -> Robot:
-    return Robot.from_scene("nextage")
+    return Robot.from_scene("scene")
 
 
 @pytest.fixture(scope="session")

@@ -2,10 +2,10 @@ import re
 
 import numpy as np
 import pytest
+from tests_support import NEXTAGE_JOINTS as JOINT_NAMES
 
 from nextage_qp.control import Gains, PDController, load_gains
 from nextage_qp.errors import ConfigError
-from nextage_qp.nextage import JOINT_NAMES
 
 N = len(JOINT_NAMES)
 

@@ -1,9 +1,10 @@
 import numpy as np
 import pytest
+from tests_support import NEXTAGE_JOINTS as JOINT_NAMES
 
 from nextage_qp.errors import UnknownFrameError
-from nextage_qp.kinematics import NEXTAGE_TOPOLOGY, Kinematics, chain_fk
-from nextage_qp.nextage import JOINT_NAMES
+from nextage_qp.kinematics import Kinematics, chain_fk
+from nextage_qp.robots.nextage_chain import TOPOLOGY as NEXTAGE_TOPOLOGY
 
 # Spec section 1.4: world positions of the link frames.
 REF_ZERO = {
@@ -59,7 +60,7 @@ def test_mujoco_fk_equals_transform_chain_on_1000_random_configurations(robot):
         q = rng.uniform(robot.lower, robot.upper)
         for joint in JOINT_NAMES:
             pose = kin.fk(f"{joint}_Link", q)
-            t = chain_fk(joint, q)
+            t = chain_fk(joint, dict(zip(JOINT_NAMES, q, strict=True)), NEXTAGE_TOPOLOGY)
             worst = max(worst, np.abs(pose.pos - t[:3, 3]).max(), np.abs(pose.rot - t[:3, :3]).max())
     assert worst < 1e-9
 
@@ -68,10 +69,10 @@ def test_transform_chain_topology_covers_every_joint():
     assert set(NEXTAGE_TOPOLOGY) == set(JOINT_NAMES)
 
 
-def test_chain_fk_accepts_name_map(robot):
+def test_chain_fk_takes_a_link_or_its_joint_and_zero_for_joints_left_out(robot):
     q = robot.keyframe_q("home")
-    by_name = chain_fk("LARM_JOINT5_Link", robot.q_to_names(q))
-    np.testing.assert_allclose(by_name, chain_fk("LARM_JOINT5", q))
+    by_name = chain_fk("LARM_JOINT5_Link", robot.q_to_names(q), NEXTAGE_TOPOLOGY)
+    np.testing.assert_allclose(by_name, chain_fk("LARM_JOINT5", {"LARM_JOINT1": -0.4}, NEXTAGE_TOPOLOGY))
 
 
 @pytest.mark.parametrize("frame", ["left_wrist", "right_tool", "LARM_JOINT3_Link", "CHEST_JOINT0_Link"])
@@ -111,7 +112,7 @@ def test_unknown_frame_lists_valid_names(robot):
     with pytest.raises(UnknownFrameError, match="valid: left_wrist"):
         Kinematics(robot).fk("LARM_HAND", robot.keyframe_q())
     with pytest.raises(UnknownFrameError, match="LARM_JOINT5_Link"):
-        chain_fk("LARM_HAND", robot.keyframe_q())
+        chain_fk("LARM_HAND", {}, NEXTAGE_TOPOLOGY)
 
 
 def test_pose_quaternion_is_unit_and_matches_rotation(robot):

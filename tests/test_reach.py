@@ -21,7 +21,7 @@ def test_reach_within_2mm_with_limited_references(robot, pos):
     assert res.final_error_m < 2e-3
     assert res.time_to_1mm_s is not None
     a = sim.recorder.arrays()
-    v, acc, jerk = LIMITS.arrays()
+    v, acc, jerk = LIMITS.arrays(robot.joint_names)
     dt = sim.ctrl_dt  # one log row per control tick
     np.testing.assert_allclose(np.diff(a["t"]), dt)
     qdd = np.diff(a["qd_ref"], axis=0) / dt  # mean acceleration over each tick

@@ -1,9 +1,11 @@
+import itertools
+
 import mujoco
 import numpy as np
 import pytest
+from tests_support import NEXTAGE_JOINTS as JOINT_NAMES
 
 from nextage_qp.errors import ConfigError, UnknownJointError, UnknownNameError
-from nextage_qp.nextage import JOINT_NAMES
 from nextage_qp.robot import Robot
 from nextage_qp.scene import BodyPose, SceneOverrides, scene_path
 
@@ -17,7 +19,7 @@ MASSES = {
     **{f"{s}ARM_JOINT{i}_Link": m for s in "LR" for i, m in
        enumerate((1.32626, 1.14898, 0.577518, 0.457418, 0.418434, 1.05156))},
 }
-SCENES = ["nextage", "scene", "push_cube", "dock_dumbbell"]
+SCENES = ["scene", "push_cube", "dock_dumbbell"]
 
 
 def test_joint_names_order_and_indices(robot):
@@ -169,19 +171,22 @@ def test_trimmed_excludes_keep_the_contact_set():
     """The adjacent-link excludes the MJCF leaves out (MuJoCo's parent filter covers them) change no contact."""
     import mujoco
 
-    from nextage_qp.nextage import ARMS, HEAD_BODIES
-    from nextage_qp.scene import compile_scene, scene_spec
+    from nextage_qp.robots.compose import robot_spec
+    from nextage_qp.robots.description import load_robot
 
-    spec = scene_spec("nextage")
-    adjacent = [("CHEST_JOINT0_Link", HEAD_BODIES[0]), HEAD_BODIES]
-    for arm in ARMS:
-        adjacent += [("CHEST_JOINT0_Link", arm.links[0]), *zip(arm.links[:-1], arm.links[1:], strict=True)]
+    description = load_robot("nextage")
+    spec = robot_spec(description)
+    arms = [[f"{prefix}_JOINT{i}_Link" for i in range(6)] for prefix in ("LARM", "RARM")]
+    heads = ("HEAD_JOINT0_Link", "HEAD_JOINT1_Link")
+    adjacent = [("CHEST_JOINT0_Link", heads[0]), heads]
+    for links in arms:
+        adjacent += [("CHEST_JOINT0_Link", links[0]), *itertools.pairwise(links)]
     assert len(adjacent) == 14
     for a, b in adjacent:
         spec.add_exclude(bodyname1=a, bodyname2=b)
-    full, trimmed = spec.compile(), compile_scene("nextage")
+    full, trimmed = spec.compile(), robot_spec(description).compile()
     assert trimmed.nexclude == 3 and full.nexclude == 17
-    robot = Robot(trimmed)
+    robot = Robot(trimmed, description)
     rng = np.random.default_rng(0)
     datas = [mujoco.MjData(full), mujoco.MjData(trimmed)]
     touched = 0

@@ -3,10 +3,10 @@ import json
 import numpy as np
 import pytest
 from pydantic import ValidationError
+from tests_support import NEXTAGE_JOINTS as JOINT_NAMES
 
 from nextage_qp.control import Gains, PDController, load_gains
 from nextage_qp.errors import SimulationError
-from nextage_qp.nextage import JOINT_NAMES
 from nextage_qp.robot import Robot
 from nextage_qp.sim import Simulation, Timing
 from nextage_qp.trajectory import TrajectoryLimits
@@ -45,7 +45,7 @@ def test_shaped_target_tracked_within_limits(robot, gains):
     sim.run(2.0)
     assert sim.traj.done
     a = sim.recorder.arrays()
-    v, _, _ = limits.arrays()
+    v, _, _ = limits.arrays(JOINT_NAMES)
     assert np.all(np.abs(a["qd_ref"]) <= v + 1e-9)
     assert np.max(np.abs(sim.q - target)) < 1e-3
     assert np.all(np.abs(a["tau"]) <= robot.torque_limit + 1e-9)

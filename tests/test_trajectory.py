@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 from pydantic import ValidationError
+from tests_support import NEXTAGE_JOINTS as JOINT_NAMES
 
-from nextage_qp.errors import TrajectoryError
-from nextage_qp.nextage import JOINT_NAMES
+from nextage_qp.errors import NextageQPError, TrajectoryError
 from nextage_qp.trajectory import JointTrajectory, TrajectoryLimits
 from nextage_qp.trajectory_offline import chain_waypoints, plan_segment
 
@@ -13,7 +13,7 @@ TOL = 1e-6
 
 
 def within_limits(qd, qdd, dt, limits=LIMITS):
-    v, a, j = limits.arrays()
+    v, a, j = limits.arrays(JOINT_NAMES)
     jerk = np.diff(qdd, axis=0) / dt
     assert np.all(np.abs(qd) <= v + TOL)
     assert np.all(np.abs(qdd) <= a + TOL)
@@ -22,23 +22,30 @@ def within_limits(qd, qdd, dt, limits=LIMITS):
 
 
 def test_limits_arrays_scalar_and_per_joint():
-    v, a, j = LIMITS.arrays()
+    v, a, j = LIMITS.arrays(JOINT_NAMES)
     assert v.shape == a.shape == j.shape == (N,)
     assert np.all(v == 0.8)
-    assert a[JOINT_NAMES.index("LARM_JOINT1")] == 2.0 and a[0] == TrajectoryLimits().arrays()[1][0]
+    assert a[JOINT_NAMES.index("LARM_JOINT1")] == 2.0 and a[0] == TrajectoryLimits().arrays(JOINT_NAMES)[1][0]
 
 
-@pytest.mark.parametrize(
-    "kwargs", [{"max_velocity": -1.0}, {"max_jerk": {"LARM_JOINT9": 1.0}}, {"max_velocity": (1.0, 2.0)}, {"bogus": 1}]
-)
+@pytest.mark.parametrize("kwargs", [{"max_velocity": -1.0}, {"max_jerk": float("nan")}, {"bogus": 1}])
 def test_limits_rejects_bad_values(kwargs):
     with pytest.raises(ValidationError):
         TrajectoryLimits(**kwargs)
 
 
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [({"max_jerk": {"LARM_JOINT9": 1.0}}, "LARM_JOINT9"), ({"max_velocity": (1.0, 2.0)}, "needs 15 values")],
+)
+def test_limits_are_checked_against_the_robots_joints(kwargs, words):
+    with pytest.raises(NextageQPError, match=words):
+        TrajectoryLimits(**kwargs).arrays(JOINT_NAMES)
+
+
 def test_online_reference_respects_limits_and_reaches_target():
     dt = 0.004
-    gen = JointTrajectory(LIMITS, dt=dt)
+    gen = JointTrajectory(LIMITS, dt=dt, joint_names=JOINT_NAMES)
     q0 = np.zeros(N)
     target = np.linspace(-0.6, 0.9, N)
     gen.reset(q0)
@@ -59,7 +66,7 @@ def test_online_reference_respects_limits_and_reaches_target():
 
 def test_online_retargeting_every_tick_stays_within_limits():
     dt = 0.004
-    gen = JointTrajectory(LIMITS, dt=dt)
+    gen = JointTrajectory(LIMITS, dt=dt, joint_names=JOINT_NAMES)
     gen.reset(np.zeros(N))
     states = []
     for k in range(600):
@@ -72,7 +79,7 @@ def test_online_retargeting_every_tick_stays_within_limits():
 
 
 def test_target_outside_joint_limits_names_joint():
-    gen = JointTrajectory(LIMITS, dt=0.004, lower=-np.ones(N), upper=np.ones(N))
+    gen = JointTrajectory(LIMITS, dt=0.004, lower=-np.ones(N), upper=np.ones(N), joint_names=JOINT_NAMES)
     target = np.zeros(N)
     target[JOINT_NAMES.index("RARM_JOINT3")] = 1.5
     with pytest.raises(TrajectoryError, match="RARM_JOINT3"):
@@ -85,13 +92,13 @@ def test_ruckig_input_error_is_typed_and_names_joint():
     bad = TrajectoryLimits.model_construct(max_velocity=1.0, max_acceleration=1.0, max_jerk=1.0)
     object.__setattr__(bad, "max_velocity", tuple([1.0] * 4 + [-1.0] + [1.0] * 10))
     with pytest.raises(TrajectoryError, match="LARM_JOINT1"):
-        plan_segment(np.zeros(N), np.ones(N), bad)
+        plan_segment(np.zeros(N), np.ones(N), bad, joint_names=JOINT_NAMES)
 
 
 def test_chain_waypoints_passes_every_waypoint_within_limits():
     dt = 0.002
     wps = [np.zeros(N), np.full(N, 0.4), np.full(N, -0.2), np.zeros(N)]
-    s = chain_waypoints(wps, LIMITS, dt=dt)
+    s = chain_waypoints(wps, LIMITS, dt=dt, joint_names=JOINT_NAMES)
     np.testing.assert_allclose(s.q[0], wps[0])
     np.testing.assert_allclose(s.q[-1], wps[-1], atol=1e-9)
     for wp in wps[1:-1]:  # each intermediate waypoint is visited (sampling at dt, so within one step)

@@ -5,6 +5,15 @@ import numpy as np
 from nextage_qp.ik import RelativeTarget
 from nextage_qp.manipulation.context import Grip
 
+NEXTAGE_JOINTS = (
+    "CHEST_JOINT0",
+    "HEAD_JOINT0",
+    "HEAD_JOINT1",
+    *(f"LARM_JOINT{i}" for i in range(6)),
+    *(f"RARM_JOINT{i}" for i in range(6)),
+)
+"""The Nextage's 15 joints in model order (robots/nextage.yaml)."""
+
 
 def held_grip_at(sim, robot, obj, shift=0.0):
     """A Grip whose pad offsets are where the pads are now in ``obj``'s frame (moved by ``shift`` [m] in x)."""

@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 
 from nextage_qp.control import load_gains
-from nextage_qp.nextage import JOINT_NAMES
 
 
 def _steps(details: dict) -> dict[tuple[str, float], dict]:
@@ -37,19 +36,21 @@ def main() -> None:
     ap.add_argument("--compare", default="report", help="third gains file shown (default: report)")
     args = ap.parse_args()
     s = json.loads(args.summary.read_text())
-    tuned = load_gains(args.tuned or args.summary.parent / "best.yaml").as_dict()
+    tuned_gains = load_gains(args.tuned or args.summary.parent / "best.yaml")
+    joint_names = list(tuned_gains.names)
+    tuned = tuned_gains.as_dict()
     base = load_gains("default").as_dict()
     other = load_gains(args.compare).as_dict()
     print(f"| joint | tuned kp / kd | default kp / kd | {args.compare} kp / kd |")
     print("|---|---|---|---|")
-    for j in JOINT_NAMES:
+    for j in joint_names:
         cells = [f"{g[j]['kp']:.4g} / {g[j]['kd']:.4g}" for g in (tuned, base, other)]
         print(f"| {j} | " + " | ".join(cells) + " |")
     print()
     best, base_d = _steps(s["best"]["details"]), _steps(s["base"]["details"])
     print("| joint | target [deg] | settling 2 % [s], default | tuned | overshoot [%], default | tuned |")
     print("|---|---|---|---|---|---|")
-    for key in sorted(best, key=lambda k: (JOINT_NAMES.index(k[0]), -k[1])):
+    for key in sorted(best, key=lambda k: (joint_names.index(k[0]), -k[1])):
         b, t = base_d.get(key), best[key]
         print(f"| {key[0]} | {key[1]:+.2f} | {_settle(b)} | {_settle(t)} | "
               f"{(b or {}).get('overshoot_pct', float('nan')):.2f} | {t['overshoot_pct']:.2f} |")

@@ -121,13 +121,38 @@ def output_file(*suffixes: str) -> Callable[[str], Path]:
 
 
 def add_scene_arg(parser: argparse.ArgumentParser, default: str = "scene") -> None:
-    """Add ``--scene`` (bundled scene name or MJCF path)."""
+    """Add ``--scene`` (bundled scene name or MJCF path) and ``--robot`` (robot file or bundled name)."""
     parser.add_argument("--scene", default=default, help=f"bundled scene name or MJCF path (default: {default})")
+    add_robot_arg(parser)
+
+
+def add_robot_arg(parser: argparse.ArgumentParser) -> None:
+    """Add ``--robot`` (a robot file or a bundled robot name)."""
+    parser.add_argument(
+        "--robot", default=None, metavar="FILE|NAME", help="robot file (.yaml) or bundled robot name (default: nextage)"
+    )
+
+
+def scene_robot(args: argparse.Namespace) -> Robot:
+    """The robot of ``--robot`` in the scene of ``--scene`` (or a positional ``scene``)."""
+    return Robot.from_scene(args.scene, robot=args.robot)
+
+
+def sim_gains(args: argparse.Namespace, robot: Robot) -> Any:
+    """The gains of ``--gains`` for the robot (none: the robot file's own)."""
+    from nextage_qp.gains import load_gains, robot_gains
+
+    return robot_gains(robot) if args.gains is None else load_gains(args.gains, robot)
 
 
 def add_sim_args(parser: argparse.ArgumentParser, plot_help: str) -> None:
     """Add the options shared by the simulated commands: gains, duration, plot, log, JSON and scene."""
-    parser.add_argument("--gains", default="default", help="gains YAML path or bundled name: default, report")
+    parser.add_argument(
+        "--gains",
+        default=None,
+        help="gains YAML path or a name in the robot's gains folder (Nextage: default, report, "
+        "stiff_wrist, tuned); default: the robot file's gains",
+    )
     parser.add_argument("--duration", type=SECONDS, default=3.0, help="simulated time [s] (default 3, at most 3600)")
     parser.add_argument("--plot", metavar="PNG", type=output_file(*PLOT_SUFFIXES), help=plot_help)
     parser.add_argument("--log", metavar="NPZ", type=output_file(".npz"),

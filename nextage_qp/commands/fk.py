@@ -6,9 +6,8 @@ import argparse
 
 import numpy as np
 
-from nextage_qp.commands.common import add_scene_arg, parse_joint_assignments, print_json
+from nextage_qp.commands.common import add_scene_arg, parse_joint_assignments, print_json, scene_robot
 from nextage_qp.kinematics import Kinematics
-from nextage_qp.robot import Robot
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -24,7 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the pose of ``args.frame``."""
-    robot = Robot.from_scene(args.scene)
+    robot = scene_robot(args)
     robot.frame(args.frame)  # unknown frames fail before any other work
     q = parse_joint_assignments(robot, args.q, robot.keyframe_q(args.keyframe))
     pose = Kinematics(robot).fk(args.frame, q)

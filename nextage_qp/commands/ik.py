@@ -8,7 +8,7 @@ from collections.abc import Callable
 import numpy as np
 from rich.table import Table
 
-from nextage_qp.commands.common import COORD, add_scene_arg, number, out_console, print_json
+from nextage_qp.commands.common import COORD, add_scene_arg, number, out_console, print_json, scene_robot
 from nextage_qp.errors import ConfigError
 from nextage_qp.ik import QPIK, FrameTarget, IKConfig, IKResult
 from nextage_qp.ik.baselines import dls_ik, lm_ik, pinv_ik
@@ -64,7 +64,7 @@ def _target(frame: str, pos: list[float], axis: list[float] | None, direction: l
 
 def run(args: argparse.Namespace) -> int:
     """Solve and print; returns 0 when converged, 1 otherwise."""
-    robot = Robot.from_scene(args.scene)
+    robot = scene_robot(args)
     targets = [_target(args.frame, args.pos, args.axis, args.dir, args.quat, "")]
     if args.frame2 is not None:
         if args.pos2 is None:

@@ -7,22 +7,22 @@ import argparse
 from rich.markup import escape
 from rich.table import Table
 
-from nextage_qp.commands.common import out_console, print_json
+from nextage_qp.commands.common import add_robot_arg, out_console, print_json, scene_robot
 from nextage_qp.describe import describe
-from nextage_qp.robot import Robot
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``info`` subcommand."""
     p = sub.add_parser("info", help="describe a scene: joints, actuators, sites, objects")
     p.add_argument("scene", nargs="?", default="scene", help="bundled scene name or MJCF path (default: scene)")
+    add_robot_arg(p)
     p.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Print the description of ``args.scene``."""
-    robot = Robot.from_scene(args.scene)
+    robot = scene_robot(args)
     info = describe(robot)
     if args.json:
         print_json(info)

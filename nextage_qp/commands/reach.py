@@ -7,10 +7,8 @@ import sys
 
 import numpy as np
 
-from nextage_qp.commands.common import COORD, add_sim_args, help_text, number, print_outcome
-from nextage_qp.control import load_gains
+from nextage_qp.commands.common import COORD, add_sim_args, help_text, number, print_outcome, scene_robot, sim_gains
 from nextage_qp.experiments.reach import run_reach
-from nextage_qp.robot import Robot
 from nextage_qp.trajectory import TrajectoryLimits
 
 REACHED_M = 0.002
@@ -22,8 +20,8 @@ def _vec(values: list[float] | None) -> np.ndarray | None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    robot = Robot.from_scene(args.scene)
-    gains = load_gains(args.gains)
+    robot = scene_robot(args)
+    gains = sim_gains(args, robot)
     limits = TrajectoryLimits(
         max_velocity=args.max_velocity, max_acceleration=args.max_acceleration, max_jerk=args.max_jerk
     )
@@ -46,7 +44,7 @@ def _run(args: argparse.Namespace) -> int:
         dist = np.linalg.norm(a[f"frame_{args.frame}"][:, :3] - np.asarray(args.pos), axis=1)
         title = f"reach: {args.frame} → ({', '.join(f'{x:g}' for x in args.pos)}) m, QP IK → Ruckig → PD"
         plot_reach(a["t"], dist, args.plot, frame=args.frame, tau=a["tau"], title=title)
-    v = limits.arrays()[0]
+    v = limits.arrays(robot.joint_names)[0]
     out = {
         "frame": args.frame,
         "target_pos_m": list(args.pos),

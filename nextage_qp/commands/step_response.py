@@ -6,15 +6,13 @@ import argparse
 
 import numpy as np
 
-from nextage_qp.commands.common import add_sim_args, help_text, number, print_outcome
-from nextage_qp.control import load_gains
+from nextage_qp.commands.common import add_sim_args, help_text, number, print_outcome, scene_robot, sim_gains
 from nextage_qp.experiments.step_response import blocking_contacts, run_step
-from nextage_qp.robot import Robot
 
 
 def _run(args: argparse.Namespace) -> int:
-    robot = Robot.from_scene(args.scene)
-    gains = load_gains(args.gains)
+    robot = scene_robot(args)
+    gains = sim_gains(args, robot)
     target = float(np.deg2rad(args.target_deg))
     metrics, sim = run_step(robot, args.joint, target, gains, duration=args.duration, shaped=args.shaped)
     if args.log:

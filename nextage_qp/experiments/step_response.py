@@ -8,7 +8,8 @@ import numpy as np
 
 from nextage_qp.control import Gains
 from nextage_qp.errors import ConfigError
-from nextage_qp.robot import Robot, descends
+from nextage_qp.per_joint import descends
+from nextage_qp.robot import Robot
 from nextage_qp.sim import Simulation
 
 

@@ -21,7 +21,7 @@ from collections.abc import Callable, Sequence
 import mujoco
 import numpy as np
 
-from nextage_qp.ik.model import Frame, kinematic_model, resolve_frame
+from nextage_qp.ik.model import Frame, chain_dofs, kinematic_model, resolve_frame
 from nextage_qp.ik.targets import FrameTarget, IKResult, worst_errors
 from nextage_qp.robot import Robot
 
@@ -120,17 +120,16 @@ def pinv_ik(
 ) -> IKResult:
     """The report's Algorithm 1: pseudo-inverse over ``subgoals`` interpolated goals, arms solved separately.
 
-    Each target is solved over the chest and its own arm's joints (all joints for a frame on neither arm),
-    one :math:`J^+ e` step per subgoal and then refinement steps on the final goal; the chest angle is the mean
-    of the separate solves.
+    Each target is solved over the joints that move its frame (for an arm's frame: the arm and the torso joints
+    above it), one :math:`J^+ e` step per subgoal and then refinement steps on the final goal; a joint that
+    several targets share (the Nextage's chest) gets the mean of the separate solves.
     """
     start = time.perf_counter()
     q0 = np.asarray(q0, dtype=float)
     solutions, iters = [], 0
     for target in targets:
         p = _Problem(robot, [target])
-        side = "left_arm" if "LARM" in _body_of(p) else "right_arm" if "RARM" in _body_of(p) else None
-        dofs = np.arange(robot.nq) if side is None else np.concatenate([robot.group("chest"), robot.group(side)])
+        dofs = np.flatnonzero(chain_dofs(p.model, p.frames[0]))
         q = q0.copy()
         p.update(q)
         pos, rot = (a.copy() for a in p.frames[0].pose(p.data))
@@ -143,18 +142,13 @@ def pinv_ik(
             p.update(q)
             iters += 1
         solutions.append((dofs, q))
-    q = q0.copy()
+    q, total, count = q0.copy(), np.zeros(robot.nq), np.zeros(robot.nq)
     for dofs, sol in solutions:
-        q[dofs] = sol[dofs]
-    chest = robot.group("chest")
-    q[chest] = np.mean([sol[chest] for _, sol in solutions], axis=0)
+        total[dofs] += sol[dofs]
+        count[dofs] += 1
+    solved = count > 0
+    q[solved] = total[solved] / count[solved]
     return _result(_Problem(robot, targets), q, iters, pos_tol, rot_tol, start)
-
-
-def _body_of(p: _Problem) -> str:
-    frame = p.frames[0]
-    body = frame.id if frame.kind == "body" else int(p.model.site_bodyid[frame.id])
-    return str(p.model.body(body).name)
 
 
 def _done(p: _Problem, pos_tol: float, rot_tol: float) -> bool:

@@ -1,9 +1,10 @@
 """The IK's kinematic model: the scene with its free objects turned into mocap bodies.
 
 Objects of a task scene (cube, dumbbell) have free joints, which must not be IK variables. The kinematic
-model is compiled from the same MJCF with every free joint removed and its body made a mocap body, so
-``nq == nv == 15`` (the robot joints, in :data:`~nextage_qp.nextage.JOINT_NAMES` order) and objects are
-placed through ``data.mocap_pos`` / ``data.mocap_quat``. Geom and body ids equal those of the full model.
+model is compiled from the same composed spec with every free joint removed and its body made a mocap body (and
+any joint the robot file leaves out removed), so ``nq == nv`` = the robot's joints, in
+:attr:`~nextage_qp.robot.Robot.joint_names` order, and objects are placed through ``data.mocap_pos`` /
+``data.mocap_quat``. Geom and body ids equal those of the full model.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import numpy as np
 
 from nextage_qp.errors import ConfigError, UnknownNameError
 from nextage_qp.robot import Robot
-from nextage_qp.scene import scene_spec
+from nextage_qp.scene import compile_spec
 
 ObjectPoses = Mapping[str, tuple[np.ndarray, np.ndarray]]
 """Object name -> (position [m], unit quaternion w, x, y, z) in the world."""
@@ -30,16 +31,22 @@ def kinematic_model(robot: Robot) -> mujoco.MjModel:
         ConfigError: The scene cannot be recompiled, or the result is not exactly the 15 robot joints.
     """
     free = robot.model.jnt_type == mujoco.mjtJoint.mjJNT_FREE
-    if not free.any():
+    extra = len(robot.model.jnt_type) - int(free.sum()) != robot.nq
+    if not free.any() and not extra:
         model = robot.model
     else:
-        spec = scene_spec(robot.scene, robot.overrides)
+        if robot.spec is None:
+            raise ConfigError(f"{robot.scene}: the IK needs the scene's spec to make its kinematic copy")
+        spec = robot.spec()
+        keep = set(robot.joint_names)
         for joint in list(spec.joints):
             if joint.type == mujoco.mjtJoint.mjJNT_FREE:
                 body = joint.parent
                 spec.delete(joint)
                 body.mocap = True
-        model = spec.compile()
+            elif joint.name not in keep:  # a joint the robot file leaves out (a gripper's): held at its rest
+                spec.delete(joint)
+        model = compile_spec(spec, f"{robot.scene} (the IK's kinematic copy)")
         if model.ngeom != robot.model.ngeom or model.nbody != robot.model.nbody:
             raise ConfigError(f"{robot.scene}: kinematic model does not match the robot's model")
     names = tuple(model.joint(i).name for i in range(model.njnt))

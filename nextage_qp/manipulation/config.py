@@ -76,12 +76,18 @@ class ManipulationConfig(_Strict):
     """A whole manipulation run (the phase list takes any registered kind: see :func:`config_model`)."""
 
     task: str = Field(description="Name of the run in outputs.")
+    robot: str = Field(default="nextage", min_length=1, description="Robot file (bundled name or path).")
     scene: SceneConfig
     object: str = name_field("object", description="Body whose final error is reported.")
     target: str = name_field("body", description="Body marking the object's target.")
     start: Literal["home", "zero"] = Field(default="home", description="Start keyframe of the robot.")
     success: SuccessCriteria = Field(default_factory=SuccessCriteria, description="Success criteria.")
-    gains: str = Field(default="default", description="Gains file (bundled name or path).")
+    gains: str | None = Field(
+        default=None,
+        description=(
+            "Gains file (a bundled name in the robot file's gains folder, or a path); none: the robot file's gains."
+        ),
+    )
     ik: IKConfig = Field(default_factory=IKConfig)
     trajectory: TrajectoryLimits = Field(default_factory=TrajectoryLimits)
     timing: RunTiming = Field(default_factory=RunTiming)
@@ -168,13 +174,13 @@ def config_file(path: str | Path) -> Path:
 
 
 def _relative_to(doc: dict[str, Any], folder: Path) -> None:
-    """Make the file paths a config names (``gains``, ``scene.file``) relative to its own folder, in place.
+    """Make the file paths a config names (``gains``, ``robot``, ``scene.file``) relative to its own folder, in place.
 
     A value that names an existing file next to the config becomes that file's path; anything else (a bundled
     name, an absolute path) is left for the loaders to resolve.
     """
     scene = doc.get("scene")
-    holders: list[tuple[dict[str, Any], str]] = [(doc, "gains")]
+    holders: list[tuple[dict[str, Any], str]] = [(doc, "gains"), (doc, "robot")]
     if isinstance(scene, dict):
         holders.append((scene, "file"))
     for holder, key in holders:

@@ -124,6 +124,9 @@ class View(Protocol):
     def default_posture(self) -> np.ndarray:
         """The joints [rad] the IK's redundancy heads for when a command names no posture."""
 
+    def pad_frames(self) -> tuple[str, ...]:
+        """The robot's clamping frames, one per arm, the first arm's (on the +y side) first."""
+
     def wrench(self, site: str) -> Wrench:
         """Measured contact wrench on a site's body, world frame: force [N] and torque about the site [N m]."""
 

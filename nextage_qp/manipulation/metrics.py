@@ -63,7 +63,7 @@ class OutcomeMonitor:
         self.obstacle = groups.get("obstacle")
         self._is_obstacle = np.zeros(m.ngeom, dtype=bool)
         self._is_obstacle[list(self.obstacle or ())] = True
-        self.movers = tuple(g for k in ("left_arm", "right_arm", "torso", "head", obj) for g in groups.get(k, ()))
+        self.movers = tuple(sorted({g for k in (*robot.robot_groups, obj) for g in groups.get(k, ())}))
         pairs = np.array([(og, g) for og in (self.obstacle or ()) for g in self.movers], dtype=int).reshape(-1, 2)
         self._pair1, self._pair2 = pairs[:, 0], pairs[:, 1]
         self._pair_rsum = m.geom_rbound[self._pair1] + m.geom_rbound[self._pair2]

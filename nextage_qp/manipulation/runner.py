@@ -14,18 +14,18 @@ from collections.abc import Callable
 from functools import partial
 from typing import Any
 
-from nextage_qp.control import load_gains
 from nextage_qp.errors import ConfigError, NextageQPError, PhaseError, UnknownNameError
 from nextage_qp.estimate_errors import SHOVE_SETTLE_S
+from nextage_qp.gains import load_gains, robot_gains
 from nextage_qp.ik import QPIK
 from nextage_qp.manipulation.config import ManipulationConfig
 from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, summarize
 from nextage_qp.manipulation.phases import Phase, build, names_in
 from nextage_qp.manipulation.placement import check_placement
 from nextage_qp.manipulation.sim_view import SimView
-from nextage_qp.nextage import TOOL_SITES
 from nextage_qp.perception import log_estimates, perception_of
-from nextage_qp.robot import Robot
+from nextage_qp.robot import Robot, tool_frames
+from nextage_qp.robots.description import load_robot
 from nextage_qp.scene import BodyPose, SceneOverrides
 from nextage_qp.servo import HOLD, Command, Servo
 from nextage_qp.sim import Simulation
@@ -44,7 +44,11 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
     poses = {name: BodyPose(pos=p.pos, yaw=p.yaw) for name, p in scene.poses.items()}
     overrides = SceneOverrides(poses=poses, masses=dict(scene.masses), friction_scale=dict(scene.friction_scale))
     try:
-        robot = Robot.from_scene(scene.file, overrides)
+        description = load_robot(cfg.robot)
+    except ConfigError as exc:
+        raise ConfigError(f"{source}: robot: {exc}") from None
+    try:
+        robot = Robot.from_scene(scene.file, overrides, description)
     except UnknownNameError as exc:
         raise ConfigError(f"{source}: scene: {exc}") from None
     check_names(cfg, robot, source)
@@ -79,11 +83,14 @@ class Runner:
         self.cfg, self.source = cfg, source
         self.robot = robot or build_robot(cfg, source)
         try:
-            gains = load_gains(cfg.gains)
+            gains = robot_gains(self.robot) if cfg.gains is None else load_gains(cfg.gains, self.robot)
+        except ConfigError as exc:
+            raise ConfigError(f"{source}: gains: {exc}") from None
+        try:
             self.ik = QPIK(self.robot, cfg.ik)
         except UnknownNameError as exc:
             raise ConfigError(f"{source}: ik: {exc}") from None
-        frames = [f for f in TOOL_SITES if f in self.robot.site_names]
+        frames = tool_frames(self.robot)
         self.sensors, self.shoves = perception_of(cfg, self.robot, source)
         self.sim = Simulation(self.robot, gains, cfg.trajectory, timing=cfg.timing, frames=frames, sensors=self.sensors)
         q0 = self.robot.keyframe_q(cfg.start)

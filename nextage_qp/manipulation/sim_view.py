@@ -99,6 +99,9 @@ class SimView:
     def default_posture(self) -> np.ndarray:  # noqa: D102
         return self._servo.ik.default_posture.copy()
 
+    def pad_frames(self) -> tuple[str, ...]:  # noqa: D102
+        return tuple(arm.pad for arm in self.robot.arms)
+
     def wrench(self, site: str) -> Wrench:  # noqa: D102
         m, d = self.robot.model, self._sim.data
         kind, fid = self.robot.frame(site)

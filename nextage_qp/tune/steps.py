@@ -22,7 +22,6 @@ import numpy as np
 
 from nextage_qp.control import Gains, GainsFile, gains_path
 from nextage_qp.errors import ConfigError
-from nextage_qp.nextage import JOINT_NAMES
 from nextage_qp.sweep.episode import Episode
 from nextage_qp.sweep.keys import lookup
 from nextage_qp.tune.evaluate import Score, apply_params
@@ -101,14 +100,15 @@ class StepsEvaluator:
         from nextage_qp.robot import Robot
 
         self.eval = evaluation
+        self.robot = Robot.from_scene(evaluation.scene)
         local = folder / evaluation.gains
-        self.base_path = local if local.is_file() else gains_path(evaluation.gains)
+        self.base_path = local if local.is_file() else gains_path(evaluation.gains, self.robot.description.gains_dir)
         self.base_doc = read_yaml_mapping(self.base_path, "a mapping with keys 'joints' and 'gravity_compensation'")
         self.base = validate(GainsFile, self.base_doc, str(self.base_path))
+        names = self.robot.joint_names
         for name in [*evaluation.relative, *(evaluation.joints or ())]:
-            if name not in JOINT_NAMES:
-                raise ConfigError(f"steps: unknown joint {name!r}; valid joints: {', '.join(JOINT_NAMES)}")
-        self.robot = Robot.from_scene(evaluation.scene)
+            if name not in names:
+                raise ConfigError(f"steps: unknown joint {name!r}; valid joints: {', '.join(names)}")
         self.skipped: dict[str, list[str]] = {}
         self.steps = self._steps(evaluation.amplitude_deg, "objective")
         self.held_steps = self._steps(held_amplitude_deg, "held_out") if held_amplitude_deg else []
@@ -116,7 +116,7 @@ class StepsEvaluator:
     def _steps(self, amplitude_deg: float, where: str) -> list[tuple[str, float]]:
         home = self.robot.keyframe_q("home")
         out, skipped = [], []
-        for name in self.eval.joints or JOINT_NAMES:
+        for name in self.eval.joints or self.robot.joint_names:
             j = self.robot.joint_index(name)
             for sign in (1.0, -1.0):
                 target = float(np.deg2rad(sign * amplitude_deg)) + (home[j] if name in self.eval.relative else 0.0)
@@ -133,8 +133,10 @@ class StepsEvaluator:
         """The key's value in the base gains file."""
         value = lookup(self.base, key.split("."), lambda msg: ConfigError(f"space.{key}: {msg}"))
         if value is None:
-            raise ConfigError(f"space.{key}: not in the base gains file; search joints.JOINT.kp or joints.JOINT.kd, "
-                              f"JOINT one of {', '.join(JOINT_NAMES)}")
+            raise ConfigError(
+                f"space.{key}: not in the base gains file; search joints.JOINT.kp or joints.JOINT.kd, "
+                f"JOINT one of {', '.join(self.robot.joint_names)}"
+            )
         return value
 
     def check_value(self, key: str, value: Any) -> None:
@@ -143,7 +145,9 @@ class StepsEvaluator:
 
     def gains(self, params: dict[str, Any]) -> Gains:
         """The base gains with ``params`` set."""
-        return Gains.from_file(validate(GainsFile, apply_params(self.base_doc, params), "tuned gains"), "tuned")
+        return Gains.from_file(
+            validate(GainsFile, apply_params(self.base_doc, params), "tuned gains"), "tuned", self.robot.joint_names
+        )
 
     def tasks(self, params: dict[str, Any], held_out: bool = False) -> list[StepTask]:
         """One task per step of the objective's (or the held-out) amplitude."""

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 import mujoco
 import numpy as np
 
-from nextage_qp.nextage import TOOL_SITES
+from nextage_qp.robot import tool_frames as robot_tool_frames
 
 if TYPE_CHECKING:
     from nextage_qp.manipulation.runner import Runner
@@ -22,7 +22,7 @@ GREEN, BLUE, RED, YELLOW = (0.1, 0.9, 0.2, 0.8), (0.2, 0.4, 1.0, 0.8), (1.0, 0.2
 
 def tool_frames(runner: Runner) -> list[str]:
     """The tool sites of the run's robot (markers are drawn for these)."""
-    return [f for f in TOOL_SITES if f in runner.robot.site_names]
+    return list(robot_tool_frames(runner.robot))
 
 
 def marker_starts(runner: Runner) -> dict[str, np.ndarray]:

@@ -31,10 +31,8 @@ from nextage_qp.ik import FrameTarget, RelativeTarget
 from nextage_qp.manipulation.context import Grip, View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
 from nextage_qp.manipulation.route import PlannedRoute
-from nextage_qp.nextage import ARMS
 from nextage_qp.servo import Command
 
-PADS = tuple(arm.pad_site for arm in ARMS)
 SIDES = (1.0, -1.0)
 HIGH = 0.08
 """The pads first go this far over their approach point, so the swing there passes over the object [m]."""
@@ -55,7 +53,9 @@ class GraspSpec(Spec):
 
     kind: Literal["grasp"]
     object: str = name_field("object")
-    frames: tuple[str, str] = name_field("frame", default=PADS, description="Pads on the +y and -y side.")
+    frames: tuple[str, str] | None = name_field(
+        "frame", default=None, description="Pads on the +y and -y side (default: the robot's arms' pads)."
+    )
     half_width: float = Field(gt=0, le=0.5, description="Half the object's width between the pads [m].")
     height: float = Field(default=0.0, ge=-0.5, le=0.5, description="Pad height relative to the object origin [m].")
     gap: float = Field(default=0.03, gt=0, le=0.2, description="Pad distance from the surface before closing [m].")
@@ -87,6 +87,7 @@ class Grasp(Phase):
 
     def start(self, view: View) -> None:  # noqa: D102
         c = self.spec
+        self.frames: tuple[str, ...] = c.frames or view.pad_frames()
         obj, rot = view.body_pose(c.object)
         sym = view.yaw_symmetry(c.object)
         nearest = wrap(yaw_of(rot), sym)  # the equivalent heading nearest the robot's own comes first
@@ -113,7 +114,7 @@ class Grasp(Phase):
                              f"{c.off_centre * 1e3:g} mm off it: the target is out of the arms' reach")
         gap = found[0]
         self.info["rolls_fit_placement"] = found[1]
-        self.rots = [view.pose_at(f, self.route.joints[-1]).rot for f in c.frames]  # the rolls found: held
+        self.rots = [view.pose_at(f, self.route.joints[-1]).rot for f in self.frames]  # the rolls found: held
         self.depth = [-gap, -gap]  # pad target depth inside the surface, per pad [m]
         self.info.update(approach_gap_m=round(gap, 4), off_centre_m=round(self.shift, 4))
         self.stage, self.hold_from = "approach", 0.0
@@ -150,9 +151,11 @@ class Grasp(Phase):
 
     def _rise(self, view: View, height: float) -> tuple[FrameTarget, ...]:
         """The pads straight up to ``height`` from where they are, as they are turned."""
-        poses = [view.commanded_pose(f) for f in self.spec.frames]
-        return tuple(FrameTarget(f, pos=np.array([*p.pos[:2], max(p.pos[2], height)]), rot=p.rot)
-                     for f, p in zip(self.spec.frames, poses, strict=True))
+        poses = [view.commanded_pose(f) for f in self.frames]
+        return tuple(
+            FrameTarget(f, pos=np.array([*p.pos[:2], max(p.pos[2], height)]), rot=p.rot)
+            for f, p in zip(self.frames, poses, strict=True)
+        )
 
     def _placements(self, view: View, shift: float) -> list[tuple[list[np.ndarray], np.ndarray]]:
         """Grips with which the clamp, ``shift`` along the faces, also reaches ``place_at``, computed once per shift.
@@ -173,10 +176,15 @@ class Grasp(Phase):
         for k in range(max(1, round(2 * np.pi / sym))):
             rz = rot_z(yaw_of(trot) + k * sym)
             points = [centre + rz @ np.array([shift, s * c.half_width, 0.0]) for s in SIDES]
-            q = view.plan([FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=rz[:, 1])
-                           for f, p in zip(c.frames, points, strict=True)], allow=frozenset({c.object}))
+            q = view.plan(
+                [
+                    FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=rz[:, 1])
+                    for f, p in zip(self.frames, points, strict=True)
+                ],
+                allow=frozenset({c.object}),
+            )
             if q is not None:
-                out.append(([rz.T @ view.pose_at(f, q).rot for f in c.frames], q))
+                out.append(([rz.T @ view.pose_at(f, q).rot for f in self.frames], q))
         self.placements[key] = out
         return out
 
@@ -186,7 +194,7 @@ class Grasp(Phase):
         Full poses once the approach has fixed each pad's roll about the clamp axis; before that only the pad's y
         axis along the clamp axis, so the planner picks the roll the arm reaches.
         """
-        frames = self.spec.frames
+        frames = self.frames
         if self.rots is None:
             return tuple(FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=self.lateral)
                          for f, p in zip(frames, points, strict=True))
@@ -201,7 +209,7 @@ class Grasp(Phase):
 
     def forces(self, view: View) -> list[float]:
         """Measured squeeze force on each pad [N]."""
-        return [squeeze_force(view, f, s, self.lateral) for f, s in zip(self.spec.frames, SIDES, strict=True)]
+        return [squeeze_force(view, f, s, self.lateral) for f, s in zip(self.frames, SIDES, strict=True)]
 
     def update(self, view: View) -> Command:  # noqa: D102
         c = self.spec
@@ -231,13 +239,17 @@ class Grasp(Phase):
         targets = self._pads(view)
         if done:
             obj, rot = view.body_pose(c.object)
-            poses = {f: view.commanded_pose(f) for f in c.frames}
+            poses = {f: view.commanded_pose(f) for f in self.frames}
             self.made = Grip(
-                object=c.object, frames=tuple(c.frames),
+                object=c.object,
+                frames=tuple(self.frames),
                 offsets={t.frame: rot.T @ (np.asarray(t.pos) - obj) for t in targets},
                 rotations={t.frame: rot.T @ np.asarray(t.rot) for t in targets},
-                relative=RelativeTarget.between(c.frames[0], c.frames[1], poses, cost=1.0),
-                lateral=rot.T @ self.lateral, force=c.force, force_gain=c.force_gain, place_joints=self.place_q,
+                relative=RelativeTarget.between(self.frames[0], self.frames[1], poses, cost=1.0),
+                lateral=rot.T @ self.lateral,
+                force=c.force,
+                force_gain=c.force_gain,
+                place_joints=self.place_q,
             )
         return Command(targets, allow=frozenset({c.object}), done=done)
 

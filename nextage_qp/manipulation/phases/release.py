@@ -10,7 +10,7 @@ from pydantic import Field
 from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.context import Grip, Setpoint, View
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
-from nextage_qp.manipulation.phases.grasp import PADS, SIDES, squeeze_force
+from nextage_qp.manipulation.phases.grasp import SIDES, squeeze_force
 from nextage_qp.servo import Command
 
 UNLOAD_SPEED = 0.005
@@ -54,7 +54,7 @@ class Release(Phase):
         c = self.spec
         _, rot = view.body_pose(c.object)
         grip = view.grip
-        self.frames = grip.frames if grip is not None else PADS
+        self.frames = grip.frames if grip is not None else view.pad_frames()
         lateral = rot @ grip.lateral if grip is not None else rot[:, 1]
         self.points = [Setpoint(view.commanded_pose(f).pos) for f in self.frames]
         self.rots = [view.commanded_pose(f).rot for f in self.frames]

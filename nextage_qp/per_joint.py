@@ -1,0 +1,41 @@
+"""Per-joint settings: one value for every joint, a list in joint order, or a mapping of joint names."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from nextage_qp.errors import ConfigError, UnknownJointError
+
+PerJoint = float | tuple[float, ...] | dict[str, float]
+"""A per-joint setting: one value for every joint, a list in joint order, or ``{joint: value}``."""
+
+
+def per_joint(value: PerJoint, default: float, names: Sequence[str]) -> np.ndarray:
+    """The per-joint array of a setting; joints a mapping leaves out get ``default`` (one meaning everywhere).
+
+    Raises:
+        ConfigError: A list of the wrong length or a mapping with an unknown joint.
+    """
+    if isinstance(value, dict):
+        out = np.full(len(names), float(default))
+        for joint, v in value.items():
+            if joint not in names:
+                raise UnknownJointError(joint, names)
+            out[list(names).index(joint)] = v
+        return out
+    arr = np.broadcast_to(np.asarray(value, dtype=float), (len(names),)) if np.ndim(value) == 0 else np.asarray(value)
+    if arr.shape != (len(names),):
+        raise ConfigError(f"a per-joint list needs {len(names)} values, got {len(arr)}")
+    return np.array(arr, dtype=float)
+
+
+def descends(m: mujoco.MjModel, body: int, root: int) -> bool:
+    """Whether ``body`` is ``root`` or lies in its subtree (every body descends from the world, 0)."""
+    while body > 0:
+        if body == root:
+            return True
+        body = int(m.body_parentid[body])
+    return root == 0

@@ -1,0 +1,126 @@
+"""A robot's model as a spec, and a task scene composed around it with MjSpec.
+
+:func:`robot_spec` reads the robot file's model (MJCF, or URDF through :mod:`nextage_qp.robots.urdf`) and adds what
+the file says the model lacks: the angle unit, frames as sites, excluded contacts, and an actuator for every joint
+without one. :func:`compose` attaches that robot to a task scene (table, objects, targets, obstacles, lights: no
+robot), at the robot file's mount, so the same scene file serves every robot.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from nextage_qp.errors import ConfigError
+from nextage_qp.robots.description import RobotDescription
+from nextage_qp.scene import SceneOverrides, apply_overrides, load_scene, quiet_prefix_warning
+
+_ASSETS = ("meshes", "textures", "materials", "hfields", "skins")
+
+
+def robot_spec(desc: RobotDescription) -> mujoco.MjSpec:
+    """The robot's model as a spec, with the robot file's additions (not compiled).
+
+    Raises:
+        ConfigError: The model cannot be read, or the file names a body, joint or limit the model lacks.
+    """
+    if desc.model.suffix.lower() == ".urdf":
+        from nextage_qp.robots.urdf import urdf_spec
+
+        spec = urdf_spec(desc.model, desc.package_paths, desc.source)
+    else:
+        try:
+            spec = mujoco.MjSpec.from_file(str(desc.model))
+        except ValueError as exc:
+            raise ConfigError(f"{desc.source}: model {desc.model}: {' '.join(str(exc).split())}") from None
+    if desc.angle is not None:
+        spec.compiler.degree = desc.angle == "degree"
+    bodies = {b.name for b in spec.bodies if b.name}
+    for name, frame in desc.frames.items():
+        if frame.body not in bodies:
+            raise ConfigError(
+                f"{desc.source}: frames.{name}.body: {frame.body!r} is not a body of the model; "
+                f"bodies: {', '.join(sorted(bodies))}"
+            )
+        spec.body(frame.body).add_site(name=name, pos=list(frame.pos), quat=list(frame.quat))
+    for i, pair in enumerate(desc.exclude):
+        for name in pair:
+            if name not in bodies:
+                raise ConfigError(f"{desc.source}: exclude[{i}]: {name!r} is not a body of the model")
+        spec.add_exclude(bodyname1=pair[0], bodyname2=pair[1])
+    _add_missing_actuators(spec, desc)
+    return spec
+
+
+def _add_missing_actuators(spec: mujoco.MjSpec, desc: RobotDescription) -> None:
+    """A motor (gear 1, control = torque) for every robot joint no actuator drives, limited by the robot file."""
+    driven = {a.target for a in spec.actuators if a.trntype == mujoco.mjtTrn.mjTRN_JOINT}
+    joints = {j.name for j in spec.joints}
+    for joint in desc.joints:
+        if joint not in joints:
+            raise ConfigError(
+                f"{desc.source}: joint {joint!r} is not in the model; joints: "
+                f"{', '.join(sorted(j for j in joints if j))}"
+            )
+        if joint in driven:
+            continue
+        limit = _per_joint(desc.torque_limits, joint)
+        if limit is None:
+            raise ConfigError(
+                f"{desc.source}: joint {joint!r} has no actuator and no torque limit; give "
+                f"torque_limits (N m, one value or per joint) in the robot file"
+            )
+        spec.add_actuator(
+            name=joint, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT, ctrlrange=[-limit, limit], ctrllimited=1
+        )
+
+
+def _per_joint(value: float | Mapping[str, float] | None, joint: str) -> float | None:
+    if value is None or isinstance(value, float | int):
+        return None if value is None else float(value)
+    return float(value[joint]) if joint in value else None
+
+
+def compose(desc: RobotDescription, scene: str | Path, overrides: SceneOverrides | None = None) -> mujoco.MjSpec:
+    """The task scene with the robot attached at its mount, the overrides applied (not compiled).
+
+    The scene's options (time step, integrator, friction cone) and visual settings win; the robot model's own world
+    geoms, lights and cameras (a demo floor, say) are left out, and its assets whose names the scene uses too are
+    renamed ``ROBOT/NAME``.
+
+    Raises:
+        ConfigError: The scene or the robot cannot be read, or an override names a body the scene lacks.
+    """
+    parent = load_scene(scene)
+    child = robot_spec(desc)
+    for element in [*child.worldbody.geoms, *child.worldbody.lights, *child.worldbody.cameras, *child.worldbody.sites]:
+        child.delete(element)
+    _rename_clashing_assets(child, parent, desc.name)
+    yaw = desc.mount.yaw
+    frame = parent.worldbody.add_frame(pos=list(desc.mount.pos), quat=[np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+    with quiet_prefix_warning():  # an empty prefix: the robot keeps its own names
+        parent.attach(child, frame=frame, prefix="")
+    apply_overrides(parent, overrides or SceneOverrides(), str(scene))
+    return parent
+
+
+def _rename_clashing_assets(child: mujoco.MjSpec, parent: mujoco.MjSpec, robot: str) -> None:
+    """Rename the child's assets whose names the parent also uses, and every reference to them."""
+    taken = {a.name for kind in _ASSETS for a in getattr(parent, kind)}
+    renamed: dict[str, str] = {}
+    for kind in _ASSETS:
+        for asset in getattr(child, kind):
+            if asset.name in taken:
+                new = f"{robot}/{asset.name}"
+                renamed[asset.name] = new
+                asset.name = new
+    if not renamed:
+        return
+    for geom in child.geoms:
+        geom.material = renamed.get(geom.material, geom.material)
+        geom.meshname = renamed.get(geom.meshname, geom.meshname)
+    for material in child.materials:
+        material.textures = [renamed.get(t, t) for t in material.textures]

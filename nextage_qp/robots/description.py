@@ -1,0 +1,158 @@
+"""A robot as the framework sees it: a validated robot file, its paths resolved (:func:`load_robot`)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from nextage_qp.errors import ConfigError
+from nextage_qp.robots.schema import FrameFile, GainRule, GroupFile, MountFile, RobotFile
+from nextage_qp.yaml_file import read_yaml_mapping, validate
+
+DEFAULT_ROBOT = "nextage"
+"""The robot a config or command uses when it names none."""
+
+
+@dataclass(frozen=True)
+class Arm:
+    """One arm: name, joints (shoulder to wrist) and the frames the phases use on it."""
+
+    name: str
+    joints: tuple[str, ...]
+    wrist: str
+    tool: str
+    pad: str
+
+    @property
+    def group(self) -> str:
+        """Name of the arm's joint group and collision group: ``NAME_arm``."""
+        return f"{self.name}_arm"
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """Everything a robot file says, with paths made absolute.
+
+    Attributes:
+        name: Robot name.
+        source: The robot file (for messages).
+        model: The MJCF or URDF file.
+        arms: The arms, the first one on the +y side.
+    """
+
+    name: str
+    source: str
+    model: Path
+    angle: str | None
+    package_paths: tuple[Path, ...]
+    mount: MountFile
+    arms: tuple[Arm, ...]
+    joint_groups: Mapping[str, tuple[str, ...]]
+    frames: Mapping[str, FrameFile]
+    collision_groups: Mapping[str, GroupFile]
+    exclude: tuple[tuple[str, str], ...]
+    keyframes: Mapping[str, str | Mapping[str, float]]
+    gains: Path | GainRule
+    gains_dir: Path | None
+    torque_limits: float | Mapping[str, float] | None
+    velocity_limits: float | Mapping[str, float] | None
+
+    @property
+    def joints(self) -> tuple[str, ...]:
+        """Every joint the file names (arms first, then the groups); the robot orders them as the model does."""
+        return tuple(j for arm in self.arms for j in arm.joints) + tuple(
+            j for joints in self.joint_groups.values() for j in joints
+        )
+
+    @property
+    def groups(self) -> dict[str, tuple[str, ...]]:
+        """Joint groups: each arm's (``NAME_arm``) and the file's own."""
+        return {**{arm.group: arm.joints for arm in self.arms}, **self.joint_groups}
+
+    def arm(self, name: str) -> Arm:
+        """The arm of that name (raises :class:`ConfigError` listing the arms)."""
+        for arm in self.arms:
+            if arm.name == name:
+                return arm
+        raise ConfigError(f"{self.source}: no arm {name!r}; arms: {', '.join(a.name for a in self.arms)}")
+
+
+def robots_dir() -> Path:
+    """The folder of the bundled robot files (``robots/`` in a checkout, ``robots_data/`` when installed)."""
+    from nextage_qp.scene import package_root
+
+    root = package_root()
+    for name in ("robots_data", "robots"):
+        if any((root / name).glob("*.yaml")):
+            return root / name
+    raise ConfigError(f"cannot find the bundled robot files (robots/*.yaml) under {root}")
+
+
+def bundled_robots() -> list[str]:
+    """Names of the bundled robot files."""
+    return sorted(p.stem for p in robots_dir().glob("*.yaml"))
+
+
+def robot_file(ref: str | Path | None) -> Path:
+    """The robot file a config or command names: a bundled name (``nextage``) or a path to a YAML file.
+
+    Raises:
+        ConfigError: Neither; the message lists the bundled robots.
+    """
+    ref = DEFAULT_ROBOT if ref is None else ref
+    path = Path(ref)
+    if path.suffix in (".yaml", ".yml") and path.is_file():
+        return path
+    bundled = robots_dir() / f"{path.name}.yaml"
+    if path.suffix == "" and bundled.is_file():
+        return bundled
+    hint = (
+        "a robot file (.yaml)"
+        if path.suffix not in (".xml", ".urdf")
+        else ("a robot file (.yaml; `nextage-qp robot init MODEL` writes one for a model)")
+    )
+    raise ConfigError(
+        f"robot {str(ref)!r} not found; bundled robots: {', '.join(bundled_robots())} (or a path to {hint})"
+    )
+
+
+def load_robot(ref: str | Path | None = None) -> RobotDescription:
+    """Load and validate a robot file (see :mod:`nextage_qp.robots.schema`).
+
+    Raises:
+        ConfigError: The file is missing or malformed: one line naming the file, the dotted key and what is valid.
+    """
+    path = robot_file(ref)
+    shown = str(path)
+    doc: RobotFile = validate(
+        RobotFile, read_yaml_mapping(path, "a robot file (a mapping with name, model, arms)"), shown
+    )
+    here = path.resolve().parent
+    model = (here / doc.model).resolve()
+    if not model.is_file():
+        raise ConfigError(f"{shown}: model: {doc.model!r} not found (looked for {model})")
+    if model.suffix.lower() not in (".xml", ".urdf"):
+        raise ConfigError(f"{shown}: model: {doc.model!r} must be an MJCF (.xml) or URDF (.urdf) file")
+    arms = tuple(Arm(a.name, a.joints, a.wrist, a.tool or a.wrist, a.pad or a.wrist) for a in doc.arms)
+    gains = doc.gains if isinstance(doc.gains, GainRule) else (here / doc.gains).resolve()
+    if isinstance(gains, Path) and not gains.is_file():
+        raise ConfigError(f"{shown}: gains: {doc.gains!r} not found (looked for {gains})")
+    return RobotDescription(
+        name=doc.name,
+        source=shown,
+        model=model,
+        angle=doc.angle,
+        package_paths=tuple((here / p).resolve() for p in doc.package_paths),
+        mount=doc.mount,
+        arms=arms,
+        joint_groups=dict(doc.joint_groups),
+        frames=dict(doc.frames),
+        collision_groups=dict(doc.collision_groups),
+        exclude=doc.exclude,
+        keyframes=dict(doc.keyframes),
+        gains=gains,
+        gains_dir=(here / doc.gains_dir).resolve() if doc.gains_dir else None,
+        torque_limits=doc.torque_limits,
+        velocity_limits=doc.velocity_limits,
+    )

@@ -1,0 +1,57 @@
+"""Collision groups: the robot file's (bodies, subtrees), the scene's static bodies and one per object."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+import mujoco
+
+from nextage_qp.errors import UnknownNameError
+
+if TYPE_CHECKING:
+    from nextage_qp.robot import Robot
+
+
+def collision_geoms(robot: Robot, extra: Mapping[str, Any] | None = None) -> dict[str, tuple[int, ...]]:
+    """Named groups of a robot's scene's collision geom ids (see :meth:`Robot.collision_geoms`).
+
+    Groups: the robot file's (e.g. ``left_arm``, ``left_hand``, ``torso``), ``table`` and ``obstacle`` when
+    the scene has them, one group per object (e.g. ``cube``), and the ``extra`` groups.
+
+    Raises:
+        UnknownNameError: A group names a body that is not in the scene.
+    """
+    from nextage_qp.per_joint import descends
+    from nextage_qp.robot import SCENE_GROUP_BODIES, GroupSpec
+
+    m = robot.model
+    colliding = [g for g in range(m.ngeom) if m.geom_contype[g] or m.geom_conaffinity[g]]
+
+    def of_bodies(ids: set[int]) -> tuple[int, ...]:
+        return tuple(g for g in colliding if int(m.geom_bodyid[g]) in ids)
+
+    def ids(names: Sequence[str], strict: bool, what: str) -> set[int]:
+        found = set()
+        for n in names:
+            bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n)
+            if bid < 0 and strict:
+                raise UnknownNameError(what, n, robot.body_names)
+            if bid >= 0:
+                found.add(bid)
+        return found
+
+    def group(name: str, spec: GroupSpec) -> tuple[int, ...]:
+        roots = ids(spec.subtrees, True, f"body (collision group {name!r} subtree)")
+        below = {b for b in range(m.nbody) if any(descends(m, b, r) for r in roots)}
+        return of_bodies(ids(spec.bodies, True, f"body (collision group {name!r})") | below)
+
+    groups = {
+        name: group(name, GroupSpec(g.bodies, g.subtrees)) for name, g in robot.description.collision_groups.items()
+    }
+    for name in (*SCENE_GROUP_BODIES, *robot.object_names):
+        if found := of_bodies(ids([name], False, "body")):
+            groups[name] = found
+    for name, spec in (extra or {}).items():
+        groups[name] = group(name, spec)
+    return groups

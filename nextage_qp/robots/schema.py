@@ -1,0 +1,146 @@
+"""The robot file: one YAML per robot, validated like every config (unknown keys, bad numbers: one line, exit 2).
+
+A robot file names the model (MJCF or URDF) and says what the framework needs to know that the model does not:
+
+.. code-block:: yaml
+
+    name: nextage
+    model: nextage/nextage.xml       # MJCF or URDF, relative to this file
+    arms:                            # shoulder to wrist; the first arm is the one on the +y side
+      - name: left
+        joints: [LARM_JOINT0, LARM_JOINT1, LARM_JOINT2, LARM_JOINT3, LARM_JOINT4, LARM_JOINT5]
+        wrist: left_wrist            # end-effector frames: the model's sites or bodies, or frames added below
+        tool: left_tool              # the face that pushes
+        pad: left_pad                # the face that clamps
+    joint_groups: {chest: [CHEST_JOINT0], head: [HEAD_JOINT0, HEAD_JOINT1]}
+    frames:                          # frames the file adds: a site on a body, at an offset
+      left_tip: {body: LARM_JOINT5_Link, pos: [0.1, 0, 0]}
+    collision_groups:
+      left_arm: {subtrees: [LARM_JOINT0_Link]}
+      torso: {bodies: [CHEST_JOINT0_Link, WAIST]}
+    exclude: [[CHEST_JOINT0_Link, HEAD_JOINT1_Link]]
+    keyframes: {home: model}         # the model's own keyframe, or joint -> rad (others 0)
+    gains: gains/default.yaml        # a gains file, or a rule on the joints' reflected inertia
+    torque_limits: {}                # N m per joint, where the model's actuators give none
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, Field, model_validator
+
+from nextage_qp.yaml_file import STRICT
+
+Name = Annotated[str, Field(min_length=1)]
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+
+class ArmFile(BaseModel):
+    """One arm: its joints (shoulder to wrist) and the frames the phases use on it."""
+
+    model_config = STRICT
+
+    name: Name = Field(description="Arm name, e.g. left; arm groups are named NAME_arm.")
+    joints: tuple[Name, ...] = Field(min_length=1, description="Joints, shoulder to wrist.")
+    wrist: Name = Field(description="Wrist frame (a site or body of the model, or a frame of this file).")
+    tool: Name | None = Field(default=None, description="Frame whose face pushes (default: the wrist).")
+    pad: Name | None = Field(default=None, description="Frame on the clamping face (default: the wrist).")
+
+
+class FrameFile(BaseModel):
+    """A frame the robot file adds to the model: a site on a body, at an offset in the body's frame."""
+
+    model_config = STRICT
+
+    body: Name
+    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    quat: tuple[float, float, float, float] = Field(
+        default=(1.0, 0.0, 0.0, 0.0), description="Orientation in the body (w, x, y, z)."
+    )
+
+
+class GroupFile(BaseModel):
+    """A collision group: bodies, and whole subtrees (a body and every body below it)."""
+
+    model_config = STRICT
+
+    bodies: tuple[Name, ...] = ()
+    subtrees: tuple[Name, ...] = ()
+
+    @model_validator(mode="after")
+    def _not_empty(self) -> GroupFile:
+        if not self.bodies and not self.subtrees:
+            raise ValueError("a collision group needs bodies or subtrees")
+        return self
+
+
+class GainRule(BaseModel):
+    """PD gains from each joint's reflected inertia at ``home``: ``kp = I w^2``, ``kd = 2 zeta I w - d``."""
+
+    model_config = STRICT
+
+    bandwidth: Positive = Field(default=30.0, le=500.0, description="Closed-loop natural frequency w [rad/s].")
+    damping_ratio: Positive = Field(default=1.0, le=5.0, description="zeta.")
+    gravity_compensation: bool = True
+
+
+class MountFile(BaseModel):
+    """Where the robot's root sits in the world of a task scene."""
+
+    model_config = STRICT
+
+    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    yaw: float = Field(default=0.0, ge=-7.0, le=7.0, description="[rad]")
+
+
+class RobotFile(BaseModel):
+    """The schema of a robot file (see the module docstring)."""
+
+    model_config = STRICT
+
+    name: Name
+    model: Name = Field(description="MJCF or URDF file, relative to the robot file.")
+    angle: Literal["radian", "degree"] | None = Field(
+        default=None, description="Angle unit of the model where it does not say (MJCF default: degree)."
+    )
+    package_paths: tuple[Name, ...] = Field(
+        default=(), description="Folders a URDF's package:// paths are resolved against (relative to this file)."
+    )
+    mount: MountFile = MountFile()
+    arms: tuple[ArmFile, ...] = Field(min_length=1)
+    joint_groups: dict[Name, tuple[Name, ...]] = Field(
+        default_factory=dict, description="Other joints by group, e.g. torso, head."
+    )
+    frames: dict[Name, FrameFile] = Field(default_factory=dict)
+    collision_groups: dict[Name, GroupFile] = Field(default_factory=dict)
+    exclude: tuple[tuple[Name, Name], ...] = Field(default=(), description="Body pairs that never collide.")
+    keyframes: dict[Name, Literal["model"] | dict[Name, float]] = Field(
+        default_factory=dict, description="home (and others): the model's keyframe, or joint -> rad (others 0)."
+    )
+    gains: Name | GainRule = Field(
+        default_factory=GainRule, description="A gains file (relative to this file) or the rule."
+    )
+    gains_dir: Name | None = Field(default=None, description="Folder of bundled gains files named in configs.")
+    torque_limits: float | dict[Name, Positive] | None = Field(
+        default=None, description="[N m], one value or per joint, where the model's actuators give none."
+    )
+    velocity_limits: float | dict[Name, Positive] | None = Field(
+        default=None, description="[rad/s] for the trajectory and the IK, where the configs give none."
+    )
+
+    @model_validator(mode="after")
+    def _names_once(self) -> RobotFile:
+        seen: dict[str, str] = {}
+        places = [(f"arms[{i}].joints", j) for i, arm in enumerate(self.arms) for j in arm.joints]
+        places += [(f"joint_groups.{g}", j) for g, joints in self.joint_groups.items() for j in joints]
+        for where, joint in places:
+            if joint in seen:
+                raise ValueError(f"joint {joint!r} is listed twice ({seen[joint]} and {where})")
+            seen[joint] = where
+        arms = [a.name for a in self.arms]
+        if len(set(arms)) != len(arms):
+            raise ValueError(f"arm names must differ, got {arms}")
+        if "home" not in self.keyframes:
+            raise ValueError("keyframes needs 'home' (the model's keyframe: home: model; or joint -> rad)")
+        return self
