@@ -59,7 +59,8 @@ def _add_missing_actuators(spec: mujoco.MjSpec, desc: RobotDescription) -> None:
     """A motor (gear 1, control = torque) for every robot joint no actuator drives, limited by the robot file."""
     driven = {a.target for a in spec.actuators if a.trntype == mujoco.mjtTrn.mjTRN_JOINT}
     joints = {j.name for j in spec.joints}
-    for joint in desc.joints:
+    order = {j.name: i for i, j in enumerate(spec.joints)}
+    for joint in sorted(desc.joints, key=lambda name: order.get(name, -1)):  # model order: contiguous actuators
         if joint not in joints:
             raise ConfigError(
                 f"{desc.source}: joint {joint!r} is not in the model; joints: "
