@@ -278,6 +278,15 @@ def test_init_two_arms(tmp_path, capsys):
     assert self_contacts(m, mujoco.MjData(m), m.qpos0)
     assert "mount:" not in out.read_text() and "torque_limits:" in out.read_text()
     assert cli(capsys, "robot", "check", str(out))[0] == 0
+    # it runs: a reach from home (motors added in model order) and a step with the rule's gains
+    d = mujoco.MjData(robot.model)
+    robot.set_q(d, robot.keyframe_q("home"))
+    mujoco.mj_kinematics(robot.model, d)
+    target = d.site("l_grip").xpos + np.array([0.03, 0.0, 0.03])
+    assert cli(capsys, "reach", "--robot", str(out), "--frame", "l_grip", "--duration", "2",
+               "--pos", *map(str, target))[0] == 0
+    assert cli(capsys, "step-response", "--robot", str(out), "--joint", "l_elbow", "--target-deg", "45",
+               "--duration", "0.5")[0] == 0
 
 
 def test_init_refuses_to_overwrite(tmp_path, capsys):

@@ -17,7 +17,7 @@ import numpy as np
 from nextage_qp.robots import checks, physics_checks
 from nextage_qp.robots.checks import Finding
 from nextage_qp.robots.description import RobotDescription, load_robot
-from nextage_qp.robots.modelfile import compile_alone, model_spec, model_torque_limit
+from nextage_qp.robots.modelfile import compile_alone, model_spec
 
 
 @dataclass
@@ -131,9 +131,7 @@ def _tables(report: CheckReport, model: mujoco.MjModel, desc: RobotDescription) 
         if int(model.jnt_type[j]) not in checks.MOVING:
             continue
         name = model.joint(j).name
-        limit = model_torque_limit(model, j)
-        if limit is None and given is not None:
-            limit = float(given) if isinstance(given, float | int) else given.get(name)
+        limit = physics_checks.file_or_model_limit(model, j, given)
         report.joints.append({
             "name": name, "group": group.get(name, "-"),
             "type": "hinge" if int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE) else "slide",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Literal
 
 import mujoco
@@ -120,6 +121,16 @@ def actuators(model: mujoco.MjModel, desc: RobotDescription) -> list[Finding]:
     return out
 
 
+def file_or_model_limit(model: mujoco.MjModel, joint: int, given: float | Mapping[str, float] | None) -> float | None:
+    """A joint's torque limit [N m]: the robot file's ``torque_limits`` where given, else the model's, else None."""
+    if isinstance(given, float | int):
+        return float(given)
+    name = model.joint(joint).name
+    if given is not None and name in given:
+        return float(given[name])
+    return model_torque_limit(model, joint)
+
+
 def gravity_load(model: mujoco.MjModel, desc: RobotDescription, qpos: np.ndarray) -> list[Finding]:
     """Robot joints whose torque limit is below the gravity torque of holding home: they sag."""
     data = mujoco.MjData(model)
@@ -131,14 +142,12 @@ def gravity_load(model: mujoco.MjModel, desc: RobotDescription, qpos: np.ndarray
         j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
         if j < 0:
             continue
-        limit = model_torque_limit(model, j)
-        if limit is None and given is not None:
-            limit = float(given) if isinstance(given, float | int) else given.get(name)
+        limit = file_or_model_limit(model, j, given)
         load = abs(float(data.qfrc_bias[model.jnt_dofadr[j]]))
         if limit is not None and load > limit:
             weak.append(f"{name} ({load:.3g} > {limit:g} N m)")
     if not weak:
         return []
     return [Finding("problem", "torque", f"holding home takes more gravity torque than the limit: {', '.join(weak)}; "
-                    "these joints sag under PD control", "raise the model's actuator ctrlrange or forcerange "
-                    "(the robot file's torque_limits apply only where the model gives none)")]
+                    "these joints sag under PD control", "give them larger torque_limits in the robot file (they "
+                    "override the model's) if the real actuators allow it, or choose another home")]
