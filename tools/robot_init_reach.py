@@ -56,10 +56,12 @@ def main() -> None:
             rng = np.random.default_rng(args.seed + k)
             errors = []
             for pos in targets(robot, arm.name, args.n, rng):
-                buf = io.StringIO()
-                with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(io.StringIO()):
-                    cli(["reach", "--robot", file, "--frame", arm.wrist, "--json", "--pos", *map(str, pos)])
-                errors.append(json.loads(buf.getvalue())["final_error_m"])
+                out, err = io.StringIO(), io.StringIO()
+                with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+                    code = cli(["reach", "--robot", file, "--frame", arm.wrist, "--json", "--pos", *map(str, pos)])
+                if code == 2:
+                    raise SystemExit(f"{file}: {err.getvalue().strip()}")
+                errors.append(json.loads(out.getvalue())["final_error_m"])
             e = np.array(errors)
             print(f"{file} {arm.name} ({arm.wrist}): {int(np.sum(e <= 1e-3))}/{len(e)} within 1 mm; "
                   f"median {np.median(e) * 1e3:.3f} mm, worst {e.max() * 1e3:.3f} mm", flush=True)
