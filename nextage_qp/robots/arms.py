@@ -112,7 +112,7 @@ def left_by_name(a: list[str], b: list[str]) -> int | None:
 
 
 def _group_name(model: mujoco.MjModel, joints: list[int], taken: set[str], base: str | None = None) -> str:
-    """A group name from the joints' common name prefix (``HEAD_JOINT0``, ``HEAD_JOINT1`` -> ``head``)."""
+    """A group name from the joints' common name prefix (``NECK_JOINT0``, ``NECK_JOINT1`` -> ``neck``)."""
     names = [model.joint(j).name for j in joints]
     prefix = names[0]
     for n in names[1:]:
