@@ -22,7 +22,7 @@ DESCRIPTION = ("Task-space control of the Nextage dual-arm robot in MuJoCo: QP d
                "references, PD torque control; YAML-configured manipulation tasks and randomised sweeps.")
 """What ``nextage-qp --help`` says first."""
 
-COMMANDS = ("info", "fk", "ik", "step_response", "reach", "run", "sweep", "tune", "robot")
+COMMANDS = ("info", "fk", "ik", "step_response", "reach", "bimanual", "run", "sweep", "tune", "robot")
 """Modules of :mod:`nextage_qp.commands`, in the order ``--help`` lists them."""
 
 

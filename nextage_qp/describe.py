@@ -23,11 +23,14 @@ def describe(robot: Robot) -> dict[str, Any]:
         }
         for i, name in enumerate(robot.joint_names)
     ]
-    base = m.body("base_link").id
+    base = int(m.body_rootid[m.jnt_bodyid[robot.joint_ids[0]]])  # the robot's top body (its mount)
     robot_bodies = [b for b in range(m.nbody) if m.body_rootid[b] == base]
     moving = [b for b in robot_bodies if m.body_weldid[b] != 0]
     return {
         "scene": robot.scene,
+        "robot": robot.name,
+        "arms": {a.name: {"joints": list(a.joints), "wrist": a.wrist, "tool": a.tool, "pad": a.pad}
+                 for a in robot.arms},
         "timestep_s": float(m.opt.timestep),
         "joints": joints,
         "actuators": [m.actuator(int(a)).name for a in robot.actuator_ids],

@@ -14,7 +14,7 @@
         noise_rad_s: 0.01     # on measured joint velocities
       wrench:                 # the wrist force/torque sensors
         noise_n: 0.05         # Gaussian, per force axis
-        fail: {site: left_pad, at_s: 3.0, mode: freeze}   # or nan: the run fails, naming the sensor
+        fail: {site: PAD, at_s: 3.0, mode: freeze}        # or nan: the run fails, naming the sensor
       shoves:                 # external impulses through MuJoCo's xfrc_applied over a short window
         - {body: cube, at_s: 6.0, impulse_ns: [0.0, 0.15, 0.0]}
         - {body: dumbbell, phase: place, after_s: 1.5, impulse_ns: [0.3, 0.0, 0.0]}
@@ -64,7 +64,7 @@ class JointSensorFaults(_Strict):
 class SensorFailure(_Strict):
     """A force/torque sensor that stops working at a time: it freezes at its last value or returns NaN."""
 
-    site: str = Field(description="The sensor's site (e.g. left_pad).")
+    site: str = Field(description="The sensor's site (e.g. an arm's pad frame).")
     at_s: float = Field(ge=0, le=MAX_SECONDS, allow_inf_nan=False, description="Simulated time of the failure [s].")
     mode: Literal["freeze", "nan"] = "freeze"
 

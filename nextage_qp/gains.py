@@ -4,7 +4,7 @@ A gains file has one entry per robot joint (``configs/gains/*.yaml`` are the Nex
 
     gravity_compensation: true
     joints:
-      CHEST_JOINT0: {kp: 400.0, kd: 40.0}   # [N m/rad], [N m s/rad]
+      JOINT_NAME: {kp: 400.0, kd: 40.0}     # [N m/rad], [N m s/rad]
       ...
 
 A robot file without one (``gains: {bandwidth: 30, damping_ratio: 1}``) gets gains from a rule: each joint as a
@@ -169,7 +169,10 @@ def rule_gains(robot: Robot, rule: GainRule) -> Gains:
     robot.set_q(d, robot.keyframe_q("home"))
     mujoco.mj_forward(m, d)
     full = np.zeros((m.nv, m.nv))
-    mujoco.mj_fullM(m, full, d.qM)
+    if hasattr(d, "qM"):  # MuJoCo 3: mj_fullM(m, dst, qM)
+        mujoco.mj_fullM(m, full, d.qM)
+    else:  # MuJoCo 4: mj_fullM(m, d, dst)
+        mujoco.mj_fullM(m, d, full)
     inertia = full[robot.dof_idx, robot.dof_idx]
     w, zeta = rule.bandwidth, rule.damping_ratio
     kp = inertia * w * w

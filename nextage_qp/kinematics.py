@@ -101,7 +101,7 @@ def chain_fk(
     """World transform (4 x 4) of a joint's child link frame by chaining per-joint transforms.
 
     Args:
-        link: A joint name (``LARM_JOINT5``) or its link (``LARM_JOINT5_Link``).
+        link: A joint name (``J``) or its link (``J_Link``).
         q: Joint angles [rad] by joint name (a joint left out is at 0).
         topology: joint -> (parent joint, origin, axis).
 

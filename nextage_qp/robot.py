@@ -18,7 +18,7 @@ import numpy as np
 
 from nextage_qp.errors import ConfigError, UnknownFrameError, UnknownJointError, UnknownNameError
 from nextage_qp.per_joint import PerJoint, per_joint  # noqa: F401 (re-exported)
-from nextage_qp.robots.actuation import torque_limits
+from nextage_qp.robots.actuation import torque_limits, velocity_limits
 from nextage_qp.robots.description import Arm, RobotDescription, load_robot
 from nextage_qp.scene import SceneOverrides, add_touch_sensors, compile_spec
 
@@ -55,6 +55,7 @@ class Robot:
         actuator_ids: Actuator driving each robot joint, in joint order (read-only).
         lower, upper: Joint position limits [rad] (read-only).
         torque_limit: Actuator torque limit [N m] per joint (read-only).
+        velocity_limit: The robot file's velocity limit [rad/s] per joint, inf where none (read-only).
     """
 
     def __init__(self, model: mujoco.MjModel, description: RobotDescription | None = None, scene: str = "<model>",
@@ -84,6 +85,7 @@ class Robot:
         self.lower = _ro(np.where(limited, model.jnt_range[self.joint_ids, 0], -np.pi))
         self.upper = _ro(np.where(limited, model.jnt_range[self.joint_ids, 1], np.pi))
         self.torque_limit = _ro(torque_limits(model, self.actuator_ids, self.joint_ids, desc))
+        self.velocity_limit = _ro(velocity_limits(desc, self._names))
         self._joint_index = {name: i for i, name in enumerate(self._names)}
 
     @classmethod
@@ -199,10 +201,12 @@ class Robot:
     # Configurations.
 
     def keyframe_q(self, name: str = "home") -> np.ndarray:
-        """Robot q of a keyframe of the robot file (``home``; the model's own keyframe, or joint -> rad)."""
+        """Robot q of a keyframe of the robot file (``home``: the model's keyframe, or joint -> rad), or ``zero``."""
         keys = self.description.keyframes
+        if name == "zero" and name not in keys:  # built in: every joint at 0, clipped into its range
+            return np.clip(np.zeros(self.nq), self.lower, self.upper)
         if name not in keys:
-            raise UnknownNameError("keyframe", name, keys)
+            raise UnknownNameError("keyframe", name, [*keys, "zero"])
         key = keys[name]
         if isinstance(key, str):  # the model's own keyframe
             kid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_KEY, name)

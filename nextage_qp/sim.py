@@ -37,7 +37,7 @@ from nextage_qp.recorder import FrameRows, Recorder, StageTimer
 from nextage_qp.robot import Robot
 from nextage_qp.sensors import Measurement, PerfectSensors, Pose, Sensors, SensorWatch, WrenchSensor
 from nextage_qp.timing import Timing
-from nextage_qp.trajectory import JointTrajectory, RefState, TrajectoryLimits
+from nextage_qp.trajectory import JointTrajectory, RefState, TrajectoryLimits, cap_velocity
 
 __all__ = ["Hook", "Simulation", "StageTimer", "Timing"]
 
@@ -100,7 +100,7 @@ class Simulation:
         self.data = mujoco.MjData(self.model)
         self.pd = PDController(gains, robot.torque_limit)
         self.pd.install(self.model, robot.actuator_ids)
-        self.limits = limits or TrajectoryLimits()
+        self.limits = cap_velocity(limits or TrajectoryLimits(), robot.joint_names, robot.velocity_limit)
         self.traj = JointTrajectory(self.limits, dt=self.ctrl_dt, lower=robot.lower, upper=robot.upper,
                                     joint_names=robot.joint_names)
         self.sensors: Sensors = sensors or PerfectSensors()

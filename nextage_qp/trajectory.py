@@ -79,6 +79,15 @@ class RefState(NamedTuple):
     qdd: np.ndarray
 
 
+def cap_velocity(limits: TrajectoryLimits, names: Sequence[str], cap: np.ndarray) -> TrajectoryLimits:
+    """``limits`` with each joint's velocity bound capped at ``cap`` [rad/s] (inf: no cap), e.g. a robot file's."""
+    cap = np.asarray(cap, dtype=float)
+    if not np.isfinite(cap).any():
+        return limits
+    v = np.minimum(limits.arrays(names)[0], cap)
+    return limits.model_copy(update={"max_velocity": dict(zip(names, v.tolist(), strict=True))})
+
+
 def fill_limits(inp: ruckig.InputParameter, limits: TrajectoryLimits, names: Sequence[str]) -> None:
     """Write the per-joint limits of ``names`` into a Ruckig input."""
     v, a, j = limits.arrays(names)

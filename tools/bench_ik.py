@@ -1,11 +1,12 @@
 """Benchmark the IK methods: success on random reachable targets, and the cost of one QP IK step vs plain mink.
 
 Targets are FK poses of random in-limit configurations (fixed seed), solved from ``home``:
-one wrist (alternating left/right) and both wrists at once, each position-only and full-pose. Success is
-1 mm / 1 deg. The step timing runs our QPIK.step and plain ``mink.solve_ik`` with the same tasks and limits on the
-same states, interleaved, in the same process.
+one wrist (alternating between the first two arms) and both wrists at once, each position-only and full-pose.
+Success is 1 mm / 1 deg. The step timing runs our QPIK.step and plain ``mink.solve_ik`` with the same tasks and
+limits on the same states, interleaved, in the same process.
 
     .venv/bin/python tools/bench_ik.py --targets 1000 --json bench.json
+    .venv/bin/python tools/bench_ik.py --robot yumi --targets 1000      # any robot file
 """
 
 from __future__ import annotations
@@ -26,12 +27,21 @@ from nextage_qp.ik.baselines import dls_ik, lm_ik, pinv_ik
 from nextage_qp.kinematics import Kinematics
 from nextage_qp.robot import Robot
 
-WRISTS = ("left_wrist", "right_wrist")
-PAIRS = [
-    ("left_arm", "table"), ("right_arm", "table"), ("left_arm", "obstacle"), ("right_arm", "obstacle"),
-    ("left_arm", "torso"), ("right_arm", "torso"), ("left_arm", "right_arm"),
-    ("left_arm", "dumbbell"), ("right_arm", "dumbbell"), ("head", "left_arm"), ("head", "right_arm"),
-]  # fmt: skip
+
+def wrists(robot: Robot) -> tuple[str, str]:
+    """The wrist frames of the robot's first two arms."""
+    return robot.arms[0].wrist, robot.arms[1].wrist
+
+
+def pairs(robot: Robot) -> list[tuple[str, str]]:
+    """Collision pairs of the step timing: each arm against the scene's bodies, the torso, the head and the other arm
+    (those of them the robot file and the scene have)."""
+    groups = robot.collision_geoms()
+    arms = [a.group for a in robot.arms]
+    out = [(a, b) for b in ("table", "obstacle") for a in arms]
+    out += [(a, "torso") for a in arms] + [(a, b) for i, a in enumerate(arms) for b in arms[i + 1:]]
+    out += [(a, o) for o in robot.object_names for a in arms] + [("head", a) for a in arms]
+    return [(a, b) for a, b in out if groups.get(a) and groups.get(b)]
 
 
 def target_sets(robot: Robot, n: int, seed: int) -> dict[str, list[list[FrameTarget]]]:
@@ -39,12 +49,12 @@ def target_sets(robot: Robot, n: int, seed: int) -> dict[str, list[list[FrameTar
     sets: dict[str, list[list[FrameTarget]]] = {k: [] for k in ("one_pos", "one_pose", "two_pos", "two_pose")}
     for i in range(n):
         q = rng.uniform(robot.lower, robot.upper)
-        poses = {f: kin.fk(f, q) for f in WRISTS}
-        one = WRISTS[i % 2]
+        poses = {f: kin.fk(f, q) for f in wrists(robot)}
+        one = wrists(robot)[i % 2]
         sets["one_pos"].append([FrameTarget(one, pos=poses[one].pos)])
         sets["one_pose"].append([FrameTarget(one, pos=poses[one].pos, rot=poses[one].rot)])
-        sets["two_pos"].append([FrameTarget(f, pos=poses[f].pos) for f in WRISTS])
-        sets["two_pose"].append([FrameTarget(f, pos=poses[f].pos, rot=poses[f].rot) for f in WRISTS])
+        sets["two_pos"].append([FrameTarget(f, pos=poses[f].pos) for f in wrists(robot)])
+        sets["two_pose"].append([FrameTarget(f, pos=poses[f].pos, rot=poses[f].rot) for f in wrists(robot)])
     return sets
 
 
@@ -77,13 +87,15 @@ def bench_success(robot: Robot, n: int, seed: int) -> dict[str, dict[str, dict[s
 
 def bench_step(robot: Robot, n: int, seed: int, collisions: bool) -> dict[str, float]:
     rng = np.random.default_rng(seed)
-    pairs = tuple(CollisionPairConfig(a=a, b=b, min_distance=0.005, detection_distance=0.05) for a, b in PAIRS)
-    cfg = IKConfig(velocity_limit=1.0, collision_pairs=pairs if collisions else ())
+    chosen = pairs(robot)
+    configs = tuple(CollisionPairConfig(a=a, b=b, min_distance=0.005, detection_distance=0.05) for a, b in chosen)
+    cfg = IKConfig(velocity_limit=1.0, collision_pairs=configs if collisions else ())
     ours = QPIK(robot, cfg)
     model, dt = ours.model, 0.004
     config = mink.Configuration(model)
     tasks = [
-        mink.FrameTask(f, "site", cfg.position_cost, cfg.orientation_cost, lm_damping=cfg.lm_damping) for f in WRISTS
+        mink.FrameTask(f, robot.frame(f)[0], cfg.position_cost, cfg.orientation_cost, lm_damping=cfg.lm_damping)
+        for f in wrists(robot)
     ]
     posture = mink.PostureTask(model, cost=cfg.posture_cost)
     posture.set_target(robot.keyframe_q("home"))
@@ -93,7 +105,7 @@ def bench_step(robot: Robot, n: int, seed: int, collisions: bool) -> dict[str, f
         mink.VelocityLimit(model, {j: 1.0 for j in (model.joint(i).name for i in range(model.njnt))}),
     ]
     if collisions:
-        geom_pairs = [(list(groups[a]), list(groups[b])) for a, b in PAIRS]
+        geom_pairs = [(list(groups[a]), list(groups[b])) for a, b in chosen]
         limits.append(mink.CollisionAvoidanceLimit(model, geom_pairs, 0.85, 0.005, 0.05))
     home = robot.keyframe_q("home")
     kin = Kinematics(robot)
@@ -105,7 +117,7 @@ def bench_step(robot: Robot, n: int, seed: int, collisions: bool) -> dict[str, f
     states: list[tuple[np.ndarray, list[FrameTarget]]] = []
     while len(states) < n:
         goal = np.clip(home + rng.normal(0.0, 0.4, robot.nq), robot.lower, robot.upper)
-        targets = [FrameTarget(f, pos=kin.fk(f, goal).pos, rot=kin.fk(f, goal).rot) for f in WRISTS]
+        targets = [FrameTarget(f, pos=kin.fk(f, goal).pos, rot=kin.fk(f, goal).rot) for f in wrists(robot)]
         ticks = int(np.ceil(np.max(np.abs(goal - q_prev)) / (1.0 * dt)))
         states += [(q_prev + (goal - q_prev) * (k / ticks), targets) for k in range(1, ticks + 1)]
         q_prev = goal
@@ -142,10 +154,11 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=2000, help="IK steps timed per case (default 2000)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--scene", default="dock_dumbbell", help="scene (default dock_dumbbell)")
+    parser.add_argument("--robot", default=None, help="robot file or bundled name (default: nextage)")
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON ('-' for stdout only)")
     parser.add_argument("--step-only", action="store_true", help="time the IK step only (skip the success sets)")
     args = parser.parse_args()
-    robot = Robot.from_scene(args.scene)
+    robot = Robot.from_scene(args.scene, robot=args.robot)
     machine = {"platform": platform.platform(), "python": platform.python_version(), "cpu_count": os.cpu_count(),
                "processor": platform.processor() or platform.machine(),
                **{p: metadata.version(p) for p in ("mujoco", "mink", "qpsolvers", "daqp", "numpy")}}  # fmt: skip
@@ -153,12 +166,13 @@ def main() -> None:
     step = {"two_wrists_posture_limits": bench_step(robot, args.steps, args.seed, False),
             "plus_collision_pairs": bench_step(robot, args.steps, args.seed, True)}  # fmt: skip
     success = {} if args.step_only else bench_success(robot, args.targets, args.seed)
-    report = {"machine": machine, "targets": args.targets, "seed": args.seed, "step": step, "success": success,
-              "wall_s": time.perf_counter() - start}  # fmt: skip
+    report = {"robot": robot.name, "machine": machine, "targets": args.targets, "seed": args.seed, "step": step,
+              "success": success, "wall_s": time.perf_counter() - start}  # fmt: skip
     if args.json == "-":
         print(json.dumps(report, indent=2))
         return
-    print(f"machine: {machine['platform']}, {machine['cpu_count']} CPUs, Python {machine['python']}; "
+    print(f"robot: {robot.name}; machine: {machine['platform']}, {machine['cpu_count']} CPUs, "
+          f"Python {machine['python']}; "
           + ", ".join(f"{p} {machine[p]}" for p in ("mujoco", "mink", "qpsolvers", "daqp", "numpy")))
     if success:
         print(f"success at 1 mm / 1 deg on {args.targets} random reachable targets per set (seed {args.seed}), "

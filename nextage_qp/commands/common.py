@@ -47,7 +47,7 @@ def parse_joint_assignments(robot: Robot, items: list[str], base: np.ndarray) ->
                 raise ValueError
             values[name] = float(value)
         except ValueError:
-            raise ConfigError(f"--q {item!r}: expected NAME=RAD, e.g. LARM_JOINT1=-0.4") from None
+            raise ConfigError(f"--q {item!r}: expected NAME=RAD, NAME a robot joint (nextage-qp info)") from None
         j = robot.joint_index(name)
         lo, hi = float(robot.lower[j]), float(robot.upper[j])
         if not lo <= values[name] <= hi:  # also refuses NaN

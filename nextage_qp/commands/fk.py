@@ -13,7 +13,7 @@ from nextage_qp.kinematics import Kinematics
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``fk`` subcommand."""
     p = sub.add_parser("fk", help="forward kinematics of a body or site")
-    p.add_argument("frame", help="body or site name, e.g. LARM_JOINT5_Link or left_tool")
+    p.add_argument("frame", help="body or site name of the scene (nextage-qp info lists the sites)")
     p.add_argument("--q", nargs="+", default=[], metavar="NAME=RAD", help="joint angles on top of the keyframe")
     p.add_argument("--keyframe", default="zero", help="base configuration: home or zero (default: zero)")
     p.add_argument("--json", action="store_true", help="print one JSON object")

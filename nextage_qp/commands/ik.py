@@ -18,7 +18,7 @@ from nextage_qp.robot import Robot
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``ik`` subcommand."""
     p = subparsers.add_parser("ik", help="inverse kinematics of one or two frames (QP or a baseline)")
-    p.add_argument("--frame", required=True, help="body or site, e.g. left_wrist or LARM_JOINT5_Link")
+    p.add_argument("--frame", required=True, help="body or site of the scene, e.g. an arm's wrist frame")
     p.add_argument("--pos", nargs=3, type=COORD, required=True, metavar=("X", "Y", "Z"), help="target position [m]")
     p.add_argument("--axis", nargs=3, type=COORD, metavar=("AX", "AY", "AZ"), help="tool axis (frame coords) to aim")
     p.add_argument("--dir", nargs=3, type=COORD, default=None, metavar=("DX", "DY", "DZ"),

@@ -25,6 +25,7 @@ def _run(args: argparse.Namespace) -> int:
     limits = TrajectoryLimits(
         max_velocity=args.max_velocity, max_acceleration=args.max_acceleration, max_jerk=args.max_jerk
     )
+    args.frame = args.frame or robot.arms[0].wrist
     res, sim = run_reach(
         robot,
         args.frame,
@@ -71,7 +72,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="move a frame to a Cartesian target (QP IK -> Ruckig -> PD -> MuJoCo)",
         description=help_text(__doc__),
     )
-    p.add_argument("--frame", default="left_wrist", help="site or body to move (default: left_wrist)")
+    p.add_argument("--frame", default=None, help="site or body to move (default: the first arm's wrist frame)")
     p.add_argument("--pos", type=COORD, nargs=3, required=True, metavar=("X", "Y", "Z"), help="target [m], world")
     p.add_argument("--axis", type=COORD, nargs=3, metavar=("AX", "AY", "AZ"), help="tool axis in the frame")
     p.add_argument("--direction", type=COORD, nargs=3, metavar=("DX", "DY", "DZ"), help="world direction for --axis")

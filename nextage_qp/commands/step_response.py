@@ -40,7 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="step one joint from home to an absolute target under PD control",
         description=help_text(__doc__),
     )
-    p.add_argument("--joint", required=True, help="joint name, e.g. LARM_JOINT2")
+    p.add_argument("--joint", required=True, help="robot joint name (nextage-qp info --robot R lists them)")
     p.add_argument("--target-deg", type=number(-360, 360), required=True, help="absolute target angle [deg]")
     p.add_argument("--shaped", action="store_true", help="follow a Ruckig trajectory instead of a raw step")
     add_sim_args(p, "write position/velocity/torque plot")

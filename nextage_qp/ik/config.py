@@ -44,7 +44,7 @@ class CollisionGroupConfig(BaseModel):
     """A named geom group of its own.
 
     Every collision geom of the listed bodies and of the subtrees below the listed roots (e.g. ``{subtrees:
-    [LARM_JOINT3_Link]}`` for a forearm).
+    [FOREARM_LINK]}`` for a forearm).
     """
 
     model_config = STRICT

@@ -21,7 +21,7 @@ class FrameTarget:
     """Where one frame (body or site) should go.
 
     Attributes:
-        frame: Body or site name, e.g. ``left_wrist`` or ``LARM_JOINT5_Link``.
+        frame: Body or site name of the model, e.g. an arm's wrist frame.
         pos: Target position [m] in the world, or None for no position target.
         rot: Target rotation (3 x 3, columns = frame axes in the world), or None.
         axis: Tool axis in the frame's own coordinates that must point along ``direction`` (instead of ``rot``).

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Union
 
 import numpy as np
 import yaml
@@ -80,7 +80,9 @@ class ManipulationConfig(_Strict):
     scene: SceneConfig
     object: str = name_field("object", description="Body whose final error is reported.")
     target: str = name_field("body", description="Body marking the object's target.")
-    start: Literal["home", "zero"] = Field(default="home", description="Start keyframe of the robot.")
+    start: str | dict[str, float] = Field(
+        default="home", description="Start pose: a keyframe of the robot file (home, zero, ...), or joint -> rad "
+                                    "on top of home.")
     success: SuccessCriteria = Field(default_factory=SuccessCriteria, description="Success criteria.")
     gains: str | None = Field(
         default=None,

@@ -56,11 +56,11 @@ def routes(view: View, spec, tool: np.ndarray, d: np.ndarray) -> list[list[np.nd
 
 
 def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: Sequence[float],
-                  rot: Callable[[float], np.ndarray]) -> Approach | None:
+                  target: Callable[[np.ndarray, float], FrameTarget]) -> Approach | None:
     """The approach closest to the planar direction ``wanted`` within ``fan`` [rad] that the arm reaches, or None.
 
-    ``spec`` is the push's spec (frame, object, approach, height, clearance, yaw); ``rot(yaw)`` the tool
-    rotation for a push at ``yaw``.
+    ``spec`` is the push's spec (frame, object, approach, height, clearance, yaw); ``target(pos, yaw)`` the tool
+    target at ``pos`` for a push at ``yaw``.
     """
     tried = 0
     for deviation in (s * a for a in fan for s in ((1.0,) if a == 0 else (1.0, -1.0))):
@@ -68,7 +68,7 @@ def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: S
         yaw = float(np.arctan2(d[1], d[0])) + spec.yaw
         tried += 1
         for route in routes(view, spec, tool, d):
-            planned = PlannedRoute([(FrameTarget(spec.frame, pos=p, rot=rot(yaw)),) for p in route[1:]])
+            planned = PlannedRoute([(target(p, yaw),) for p in route[1:]])
             if planned.plan(view):
                 return Approach(d, route[0], yaw, planned, float(route[-1][2]), tried)
     return None

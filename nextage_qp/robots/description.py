@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.robots.paths import PREFIX, missing_package_hint, resolve_package, split_package
 from nextage_qp.robots.schema import FrameFile, GainRule, GroupFile, MountFile, RobotFile
 from nextage_qp.yaml_file import read_yaml_mapping, validate
 
@@ -129,7 +130,15 @@ def load_robot(ref: str | Path | None = None) -> RobotDescription:
         RobotFile, read_yaml_mapping(path, "a robot file (a mapping with name, model, arms)"), shown
     )
     here = path.resolve().parent
-    model = (here / doc.model).resolve()
+    search = tuple((here / p).resolve() for p in doc.package_paths)
+    if doc.model.startswith(PREFIX):
+        found = resolve_package(doc.model, search, here)
+        if found is None:
+            name = split_package(doc.model)[0]
+            raise ConfigError(f"{shown}: model: {doc.model!r} not found: {missing_package_hint(name)}")
+        model = found
+    else:
+        model = (here / doc.model).resolve()
     if not model.is_file():
         raise ConfigError(f"{shown}: model: {doc.model!r} not found (looked for {model})")
     if model.suffix.lower() not in (".xml", ".urdf"):
@@ -143,7 +152,7 @@ def load_robot(ref: str | Path | None = None) -> RobotDescription:
         source=shown,
         model=model,
         angle=doc.angle,
-        package_paths=tuple((here / p).resolve() for p in doc.package_paths),
+        package_paths=search,
         mount=doc.mount,
         arms=arms,
         joint_groups=dict(doc.joint_groups),

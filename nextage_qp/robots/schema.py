@@ -4,24 +4,29 @@ A robot file names the model (MJCF or URDF) and says what the framework needs to
 
 .. code-block:: yaml
 
-    name: nextage
-    model: nextage/nextage.xml       # MJCF or URDF, relative to this file
+    name: twin
+    model: twin/twin.xml             # MJCF or URDF, relative to this file (or package://NAME/PATH)
     arms:                            # shoulder to wrist; the first arm is the one on the +y side
       - name: left
-        joints: [LARM_JOINT0, LARM_JOINT1, LARM_JOINT2, LARM_JOINT3, LARM_JOINT4, LARM_JOINT5]
-        wrist: left_wrist            # end-effector frames: the model's sites or bodies, or frames added below
-        tool: left_tool              # the face that pushes
-        pad: left_pad                # the face that clamps
-    joint_groups: {chest: [CHEST_JOINT0], head: [HEAD_JOINT0, HEAD_JOINT1]}
+        joints: [l_shoulder_pan, l_shoulder_lift, l_elbow, l_wrist_pitch, l_wrist_roll]
+        wrist: l_flange              # end-effector frames: the model's sites or bodies, or frames added below
+        tool: l_tool                 # the face that pushes
+        pad: l_pad                   # the face that clamps
+      - name: right
+        joints: [r_shoulder_pan, r_shoulder_lift, r_elbow, r_wrist_pitch, r_wrist_roll]
+        wrist: r_flange
+    joint_groups: {torso: [waist]}
     frames:                          # frames the file adds: a site on a body, at an offset
-      left_tip: {body: LARM_JOINT5_Link, pos: [0.1, 0, 0]}
+      l_tool: {body: l_wrist_roll_link, pos: [0.06, 0, 0]}
+      l_pad: {body: l_wrist_roll_link, pos: [0.03, -0.02, 0], quat: [0.7071, 0.7071, 0, 0]}
     collision_groups:
-      left_arm: {subtrees: [LARM_JOINT0_Link]}
-      torso: {bodies: [CHEST_JOINT0_Link, WAIST]}
-    exclude: [[CHEST_JOINT0_Link, HEAD_JOINT1_Link]]
+      left_arm: {subtrees: [l_shoulder_link]}
+      torso: {bodies: [base, chest]}
+    exclude: [[chest, l_shoulder_link]]
     keyframes: {home: model}         # the model's own keyframe, or joint -> rad (others 0)
-    gains: gains/default.yaml        # a gains file, or a rule on the joints' reflected inertia
-    torque_limits: {}                # N m per joint, where the model's actuators give none
+    gains: gains/twin.yaml           # a gains file, or the rule on the joints' reflected inertia (the default)
+    torque_limits: 40.0              # N m, one value or per joint; the file's value wins over the model's
+    velocity_limits: 2.0             # rad/s, one value or per joint: caps the trajectory's limits
 """
 
 from __future__ import annotations
@@ -100,7 +105,7 @@ class RobotFile(BaseModel):
     model_config = STRICT
 
     name: Name
-    model: Name = Field(description="MJCF or URDF file, relative to the robot file.")
+    model: Name = Field(description="MJCF or URDF file, relative to the robot file, or package://NAME/PATH.")
     angle: Literal["radian", "degree"] | None = Field(
         default=None, description="Angle unit of the model where it does not say (MJCF default: degree)."
     )
@@ -123,10 +128,10 @@ class RobotFile(BaseModel):
     )
     gains_dir: Name | None = Field(default=None, description="Folder of bundled gains files named in configs.")
     torque_limits: float | dict[Name, Positive] | None = Field(
-        default=None, description="[N m], one value or per joint, where the model's actuators give none."
+        default=None, description="[N m], one value or per joint; wins over the model's actuator limits."
     )
     velocity_limits: float | dict[Name, Positive] | None = Field(
-        default=None, description="[rad/s] for the trajectory and the IK, where the configs give none."
+        default=None, description="[rad/s], one value or per joint: caps the joint references' velocity."
     )
 
     @model_validator(mode="after")

@@ -30,6 +30,7 @@ from pydantic import BaseModel, Field, model_validator
 from nextage_qp.errors import ConfigError, InfeasibleError
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import build_robot
+from nextage_qp.robots.description import DEFAULT_ROBOT
 from nextage_qp.sweep.keys import key_hash, lookup, scene_default, yaml_scalar
 from nextage_qp.yaml_file import STRICT, read_yaml_mapping, validate
 
@@ -160,8 +161,9 @@ class SweepSpec:
 
     @property
     def name(self) -> str:
-        """The sweep file's stem (e.g. ``push_cube``)."""
-        return self.path.stem
+        """The sweep file's stem (``push_cube``), after the robot's name for other robots (``yumi-push_cube``)."""
+        robot = Path(str(self.base.robot)).stem
+        return self.path.stem if robot == DEFAULT_ROBOT else f"{robot}-{self.path.stem}"
 
     @property
     def wall_limit(self) -> float:

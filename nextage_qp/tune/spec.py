@@ -11,11 +11,11 @@ A study evaluates either a sweep's episodes (a task config's keys are searched):
 
 or step responses of every joint (a gains file's keys are searched)::
 
-    steps: {gains: ../gains/default.yaml, amplitude_deg: 45, relative: [LARM_JOINT1, RARM_JOINT1]}
+    steps: {gains: ../gains/default.yaml, amplitude_deg: 45, relative: [LEFT_ELBOW, RIGHT_ELBOW]}
     held_out: {amplitude_deg: 30}
     objective: settling_time                    # mean 2 % settling time; steps missing a criterion are penalised
     space:
-      joints.LARM_JOINT0.kp: {log: [300, 3000], also: [joints.RARM_JOINT0.kp]}
+      joints.LEFT_SHOULDER.kp: {log: [300, 3000], also: [joints.RIGHT_SHOULDER.kp]}
 
 Every problem is a one-line :class:`~nextage_qp.errors.ConfigError` naming the file and the key.
 """

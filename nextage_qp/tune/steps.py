@@ -1,6 +1,6 @@
 """Step-response studies: raw steps of every joint from ``home`` under a trial's PD gains, scored by settling time.
 
-Each trial's gains are the base gains file with the searched keys set (``joints.LARM_JOINT0.kp`` ...). Every
+Each trial's gains are the base gains file with the searched keys set (``joints.JOINT.kp`` ...). Every
 joint steps to +-amplitude (from home, for joints whose absolute target the robot's own body blocks); a target
 outside the joint's range is left out and listed. A step meets its criteria when it settles into the 2 % band,
 its final error is within ``final_error_rad`` and its overshoot within ``overshoot_pct``. The trial's value is

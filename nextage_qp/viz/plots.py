@@ -95,3 +95,36 @@ def _save(fig: plt.Figure, path: str | Path) -> Path:
     fig.savefig(out, dpi=120)
     plt.close(fig)
     return out
+
+
+def plot_bimanual(arrays: dict[str, np.ndarray], frames: tuple[str, str], path: str | Path, *, title: str = "") -> Path:
+    """The coupled frame's deviation from its start pose relative to the leading frame, against time.
+
+    Args:
+        arrays: A recorder's arrays with ``frame_<lead>`` and ``frame_<follow>`` (k, 7).
+        frames: (lead, follow).
+        path: PNG to write.
+        title: Figure title.
+    """
+    import mujoco
+
+    lead, follow = arrays[f"frame_{frames[0]}"], arrays[f"frame_{frames[1]}"]
+    rel = np.empty((len(lead), 3))
+    mat = np.empty(9)
+    for k in range(len(lead)):
+        mujoco.mju_quat2Mat(mat, lead[k, 3:])
+        rel[k] = mat.reshape(3, 3).T @ (follow[k, :3] - lead[k, :3])
+    err = np.linalg.norm(rel - rel[0], axis=1) * 1e3
+    moved = np.linalg.norm(lead[:, :3] - lead[0, :3], axis=1) * 1e3
+    fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True, constrained_layout=True)
+    ax[0].plot(arrays["t"], moved, lw=1.8, label=f"{frames[0]} travelled")
+    ax[0].set_ylabel("travel [mm]")
+    ax[1].plot(arrays["t"], err, lw=1.8, color="C1", label=f"{frames[1]} relative to {frames[0]}: error")
+    ax[1].axhline(2.0, color="k", lw=0.8, ls="--", label="2 mm")
+    ax[1].set_ylabel("relative error [mm]")
+    ax[1].set_xlabel("time [s]")
+    for a in ax:
+        a.grid(alpha=0.3)
+        a.legend(loc="best", fontsize=8)
+    ax[0].set_title(title or "bimanual move")
+    return _save(fig, path)

@@ -27,7 +27,7 @@ class TargetSpec(BaseModel):
 
     model_config = STRICT
 
-    frame: str = name_field("frame", description="Site or body to move, e.g. left_tool.")
+    frame: str = name_field("frame", description="Site or body of the robot to move, e.g. an arm's tool frame.")
     relative_to: str = name_field("reference", default="world", description="'world' or a body name.")
     offset: Vec3 = Field(default=(0.0, 0.0, 0.0), description="Position offset [m].")
     axes: Literal["world", "yaw"] = Field(default="yaw", description="Axes the offset is expressed in.")

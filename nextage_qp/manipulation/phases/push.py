@@ -42,6 +42,8 @@ from nextage_qp.manipulation.phases.push_spec import (
 from nextage_qp.manipulation.push_approach import plan_approach
 from nextage_qp.servo import Command
 
+_X = np.array([1.0, 0.0, 0.0])
+
 
 class Push(Phase):
     """See the module docstring."""
@@ -73,7 +75,7 @@ class Push(Phase):
         self.approaches += 1
         self.nudges = 0
         fan = c.fan if self.approaches == 1 or full else tuple(a for a in c.fan if a <= c.correction_fan)
-        plan = plan_approach(view, c, self.sp.pos, d_goal, fan, self._rot)
+        plan = plan_approach(view, c, self.sp.pos, d_goal, fan, self._target)
         self.planned_at = view.body_pose(c.object).pos[:2].copy()
         tried = plan.tried if plan else sum(1 + (a != 0) for a in fan)
         self.info.update(attempts=self.approaches, directions_tried=tried)
@@ -85,11 +87,15 @@ class Push(Phase):
         self.stage, self.lifting = "transit", True
 
     def _command(self, allow: bool, done: bool = False) -> Command:
-        target = FrameTarget(self.spec.frame, pos=self.sp.pos.copy(), rot=self._rot(self.tool_yaw))
+        target = self._target(self.sp.pos.copy(), self.tool_yaw)
         return Command((target,), allow=frozenset({self.spec.object}) if allow else frozenset(), done=done)
 
-    def _rot(self, yaw: float) -> np.ndarray:
-        return rot_z(yaw) @ self._pitch
+    def _target(self, pos: np.ndarray, yaw: float) -> FrameTarget:
+        """The tool at ``pos`` pushing at heading ``yaw``: its whole rotation, or its face normal (``orient``)."""
+        rot = rot_z(yaw) @ self._pitch
+        if self.spec.orient == "normal":  # only the face's normal (the frame's x axis) is held; roll about it free
+            return FrameTarget(self.spec.frame, pos=pos, axis=_X, direction=rot[:, 0].copy())
+        return FrameTarget(self.spec.frame, pos=pos, rot=rot)
 
     @functools.cached_property
     def _pitch(self) -> np.ndarray:

@@ -33,7 +33,7 @@ class PushSpec(Spec):
     """Push an object onto a target with one tool frame, steering from the object's live pose."""
 
     kind: Literal["push"]
-    frame: str = name_field("frame", description="Tool frame that pushes, e.g. left_tool.")
+    frame: str = name_field("frame", description="Tool frame that pushes: an arm's tool frame of the robot file.")
     object: str = name_field("object", description="Free body to push, e.g. cube.")
     target: str = name_field("body", description="Body marking where the object should end, e.g. cube_target.")
     height: float = Field(default=0.0, ge=-0.2, le=0.2, description="Tool height over the object centre [m].")
@@ -58,6 +58,9 @@ class PushSpec(Spec):
                             description="Object tilt above which the push pauses until it is flat again [rad].")
     settle: float = Field(default=0.3, ge=0, le=MAX_SECONDS, description="Rest before the error is judged [s].")
     yaw: float = Field(default=0.0, ge=-np.pi, le=np.pi, description="Tool yaw relative to the push [rad].")
+    orient: Literal["full", "normal"] = Field(
+        default="full", description="Hold the tool's whole rotation (x: the push, z: up), or only its face normal "
+                                    "(x) along the push: for arms with too few joints for both, a roll is harmless.")
     pitch: float = Field(default=0.0, ge=-0.8, le=0.8,
                          description="Tool pitch [rad]; > 0 tilts the push face's normal down.")
     standoff: float = Field(default=0.004, ge=0, le=0.05,
