@@ -20,6 +20,7 @@ from nextage_qp.errors import ConfigError, UnknownFrameError, UnknownJointError,
 from nextage_qp.per_joint import PerJoint, per_joint  # noqa: F401 (re-exported)
 from nextage_qp.robots.actuation import torque_limits, velocity_limits
 from nextage_qp.robots.description import Arm, RobotDescription, load_robot
+from nextage_qp.robots.groups import check_arm_frames
 from nextage_qp.scene import SceneOverrides, add_touch_sensors, compile_spec
 
 SCENE_GROUP_BODIES = ("table", "obstacle")
@@ -87,6 +88,7 @@ class Robot:
         self.torque_limit = _ro(torque_limits(model, self.actuator_ids, self.joint_ids, desc))
         self.velocity_limit = _ro(velocity_limits(desc, self._names))
         self._joint_index = {name: i for i, name in enumerate(self._names)}
+        check_arm_frames(model, desc)
 
     @classmethod
     def from_scene(cls, scene: str | Path = "scene", overrides: SceneOverrides | None = None,

@@ -137,3 +137,17 @@ def test_sweep_of_another_robot_is_named_after_it():
     spec = SweepSpec(ROOT / "configs" / "yumi" / "sweeps" / "push_cube.yaml")
     assert spec.name == "yumi-push_cube"
     assert SweepSpec(ROOT / "configs" / "sweeps" / "push_cube.yaml").name == "push_cube"
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ("wrist: l_grip}", "wrist: l_nowhere}", "arms[0].wrist: 'l_nowhere' is neither a site nor a body"),
+    ("torque_limits: 10.0", "torque_limits: {l_elbow: -3}", "torque_limits: -3 for joint 'l_elbow' is not a limit"),
+    ("torque_limits: 10.0", "torque_limits: .nan", "is not a limit"),
+    ("joint_groups: {torso: [waist]", "joint_groups: {torso: [waist_x]", "joint_groups.torso: joint 'waist_x'"),
+])
+def test_robot_file_frames_limits_and_joint_keys_are_one_line(tmp_path, capsys, old, new, message):
+    path = two_arms(tmp_path)
+    path.write_text(path.read_text().replace(old, new, 1))
+    assert main(["info", "--robot", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and str(path) in err and err.count("\n") == 1, err

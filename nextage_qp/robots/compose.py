@@ -56,19 +56,25 @@ def robot_spec(desc: RobotDescription) -> mujoco.MjSpec:
 
 
 def _add_missing_actuators(spec: mujoco.MjSpec, desc: RobotDescription) -> None:
-    """A motor (gear 1, control = torque) for every robot joint no actuator drives, limited by the robot file."""
+    """A motor (gear 1, control = torque) for every robot joint no actuator drives.
+
+    Its limit: the robot file's ``torque_limits``, else the joint's actuator-force range (a URDF's effort limit).
+    """
     driven = {a.target for a in spec.actuators if a.trntype == mujoco.mjtTrn.mjTRN_JOINT}
-    joints = {j.name for j in spec.joints}
+    joints = {j.name: j for j in spec.joints}
     order = {j.name: i for i, j in enumerate(spec.joints)}
     for joint in sorted(desc.joints, key=lambda name: order.get(name, -1)):  # model order: contiguous actuators
         if joint not in joints:
             raise ConfigError(
-                f"{desc.source}: joint {joint!r} is not in the model; joints: "
+                f"{desc.source}: {desc.where(joint)}: joint {joint!r} is not in the model; joints: "
                 f"{', '.join(sorted(j for j in joints if j))}"
             )
         if joint in driven:
             continue
         limit = _per_joint(desc.torque_limits, joint)
+        frc = joints[joint].actfrcrange  # a URDF's <limit effort=..> lands here
+        if limit is None and joints[joint].actfrclimited != mujoco.mjtLimited.mjLIMITED_FALSE and np.ptp(frc) > 0:
+            limit = float(np.max(np.abs(frc)))
         if limit is None:
             raise ConfigError(
                 f"{desc.source}: joint {joint!r} has no actuator and no torque limit; give "

@@ -71,6 +71,13 @@ class RobotDescription:
         """Joint groups: each arm's (``NAME_arm``) and the file's own."""
         return {**{arm.group: arm.joints for arm in self.arms}, **self.joint_groups}
 
+    def where(self, joint: str) -> str:
+        """The dotted key that lists ``joint`` (``arms[0].joints``, ``joint_groups.torso``), for messages."""
+        for i, arm in enumerate(self.arms):
+            if joint in arm.joints:
+                return f"arms[{i}].joints"
+        return next((f"joint_groups.{g}" for g, js in self.joint_groups.items() if joint in js), "joints")
+
     def arm(self, name: str) -> Arm:
         """The arm of that name (raises :class:`ConfigError` listing the arms)."""
         for arm in self.arms:

@@ -1,4 +1,4 @@
-"""Collision groups: the robot file's (bodies, subtrees), the scene's static bodies and one per object."""
+"""Collision groups (the robot file's bodies and subtrees, the scene's static bodies, one per object) and arm frames."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Any
 
 import mujoco
 
-from nextage_qp.errors import UnknownNameError
+from nextage_qp.errors import ConfigError, UnknownNameError
 
 if TYPE_CHECKING:
     from nextage_qp.robot import Robot
@@ -55,3 +55,14 @@ def collision_geoms(robot: Robot, extra: Mapping[str, Any] | None = None) -> dic
     for name, spec in (extra or {}).items():
         groups[name] = group(name, spec)
     return groups
+
+
+def check_arm_frames(model: mujoco.MjModel, desc: Any) -> None:
+    """Raise :class:`ConfigError` when an arm's wrist, tool or pad frame is neither a site nor a body of the model."""
+    for i, arm in enumerate(desc.arms):
+        for key in ("wrist", "tool", "pad"):
+            name = getattr(arm, key)
+            if (mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) < 0
+                    and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) <= 0):
+                raise ConfigError(f"{desc.source}: arms[{i}].{key}: {name!r} is neither a site nor a body of the "
+                                  f"model; name one of its sites or bodies, or add it under frames: (body, pos)")

@@ -31,9 +31,10 @@ A robot file names the model (MJCF or URDF) and says what the framework needs to
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field, ValidationInfo, field_validator, model_validator
 
 from nextage_qp.yaml_file import STRICT
 
@@ -133,6 +134,18 @@ class RobotFile(BaseModel):
     velocity_limits: float | dict[Name, Positive] | None = Field(
         default=None, description="[rad/s], one value or per joint: caps the joint references' velocity."
     )
+
+    @field_validator("torque_limits", "velocity_limits", mode="before")
+    @classmethod
+    def _limits(cls, value: object, info: ValidationInfo) -> object:
+        unit = "N m" if info.field_name == "torque_limits" else "rad/s"
+        items = value.items() if isinstance(value, dict) else [(None, value)] if value is not None else []
+        for joint, v in items:
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
+                where = f" for joint {joint!r}" if joint is not None else ""
+                raise ValueError(f"{v!r}{where} is not a limit: give a finite number > 0 [{unit}], one value or "
+                                 f"joint -> value")
+        return value
 
     @model_validator(mode="after")
     def _names_once(self) -> RobotFile:
