@@ -151,3 +151,11 @@ def test_robot_file_frames_limits_and_joint_keys_are_one_line(tmp_path, capsys, 
     assert main(["info", "--robot", str(path)]) == 2
     err = capsys.readouterr().err
     assert message in err and str(path) in err and err.count("\n") == 1, err
+
+
+def test_bundled_robot_by_file_name_from_anywhere(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert load_robot("nextage.yaml").name == "nextage"
+    (tmp_path / "nextage.yaml").write_text("name: mine\n")  # a file here wins over the bundled one
+    with pytest.raises(Exception, match=r"nextage.yaml: .*model"):
+        load_robot("nextage.yaml")

@@ -112,9 +112,9 @@ def robot_file(ref: str | Path | None) -> Path:
     path = Path(ref)
     if path.suffix in (".yaml", ".yml") and path.is_file():
         return path
-    bundled = robots_dir() / f"{path.name}.yaml"
-    if path.suffix == "" and bundled.is_file():
-        return bundled
+    bundled = robots_dir() / (path.name if path.suffix in (".yaml", ".yml") else f"{path.name}.yaml")
+    if path.parent == Path(".") and path.suffix in ("", ".yaml", ".yml") and bundled.is_file():
+        return bundled  # a bundled robot's name, or its file name when no such file is here
     hint = (
         "a robot file (.yaml)"
         if path.suffix not in (".xml", ".urdf")
