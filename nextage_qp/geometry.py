@@ -85,7 +85,9 @@ def clamp(x: float, lo: float, hi: float) -> float:
 
 
 def wrap(angle: float, period: float = 2.0 * np.pi) -> float:
-    """``angle`` wrapped into ``[-period/2, period/2)`` [rad]."""
+    """``angle`` wrapped into ``[-period/2, period/2)`` [rad]; 0 for a period of 0 (any angle is the same)."""
+    if not period > 0:
+        return 0.0
     return float((angle + 0.5 * period) % period - 0.5 * period)
 
 

@@ -15,6 +15,7 @@ import warnings
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -70,11 +71,13 @@ class SceneOverrides:
             body this is its start pose; for a static or visual body (target, obstacle) its fixed pose.
         masses: Body name -> new mass [kg]; the inertia is scaled by the same factor.
         friction_scale: Body name -> factor on the sliding friction of every contact the body takes part in.
+        objects: Object name -> declaration (:class:`~nextage_qp.scene_objects.ObjectDecl`): added or reshaped.
     """
 
     poses: Mapping[str, BodyPose] = field(default_factory=dict)
     masses: Mapping[str, float] = field(default_factory=dict)
     friction_scale: Mapping[str, float] = field(default_factory=dict)
+    objects: Mapping[str, Any] = field(default_factory=dict)
 
 
 def _yaw_quat(yaw: float) -> np.ndarray:

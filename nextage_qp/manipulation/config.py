@@ -23,6 +23,7 @@ from nextage_qp.ik import IKConfig
 from nextage_qp.manipulation.phases import REGISTRY, Spec
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, name_field
 from nextage_qp.scene import package_root
+from nextage_qp.scene_objects import ObjectDecl
 from nextage_qp.sim import Timing
 from nextage_qp.trajectory import TrajectoryLimits
 from nextage_qp.yaml_file import STRICT, load_yaml, read_yaml_mapping, validate, yaml_error_line
@@ -50,6 +51,8 @@ class SceneConfig(_Strict):
     friction_scale: dict[str, Annotated[float, Field(gt=0, allow_inf_nan=False)]] = Field(
         default_factory=dict, description="Body -> factor on the sliding friction of all its contacts (default 1)."
     )
+    objects: dict[str, ObjectDecl] = Field(
+        default_factory=dict, description="Object -> shape, size, mass, friction, pose (nextage_qp/scene_objects.py).")
 
 
 class SuccessCriteria(_Strict):

@@ -78,6 +78,9 @@ class Grip:
     place_joints: np.ndarray | None = None
 
 
+ROUND_HEADINGS = np.pi / 4
+"""Spacing [rad] of the headings tried for an object that looks the same at any yaw (yaw symmetry 0)."""
+
 class View(Protocol):
     """The read-only run state a phase works from.
 

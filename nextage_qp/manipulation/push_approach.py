@@ -18,6 +18,11 @@ from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.context import View
 from nextage_qp.manipulation.route import PlannedRoute
 
+RAISE_STEP = 0.005
+"""Step [m] by which a push whose approach is out of reach at its height is tried higher."""
+FACE_MARGIN = 0.012
+"""Least distance [m] from the tool point to the pushed object's top."""
+
 
 class Approach(NamedTuple):
     """A planned approach.
@@ -39,13 +44,16 @@ class Approach(NamedTuple):
     tried: int
 
 
-def routes(view: View, spec, tool: np.ndarray, d: np.ndarray) -> list[list[np.ndarray]]:
-    """Transit routes (lift point first) from ``tool`` to behind ``spec.object`` for push direction ``d``."""
+def routes(view: View, spec, tool: np.ndarray, d: np.ndarray, raise_by: float = 0.0) -> list[list[np.ndarray]]:
+    """Transit routes (lift point first) from ``tool`` to behind ``spec.object`` for push direction ``d``.
+
+    The tool goes to ``spec.height`` + ``raise_by`` over the object's centre.
+    """
     obj = view.body_pose(spec.object).pos.copy()
     obj[2] = view.rest_height(spec.object)  # a pushed object stands on the table: its height is known, not seen
     d3, n3 = np.array([*d, 0.0]), np.array([-d[1], d[0], 0.0])
     behind = obj - d3 * (view.extent(spec.object, d3) + spec.approach)
-    behind[2] = obj[2] + spec.height
+    behind[2] = obj[2] + spec.height + raise_by
     top = obj[2] + view.extent(spec.object, np.array([0.0, 0.0, 1.0]))
     lift = max(tool[2], top + spec.clearance)
     side = 1.0 if float((tool - obj) @ n3) >= 0 else -1.0
@@ -56,19 +64,32 @@ def routes(view: View, spec, tool: np.ndarray, d: np.ndarray) -> list[list[np.nd
 
 
 def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: Sequence[float],
-                  target: Callable[[np.ndarray, float], FrameTarget]) -> Approach | None:
+                  target: Callable[[np.ndarray, float], FrameTarget], higher: bool = False) -> Approach | None:
     """The approach closest to the planar direction ``wanted`` within ``fan`` [rad] that the arm reaches, or None.
 
     ``spec`` is the push's spec (frame, object, approach, height, clearance, yaw); ``target(pos, yaw)`` the tool
-    target at ``pos`` for a push at ``yaw``.
+    target at ``pos`` for a push at ``yaw``. With ``higher``, a push out of reach at its height is tried higher
+    (:func:`raises`).
     """
     tried = 0
-    for deviation in (s * a for a in fan for s in ((1.0,) if a == 0 else (1.0, -1.0))):
-        d = rotate2(wanted, deviation)
-        yaw = float(np.arctan2(d[1], d[0])) + spec.yaw
-        tried += 1
-        for route in routes(view, spec, tool, d):
-            planned = PlannedRoute([(target(p, yaw),) for p in route[1:]])
-            if planned.plan(view):
-                return Approach(d, route[0], yaw, planned, float(route[-1][2]), tried)
+    for raise_by in raises(view, spec) if higher else [0.0]:
+        for deviation in (s * a for a in fan for s in ((1.0,) if a == 0 else (1.0, -1.0))):
+            d = rotate2(wanted, deviation)
+            yaw = float(np.arctan2(d[1], d[0])) + spec.yaw
+            tried += 1
+            for route in routes(view, spec, tool, d, raise_by):
+                planned = PlannedRoute([(target(p, yaw),) for p in route[1:]])
+                if planned.plan(view):
+                    return Approach(d, route[0], yaw, planned, float(route[-1][2]), tried)
     return None
+
+
+def raises(view: View, spec) -> list[float]:
+    """How far above ``spec.height`` the push may go [m], in the order tried.
+
+    Not at all first, then in ``RAISE_STEP`` steps while the tool stays ``FACE_MARGIN`` below the object's top: a
+    low object the tool cannot reach down to at the configured height is pushed as low as the arm can go.
+    """
+    top = view.extent(spec.object, np.array([0.0, 0.0, 1.0]))
+    room = top - FACE_MARGIN - spec.height
+    return [0.0] + [k * RAISE_STEP for k in range(1, int(room / RAISE_STEP) + 1)]

@@ -42,7 +42,8 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
     """
     scene = cfg.scene
     poses = {name: BodyPose(pos=p.pos, yaw=p.yaw) for name, p in scene.poses.items()}
-    overrides = SceneOverrides(poses=poses, masses=dict(scene.masses), friction_scale=dict(scene.friction_scale))
+    overrides = SceneOverrides(poses=poses, masses=dict(scene.masses), friction_scale=dict(scene.friction_scale),
+                               objects=dict(scene.objects))
     try:
         description = load_robot(cfg.robot)
     except ConfigError as exc:

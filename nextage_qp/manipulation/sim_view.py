@@ -34,7 +34,7 @@ class SimView:
         self.robot, self._sim, self._servo, self.qd_tol = robot, sim, servo, qd_tol
         self.dt = sim.ctrl_dt
         self.grip: Grip | None = None
-        self._boxes: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        self._parts: dict[str, list[_Part]] = {}
         self._planner: QPIK | None = None
         self._kinematics: Kinematics | None = None
 
@@ -128,21 +128,51 @@ class SimView:
         return self.robot.yaw_symmetry(obj)
 
     def extent(self, obj: str, direction: np.ndarray) -> float:  # noqa: D102
-        boxes = self._boxes.get(obj)
-        if boxes is None:
-            boxes = self._boxes[obj] = _boxes_of(self.robot.model, obj)
-        rot = self.body_pose(obj).rot
-        local = rot.T @ direction
-        return max((float(c @ local) + float(np.abs(r.T @ local) @ size) for c, r, size in boxes), default=0.0)
+        parts = self._parts.get(obj)
+        if parts is None:
+            parts = self._parts[obj] = _parts_of(self.robot.model, obj)
+        local = self.body_pose(obj).rot.T @ direction
+        return max((_support(part, local) for part in parts), default=0.0)
 
 
-def _boxes_of(model: mujoco.MjModel, obj: str) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """(centre, rotation, half-sizes) of every box geom of a body, in the body's frame."""
+_Part = tuple[int, np.ndarray, np.ndarray, np.ndarray]
+"""(geom type, centre, rotation, size or mesh vertices) of a geom in its body's frame."""
+
+
+def _parts_of(model: mujoco.MjModel, obj: str) -> list[_Part]:
+    """Every colliding geom of a body, in the body's frame (its extent along a direction: :func:`_support`)."""
     body = model.body(obj).id
     out = []
     for g in range(model.ngeom):
-        if model.geom_bodyid[g] == body and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
-            rot = np.empty(9)
-            mujoco.mju_quat2Mat(rot, model.geom_quat[g])
-            out.append((model.geom_pos[g].copy(), rot.reshape(3, 3), model.geom_size[g].copy()))
+        if model.geom_bodyid[g] != body or not (model.geom_contype[g] or model.geom_conaffinity[g]):
+            continue
+        rot = np.empty(9)
+        mujoco.mju_quat2Mat(rot, model.geom_quat[g])
+        kind = int(model.geom_type[g])
+        if kind == mujoco.mjtGeom.mjGEOM_MESH:
+            mid = model.geom_dataid[g]
+            size = model.mesh_vert[model.mesh_vertadr[mid]:model.mesh_vertadr[mid] + model.mesh_vertnum[mid]].copy()
+        else:
+            size = model.geom_size[g].copy()
+        out.append((kind, model.geom_pos[g].copy(), rot.reshape(3, 3), size))
     return out
+
+
+def _support(part: _Part, d: np.ndarray) -> float:
+    """How far a geom reaches along the unit direction ``d`` (body frame) from the body's origin [m]."""
+    kind, centre, rot, size = part
+    local = rot.T @ d
+    reach = float(centre @ d)
+    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+        return reach + float(np.abs(local) @ size)
+    if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+        return reach + float(size[0])
+    if kind in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE):
+        radial = float(np.hypot(local[0], local[1]))
+        axial = abs(float(local[2]))
+        if kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
+            return reach + float(size[1]) * axial + float(size[0])
+        return reach + float(size[0]) * radial + float(size[1]) * axial
+    if kind == mujoco.mjtGeom.mjGEOM_MESH:
+        return reach + float(np.max(size @ local))
+    return reach + float(np.linalg.norm(size))  # other primitives: their bounding sphere

@@ -17,6 +17,7 @@ import numpy as np
 from nextage_qp.errors import ConfigError
 from nextage_qp.robots.description import RobotDescription
 from nextage_qp.scene import SceneOverrides, apply_overrides, load_scene, quiet_prefix_warning
+from nextage_qp.scene_objects import declare_objects, rest_on_table
 
 _ASSETS = ("meshes", "textures", "materials", "hfields", "skins")
 
@@ -110,7 +111,11 @@ def compose(desc: RobotDescription, scene: str | Path, overrides: SceneOverrides
     frame = parent.worldbody.add_frame(pos=list(desc.mount.pos), quat=[np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
     with quiet_prefix_warning():  # an empty prefix: the robot keeps its own names
         parent.attach(child, frame=frame, prefix="")
-    apply_overrides(parent, overrides or SceneOverrides(), str(scene))
+    overrides = overrides or SceneOverrides()
+    markers = declare_objects(parent, overrides.objects, str(scene)) if overrides.objects else []
+    apply_overrides(parent, overrides, str(scene))
+    if overrides.objects:
+        rest_on_table(parent, overrides.objects, markers)
     return parent
 
 

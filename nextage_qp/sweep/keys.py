@@ -27,6 +27,8 @@ def yaml_scalar(value: Any) -> str:
         return str(value)
     if isinstance(value, (list, tuple)):
         return "[" + ",".join(yaml_scalar(v) for v in value) + "]"
+    if isinstance(value, dict):  # a flow mapping, e.g. a drawn object declaration
+        return "{" + ",".join(f"{yaml_scalar(str(k))}: {yaml_scalar(v)}" for k, v in value.items()) + "}"
     if isinstance(value, str):
         try:
             plain = load_yaml(value) == value and "," not in value and "]" not in value  # as --set reads it

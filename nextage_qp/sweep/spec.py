@@ -32,6 +32,7 @@ from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import build_robot
 from nextage_qp.robots.description import DEFAULT_ROBOT
 from nextage_qp.sweep.keys import key_hash, lookup, scene_default, yaml_scalar
+from nextage_qp.sweep.nested import check_nested, draw_nested, extremes
 from nextage_qp.yaml_file import STRICT, read_yaml_mapping, validate
 
 Number = Annotated[float, Field(allow_inf_nan=False)]
@@ -69,6 +70,7 @@ class Distribution(_Strict):
         for value in self.choice or ():
             if isinstance(value, float) and not math.isfinite(value):
                 raise ValueError(f"choice values must be finite, got {value}")
+            check_nested(value)
         return self
 
     @property
@@ -83,8 +85,8 @@ class Distribution(_Strict):
 
     def draw(self, rng: np.random.Generator, base: Any) -> Any:
         """One value: a float, a list of floats, or one of the choices."""
-        if self.choice is not None:
-            return self.choice[int(rng.integers(len(self.choice)))]
+        if self.choice is not None:  # a choice may hold nested distributions (nextage_qp/sweep/nested.py)
+            return draw_nested(self.choice[int(rng.integers(len(self.choice)))], rng)
         lo, hi = (np.asarray(b, dtype=float) for b in self.bounds or (0.0, 0.0))
         u = lo + (hi - lo) * rng.random(lo.shape)
         if self.offset is not None:
@@ -198,7 +200,8 @@ class SweepSpec:
         a gains file that does not exist. Problems a scene shows only at run time are the episode's own.
         """
         for key, dist in self.distributions.items():
-            values = dist.choice if dist.choice is not None else [self.value_at(key, b) for b in dist.bounds or ()]
+            values = ([v for c in dist.choice for v in extremes(c)] if dist.choice is not None
+                      else [self.value_at(key, b) for b in dist.bounds or ()])
             for value in values:
                 try:
                     cfg = load_config(self.base_path, [*self.fixed, f"{key}={yaml_scalar(value)}"])

@@ -28,7 +28,7 @@ from pydantic import Field
 from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import rot_z, wrap, yaw_of
 from nextage_qp.ik import FrameTarget, RelativeTarget
-from nextage_qp.manipulation.context import Grip, View
+from nextage_qp.manipulation.context import ROUND_HEADINGS, Grip, View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
 from nextage_qp.manipulation.route import PlannedRoute
 from nextage_qp.servo import Command
@@ -89,7 +89,7 @@ class Grasp(Phase):
         c = self.spec
         self.frames: tuple[str, ...] = c.frames or view.pad_frames()
         obj, rot = view.body_pose(c.object)
-        sym = view.yaw_symmetry(c.object)
+        sym = view.yaw_symmetry(c.object) or ROUND_HEADINGS  # a round object: headings this far apart
         nearest = wrap(yaw_of(rot), sym)  # the equivalent heading nearest the robot's own comes first
         headings = sorted((wrap(nearest + k * sym) for k in range(max(1, round(2 * np.pi / sym)))), key=abs)
         top = obj[2] + view.extent(c.object, np.array([0.0, 0.0, 1.0]))
@@ -170,7 +170,7 @@ class Grasp(Phase):
         if key in self.placements:
             return self.placements[key]
         tgt, trot = view.body_pose(c.place_at)
-        sym = view.yaw_symmetry(c.object)
+        sym = view.yaw_symmetry(c.object) or ROUND_HEADINGS  # a round object: headings this far apart
         centre = np.array([tgt[0], tgt[1], view.rest_height(c.object) + c.height + PLACE_HOVER])
         out: list[tuple[list[np.ndarray], np.ndarray]] = []
         for k in range(max(1, round(2 * np.pi / sym))):

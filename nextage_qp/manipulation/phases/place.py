@@ -29,7 +29,7 @@ from pydantic import Field
 
 from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import clamp, wrap, yaw_of
-from nextage_qp.manipulation.context import Setpoint, View
+from nextage_qp.manipulation.context import ROUND_HEADINGS, Setpoint, View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
 from nextage_qp.servo import Command
 
@@ -104,7 +104,7 @@ class Place(Phase):
         grasp found the placement reachable.
         """
         c = self.spec
-        sym = view.yaw_symmetry(c.object)
+        sym = view.yaw_symmetry(c.object) or ROUND_HEADINGS  # a round object: headings this far apart
         nearest = self.yaw + wrap(target_yaw - self.yaw, sym)
         count = max(1, round(2 * np.pi / sym))
         hint = self.clamp.grip.place_joints

@@ -75,7 +75,7 @@ class Push(Phase):
         self.approaches += 1
         self.nudges = 0
         fan = c.fan if self.approaches == 1 or full else tuple(a for a in c.fan if a <= c.correction_fan)
-        plan = plan_approach(view, c, self.sp.pos, d_goal, fan, self._target)
+        plan = plan_approach(view, c, self.sp.pos, d_goal, fan, self._target, higher=self.approaches == 1)
         self.planned_at = view.body_pose(c.object).pos[:2].copy()
         tried = plan.tried if plan else sum(1 + (a != 0) for a in fan)
         self.info.update(attempts=self.approaches, directions_tried=tried)
