@@ -23,14 +23,10 @@ the grasp) follows from the shape: a square box :math:`\pi/2`, an oblong one :ma
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from typing import Annotated, Literal
 
-import mujoco
-import numpy as np
 from pydantic import BaseModel, Field, model_validator
 
-from nextage_qp.errors import ConfigError
 from nextage_qp.yaml_file import STRICT
 
 Shape = Literal["box", "cylinder", "capsule", "sphere", "prism"]
@@ -50,6 +46,7 @@ class PartDecl(BaseModel):
     sides: int | None = Field(default=None, ge=3, le=24, description="Sides of a prism.")
     pos: Vec3 = Field(default=(0.0, 0.0, 0.0), description="Offset in the object's frame [m] (compound parts).")
     axis: Literal["x", "y", "z"] = Field(default="z", description="Axis of a cylinder, capsule or prism.")
+    rgba: tuple[float, float, float, float] | None = Field(default=None, description="Colour (default: the object's).")
 
     @model_validator(mode="after")
     def _size_fits_shape(self) -> PartDecl:
@@ -65,7 +62,7 @@ class ObjectDecl(BaseModel):
 
     model_config = STRICT
 
-    shape: Shape | Literal["compound"] = "box"
+    shape: Literal["box", "cylinder", "capsule", "sphere", "prism", "compound"] = "box"
     size: tuple[Length, ...] | None = None
     sides: int | None = Field(default=None, ge=3, le=24)
     parts: tuple[PartDecl, ...] = ()
@@ -75,6 +72,8 @@ class ObjectDecl(BaseModel):
     yaw: float | None = Field(default=None, ge=-7.0, le=7.0, description="Start yaw [rad].")
     rgba: tuple[float, float, float, float] = (0.95, 0.8, 0.1, 1.0)
     yaw_symmetry: float | None = Field(default=None, ge=0.0, le=7.0, description="[rad]; 0: any yaw.")
+    inertia_scale: float = Field(default=1.0, gt=0, le=100.0, allow_inf_nan=False,
+                                 description="Factor on the inertia of uniform density (a model's inertia_scaling).")
 
     @model_validator(mode="after")
     def _shape_or_parts(self) -> ObjectDecl:
@@ -134,119 +133,6 @@ def half_height(part: PartDecl) -> float:
     if part.axis == "z":
         return s[1] + (s[0] if part.shape == "capsule" else 0.0)
     return s[0]  # lying on its side: the radius (a prism's circumradius)
-
-
-_AXIS_QUAT = {"z": [1.0, 0.0, 0.0, 0.0], "x": [math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0],
-              "y": [math.sqrt(0.5), -math.sqrt(0.5), 0.0, 0.0]}
-_TYPES = {"box": mujoco.mjtGeom.mjGEOM_BOX, "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
-          "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE, "sphere": mujoco.mjtGeom.mjGEOM_SPHERE}
-
-
-def _prism_mesh(spec: mujoco.MjSpec, name: str, part: PartDecl) -> str:
-    assert part.sides is not None
-    r, h, n = part.size[0], part.size[1], part.sides
-    ring = [(r * math.cos(2 * math.pi * k / n), r * math.sin(2 * math.pi * k / n)) for k in range(n)]
-    verts = [c for x, y in ring for z in (-h, h) for c in (x, y, z)]
-    spec.add_mesh(name=name, uservert=verts)
-    return name
-
-
-def _add_parts(spec: mujoco.MjSpec, body: mujoco.MjsBody, name: str, decl: ObjectDecl, visual: bool) -> None:
-    parts = decl.primitives()
-    total = sum(volume(p) for p in parts)
-    for i, part in enumerate(parts):
-        geom = body.add_geom(pos=list(part.pos), quat=_AXIS_QUAT[part.axis], rgba=list(decl.rgba))
-        geom.name = f"{name}_{i}" if not visual else ""
-        if part.shape == "prism":
-            geom.type = mujoco.mjtGeom.mjGEOM_MESH
-            geom.meshname = _prism_mesh(spec, f"{name}_prism_{i}{'_v' if visual else ''}", part)
-        else:
-            geom.type = _TYPES[part.shape]
-            geom.size = [*part.size, 0.0, 0.0][:3]
-        if visual:
-            geom.contype = geom.conaffinity = 0
-            geom.group = 1
-            geom.rgba = [*decl.rgba[:3], 0.25]
-            geom.mass = 0.0
-        else:
-            geom.friction = [decl.friction, 0.005, 0.0001]
-            geom.mass = decl.mass * volume(part) / total
-
-
-def _set_inertial(body: mujoco.MjsBody, decl: ObjectDecl) -> None:
-    """The body's mass, centre of mass and inertia, as MuJoCo computes them from the declared parts."""
-    scratch = mujoco.MjSpec()
-    probe = scratch.worldbody.add_body(name="probe")
-    probe.add_freejoint()
-    _add_parts(scratch, probe, "probe", decl, visual=False)
-    m = scratch.compile()
-    body.explicitinertial = True
-    body.mass = float(m.body_mass[1])
-    body.ipos = m.body_ipos[1].copy()
-    body.iquat = m.body_iquat[1].copy()
-    body.inertia = m.body_inertia[1].copy()
-    body.fullinertia = [np.nan] * 6  # the diagonal inertia above, not a full one the scene file gave
-
-
-def _table_top(spec: mujoco.MjSpec) -> float | None:
-    body = next((b for b in spec.worldbody.bodies if b.name == "table"), None)
-    if body is None:
-        return None
-    tops = [body.pos[2] + g.pos[2] + g.size[2] for g in body.geoms
-            if g.type == mujoco.mjtGeom.mjGEOM_BOX and (g.contype or g.conaffinity)]
-    return max(tops) if tops else None
-
-
-def declare_objects(spec: mujoco.MjSpec, objects: Mapping[str, ObjectDecl], source: str = "scene") -> list[str]:
-    """Add or replace the declared objects (and markers ``NAME_target`` for new ones) in a scene spec, in place.
-
-    Call before the scene's pose, mass and friction overrides, and :func:`rest_on_table` after them. Returns the
-    markers it added.
-
-    Raises:
-        ConfigError: A name is taken by something that is not a free object of the scene.
-    """
-    free = mujoco.mjtJoint.mjJNT_FREE
-    markers = []
-    for name, decl in objects.items():
-        body = next((b for b in spec.worldbody.bodies if b.name == name), None)
-        if body is not None and not any(j.type == free for j in body.joints):
-            raise ConfigError(f"{source}: scene.objects.{name}: {name!r} is a fixed body of the scene, not an object; "
-                              "choose another name")
-        if body is None:
-            body = spec.worldbody.add_body(name=name, pos=[0.5, 0.0, 1.0])
-            body.add_freejoint(name=f"{name}_joint")
-            if not any(b.name == f"{name}_target" for b in spec.bodies):
-                marker = spec.worldbody.add_body(name=f"{name}_target", pos=[0.5, 0.0, 1.0])
-                _add_parts(spec, marker, f"{name}_target", decl, visual=True)
-                markers.append(marker.name)
-        for geom in list(body.geoms):
-            spec.delete(geom)
-        _add_parts(spec, body, name, decl, visual=False)
-        _set_inertial(body, decl)
-        if decl.pos is not None:
-            body.pos = [decl.pos[0], decl.pos[1], decl.pos[2] if len(decl.pos) == 3 else body.pos[2]]
-        if decl.yaw is not None:
-            body.quat = [math.cos(decl.yaw / 2), 0.0, 0.0, math.sin(decl.yaw / 2)]
-        numeric = f"{name}_yaw_symmetry"
-        for old in [n for n in spec.numerics if n.name == numeric]:
-            spec.delete(old)
-        spec.add_numeric(name=numeric, data=[decl.symmetry()])
-    return markers
-
-
-def rest_on_table(spec: mujoco.MjSpec, objects: Mapping[str, ObjectDecl], markers: list[str]) -> None:
-    """Stand each declared object (and each added marker) on the table top, unless its ``pos`` gives a height."""
-    top = _table_top(spec)
-    if top is None:
-        return
-    for name, decl in objects.items():
-        if decl.pos is None or len(decl.pos) == 2:
-            body = spec.body(name)
-            body.pos = [body.pos[0], body.pos[1], top + standing_height(decl)]
-        if f"{name}_target" in markers:
-            marker = spec.body(f"{name}_target")
-            marker.pos = [marker.pos[0], marker.pos[1], top + standing_height(decl)]
 
 
 def standing_height(decl: ObjectDecl) -> float:

@@ -283,7 +283,7 @@ def test_grasp_comes_in_closer_when_the_arms_cannot_spread_and_refuses_when_they
     phase.start(view)
     assert phase.info["approach_gap_m"] == pytest.approx(0.35 * 0.04)
     view.reach = lambda targets: False
-    with pytest.raises(PhaseError, match=r"cannot reach both sides of dumbbell at any of its headings \(0, -180 deg\)"):
+    with pytest.raises(PhaseError, match=r"cannot reach both sides of dumbbell \(168 mm wide at the pads\) at any of its headings \(0, -180 deg\)"):
         make_grasp().start(view)
 
 

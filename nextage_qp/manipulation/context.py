@@ -116,7 +116,14 @@ class View(Protocol):
         """Largest gap between the measured and the commanded joints [rad]."""
 
     def extent(self, obj: str, direction: np.ndarray) -> float:
-        """Half-extent [m] of an object's collision boxes along a world direction (its pushing half-width)."""
+        """Half-extent [m] of an object's collision geoms along a world direction (its pushing half-width)."""
+
+    def grip_geometry(self, obj: str, lateral: np.ndarray, height: float | None = None) -> tuple[float, float]:
+        """Where a clamp across ``lateral`` (a direction in the object's frame) holds an object [m].
+
+        Returns (height of the clamp over the object's origin, half-width there); the height by default the middle
+        of the widest part (the highest of several: a dumbbell's top plate).
+        """
 
     def joint_names(self) -> tuple[str, ...]:
         """The robot's joints, in the order of the joint vectors :meth:`plan` returns."""

@@ -23,6 +23,7 @@ from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, summari
 from nextage_qp.manipulation.phases import Phase, build, names_in
 from nextage_qp.manipulation.placement import check_placement
 from nextage_qp.manipulation.sim_view import SimView
+from nextage_qp.object_checks import check_clear
 from nextage_qp.perception import log_estimates, perception_of
 from nextage_qp.robot import Robot, tool_frames
 from nextage_qp.robots.description import load_robot
@@ -53,6 +54,7 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
     except UnknownNameError as exc:
         raise ConfigError(f"{source}: scene: {exc}") from None
     check_names(cfg, robot, source)
+    check_clear(robot, source)
     return robot
 
 

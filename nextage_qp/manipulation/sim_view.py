@@ -128,11 +128,25 @@ class SimView:
         return self.robot.yaw_symmetry(obj)
 
     def extent(self, obj: str, direction: np.ndarray) -> float:  # noqa: D102
+        local = self.body_pose(obj).rot.T @ direction
+        return max((_support(part, local) for part in self._parts_cached(obj)), default=0.0)
+
+    def grip_geometry(self, obj: str, lateral: np.ndarray, height: float | None = None) -> tuple[float, float]:  # noqa: D102
+        parts = self._parts_cached(obj)
+        z = np.array([0.0, 0.0, 1.0])
+        if height is None:  # the middle of the widest part (the highest of several)
+            flat = [np.array([np.cos(a), np.sin(a), 0.0]) for a in np.linspace(0.0, 2 * np.pi, 8, endpoint=False)]
+            width = [max(_support(p, d) - float(p[1] @ d) for d in flat) for p in parts]
+            best = max(width)
+            height = max(float(p[1][2]) for p, w in zip(parts, width, strict=True) if w >= best - 1e-3)
+        at = [p for p in parts if -_support(p, -z) - 1e-9 <= height <= _support(p, z) + 1e-9]
+        return height, max((_support(p, lateral) for p in at), default=0.0)
+
+    def _parts_cached(self, obj: str) -> list[_Part]:
         parts = self._parts.get(obj)
         if parts is None:
             parts = self._parts[obj] = _parts_of(self.robot.model, obj)
-        local = self.body_pose(obj).rot.T @ direction
-        return max((_support(part, local) for part in parts), default=0.0)
+        return parts
 
 
 _Part = tuple[int, np.ndarray, np.ndarray, np.ndarray]

@@ -15,9 +15,9 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.object_build import declare_objects, rest_on_table
 from nextage_qp.robots.description import RobotDescription
 from nextage_qp.scene import SceneOverrides, apply_overrides, load_scene, quiet_prefix_warning
-from nextage_qp.scene_objects import declare_objects, rest_on_table
 
 _ASSETS = ("meshes", "textures", "materials", "hfields", "skins")
 

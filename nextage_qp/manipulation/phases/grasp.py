@@ -56,8 +56,12 @@ class GraspSpec(Spec):
     frames: tuple[str, str] | None = name_field(
         "frame", default=None, description="Pads on the +y and -y side (default: the robot's arms' pads)."
     )
-    half_width: float = Field(gt=0, le=0.5, description="Half the object's width between the pads [m].")
-    height: float = Field(default=0.0, ge=-0.5, le=0.5, description="Pad height relative to the object origin [m].")
+    half_width: float | None = Field(default=None, gt=0, le=0.5,
+                                     description="Half the object's width between the pads [m] (default: from its "
+                                                 "geometry at the pads' height).")
+    height: float | None = Field(default=None, ge=-0.5, le=0.5,
+                                 description="Pad height relative to the object origin [m] (default: the middle "
+                                             "of its widest part, the highest of several).")
     gap: float = Field(default=0.03, gt=0, le=0.2, description="Pad distance from the surface before closing [m].")
     clearance: float = Field(default=0.04, gt=0, le=0.3,
                              description="Pad height over the object's top before going down beside it [m].")
@@ -102,12 +106,21 @@ class Grasp(Phase):
         for heading in headings:
             self.yaw, self.rz = heading, rot_z(heading)
             self.lateral = self.rz[:, 1]
+            turn = wrap(heading - yaw_of(rot))
+            turn = round(turn / sym) * sym if sym < 2 * np.pi else turn  # an equivalent heading: the same faces
+            if c.half_width is None or c.height is None:
+                self.height, self.half = view.grip_geometry(c.object, np.array([-np.sin(turn), np.cos(turn), 0.0]),
+                                                            c.height)
+            self.height = self.height if c.height is None else c.height
+            self.half = self.half if c.half_width is None else c.half_width
             found = self._plan_approach(view, obj, top)
             if found:
                 break
         if found is None:
-            raise PhaseError(f"phase {self.name!r} (grasp): the pads cannot reach both sides of {c.object} at any "
-                             f"of its headings ({', '.join(f'{np.degrees(h):.0f}' for h in headings)} deg)")
+            raise PhaseError(f"phase {self.name!r} (grasp): the pads cannot reach both sides of {c.object} "
+                             f"({2e3 * self.half:.0f} mm wide at the pads) at any of its headings "
+                             f"({', '.join(f'{np.degrees(h):.0f}' for h in headings)} deg): too wide for the "
+                             "clamp, or out of the arms' reach")
         if c.place_at is not None and not any(self.placements.values()):  # checked before anything moves
             raise PhaseError(f"phase {self.name!r} (grasp): the clamp cannot reach {c.place_at}'s pose with "
                              f"{c.object} at any of its equivalent yaws, at the faces' centre or up to "
@@ -138,7 +151,7 @@ class Grasp(Phase):
             self.place_q, self.shift = place_q, shift
             self.rots = None if rolls is None else [self.rz @ r for r in rolls]
             for gap in (c.gap, 0.6 * c.gap, 0.35 * c.gap):  # nearer the faces when the arms cannot spread so far
-                outside = [obj + self.rz @ np.array([shift, s * (c.half_width + gap), c.height]) for s in SIDES]
+                outside = [obj + self.rz @ np.array([shift, s * (self.half + gap), self.height]) for s in SIDES]
                 above = [p + np.array([0.0, 0.0, max(top + c.clearance - p[2], 0.0)]) for p in outside]
                 high = [a + np.array([0.0, 0.0, HIGH]) for a in above]
                 down = [[a + f * (o - a) for a, o in zip(above, outside, strict=True)] for f in (0.0, 0.5, 1.0)]
@@ -171,11 +184,11 @@ class Grasp(Phase):
             return self.placements[key]
         tgt, trot = view.body_pose(c.place_at)
         sym = view.yaw_symmetry(c.object) or ROUND_HEADINGS  # a round object: headings this far apart
-        centre = np.array([tgt[0], tgt[1], view.rest_height(c.object) + c.height + PLACE_HOVER])
+        centre = np.array([tgt[0], tgt[1], view.rest_height(c.object) + self.height + PLACE_HOVER])
         out: list[tuple[list[np.ndarray], np.ndarray]] = []
         for k in range(max(1, round(2 * np.pi / sym))):
             rz = rot_z(yaw_of(trot) + k * sym)
-            points = [centre + rz @ np.array([shift, s * c.half_width, 0.0]) for s in SIDES]
+            points = [centre + rz @ np.array([shift, s * self.half, 0.0]) for s in SIDES]
             q = view.plan(
                 [
                     FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=rz[:, 1])
@@ -203,7 +216,7 @@ class Grasp(Phase):
     def _pads(self, view: View) -> tuple[FrameTarget, ...]:
         c = self.spec
         obj = view.body_pose(c.object).pos
-        points = [obj + self.rz @ np.array([self.shift, s * (c.half_width - d), c.height])
+        points = [obj + self.rz @ np.array([self.shift, s * (self.half - d), self.height])
                   for s, d in zip(SIDES, self.depth, strict=True)]
         return self._targets(points)
 
