@@ -106,8 +106,8 @@ def declare_objects(spec: mujoco.MjSpec, objects: Mapping[str, ObjectDecl], sour
     for name, decl in objects.items():
         body = next((b for b in spec.worldbody.bodies if b.name == name), None)
         if body is not None and not any(j.type == free for j in body.joints):
-            raise ConfigError(f"{source}: scene.objects.{name}: {name!r} is a fixed body of the scene, not an object; "
-                              "choose another name")
+            raise ConfigError(f"scene.objects.{name}: {name!r} is a fixed body of the scene {source}, not an "
+                              "object; choose another name")
         if body is None:
             body = spec.worldbody.add_body(name=name, pos=[0.5, 0.0, 1.0])
             body.add_freejoint(name=f"{name}_joint")

@@ -36,7 +36,8 @@ def check_clear(robot: Robot, source: str, tolerance: float = OVERLAP_TOLERANCE)
     if worst is not None:
         depth, name, other = worst
         raise ConfigError(f"{source}: object {name!r} starts {depth * 1e3:.1f} mm inside {other}: move it "
-                          f"(scene.poses.{name}.pos, or scene.objects.{name}.pos) or make it smaller")
+                          f"(scene.poses.{name}.pos; scene.objects.{name}.pos where no pose is given) or "
+                          "make it smaller")
     bad = ~np.isfinite(data.qpos)
     if bad.any():
         raise ConfigError(f"{source}: the scene's start state is not finite (check scene.poses and scene.objects)")

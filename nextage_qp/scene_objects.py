@@ -123,16 +123,25 @@ def volume(part: PartDecl) -> float:
     return part.sides / 2.0 * s[0] ** 2 * math.sin(2 * math.pi / part.sides) * 2.0 * s[1]
 
 
+DOWN = {"z": (0.0, 0.0, -1.0), "x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0)}
+"""The world's downward direction in a part's own frame, per ``axis`` (the rotations of ``object_build``)."""
+
+
 def half_height(part: PartDecl) -> float:
     """How far the part reaches below its centre when the object stands upright [m]."""
-    s = part.size
+    s, d = part.size, DOWN[part.axis]
+    radial, axial = math.hypot(d[0], d[1]), abs(d[2])
     if part.shape == "box":
-        return s[2]
+        return sum(abs(di) * si for di, si in zip(d, s, strict=True))
     if part.shape == "sphere":
         return s[0]
-    if part.axis == "z":
-        return s[1] + (s[0] if part.shape == "capsule" else 0.0)
-    return s[0]  # lying on its side: the radius (a prism's circumradius)
+    if part.shape == "capsule":
+        return s[1] * axial + s[0]
+    if part.shape == "cylinder":
+        return s[0] * radial + s[1] * axial
+    assert part.sides is not None  # a prism: its lowest vertex
+    ring = (2 * math.pi * k / part.sides for k in range(part.sides))
+    return max(s[0] * (math.cos(a) * d[0] + math.sin(a) * d[1]) for a in ring) + s[1] * axial
 
 
 def standing_height(decl: ObjectDecl) -> float:

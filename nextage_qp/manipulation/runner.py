@@ -53,6 +53,10 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
         robot = Robot.from_scene(scene.file, overrides, description)
     except UnknownNameError as exc:
         raise ConfigError(f"{source}: scene: {exc}") from None
+    except ConfigError as exc:
+        if str(exc).startswith("scene.objects"):  # a declaration's error: name the config it is in
+            raise ConfigError(f"{source}: {exc}") from None
+        raise
     check_names(cfg, robot, source)
     check_clear(robot, source)
     return robot
