@@ -112,10 +112,10 @@ def declare_objects(spec: mujoco.MjSpec, objects: Mapping[str, ObjectDecl], sour
             body = spec.worldbody.add_body(name=name, pos=[0.5, 0.0, 1.0])
             body.add_freejoint(name=f"{name}_joint")
         marker = next((b for b in spec.worldbody.bodies if b.name == f"{name}_target"), None)
-        if marker is None:
+        if marker is None and decl.marker:
             marker = spec.worldbody.add_body(name=f"{name}_target", pos=[0.5, 0.0, 1.0])
             markers.append(marker.name)
-        if not any(g.contype or g.conaffinity for g in marker.geoms):  # a visual marker takes the new shape
+        if marker is not None and not any(g.contype or g.conaffinity for g in marker.geoms):  # takes the new shape
             for geom in [g for g in marker.geoms if not _flat(g)]:  # (a flat pad under it stays)
                 spec.delete(geom)
             _add_parts(spec, marker, f"{name}_target", decl, visual=True)

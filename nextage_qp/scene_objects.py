@@ -72,6 +72,7 @@ class ObjectDecl(BaseModel):
     yaw: float | None = Field(default=None, ge=-7.0, le=7.0, description="Start yaw [rad].")
     rgba: tuple[float, float, float, float] = (0.95, 0.8, 0.1, 1.0)
     yaw_symmetry: float | None = Field(default=None, ge=0.0, le=7.0, description="[rad]; 0: any yaw.")
+    marker: bool = Field(default=True, description="Add a target marker NAME_target for a new object.")
     inertia_scale: float = Field(default=1.0, gt=0, le=100.0, allow_inf_nan=False,
                                  description="Factor on the inertia of uniform density (a model's inertia_scaling).")
 

@@ -94,7 +94,7 @@ class ScriptedView:
     def wrench(self, site):
         return Wrench(np.asarray(self.forces.get(site, np.zeros(3)), dtype=float), np.zeros(3))
 
-    def rest_height(self, obj):
+    def rest_height(self, obj, on=None):
         return self.rest
 
     def table_top(self):

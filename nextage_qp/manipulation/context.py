@@ -140,8 +140,8 @@ class View(Protocol):
     def wrench(self, site: str) -> Wrench:
         """Measured contact wrench on a site's body, world frame: force [N] and torque about the site [N m]."""
 
-    def rest_height(self, obj: str) -> float:
-        """Height of an object's origin when it stands on the table [m]."""
+    def rest_height(self, obj: str, on: str | None = None) -> float:
+        """Height [m] of an object's origin standing upright on the table, or on the object ``on`` (a stack)."""
 
     def table_top(self) -> float:
         """Height of the table's top face [m]."""

@@ -166,7 +166,8 @@ class ObjectState(NamedTuple):
         error_m, error_xy_m: 3-D and planar distance [m].
         yaw_error_rad: Yaw difference modulo the object's symmetry [rad].
         tilt_rad: Angle between the object's z axis and the vertical [rad].
-        resting: On the table and at rest (speed below 1 cm/s and 0.1 rad/s).
+        resting: On the table (on the target, when that is an object) and at rest (speed below 1 cm/s and 0.1
+            rad/s).
     """
 
     position: np.ndarray
@@ -185,7 +186,8 @@ def object_state(robot: Robot, sim: Simulation, obj: str, target: str) -> Object
     pos, tgt = d.xpos[bid].copy(), d.xpos[tid].copy()
     rot, trot = d.xmat[bid].reshape(3, 3), d.xmat[tid].reshape(3, 3)
     yaw = np.arctan2(rot[1, 0], rot[0, 0]) - np.arctan2(trot[1, 0], trot[0, 0])
-    table = set(robot.collision_geoms().get("table", ()))
+    groups = robot.collision_geoms()  # its support: the table, or the target when that is an object (a stack)
+    table = set(groups.get(target if target in robot.object_names else "table", ()))
     on_table = any((int(m.geom_bodyid[c.geom1]) == bid and c.geom2 in table)
                    or (int(m.geom_bodyid[c.geom2]) == bid and c.geom1 in table) for c in d.contact[: d.ncon])
     dof = int(m.jnt_dofadr[m.body_jntadr[bid]]) if m.body_jntnum[bid] else -1

@@ -64,10 +64,19 @@ def obstacle_top(robot: Robot, data: mujoco.MjData) -> float:
                for g in geoms)
 
 
-def rest_height(robot: Robot, data: mujoco.MjData, obj: str) -> float:
-    """Height [m] of an object's origin when it stands upright on the table top (its lowest point on the top)."""
-    top, _ = table_top(robot, data)
-    geoms = list(robot.collision_geoms().get(obj, ()))
+def rest_height(robot: Robot, data: mujoco.MjData, obj: str, on: str | None = None) -> float:
+    """Height [m] of an object's origin when it stands upright on the table top (its lowest point on the top).
+
+    With ``on`` a free object of the scene, on that object's top instead (a stack); any other body: the table.
+    """
+    groups = robot.collision_geoms()
+    if on is not None and on in robot.object_names:
+        m, b = robot.model, robot.model.body(on).id
+        rot = data.xmat[b].reshape(3, 3)
+        top = max(float((data.xpos[b] + _geom_corners(m, g) @ rot.T)[:, 2].max()) for g in groups.get(on, ()))
+    else:
+        top, _ = table_top(robot, data)
+    geoms = list(groups.get(obj, ()))
     return top - min(_geom_corners(robot.model, g)[:, 2].min() for g in geoms)
 
 
@@ -115,7 +124,7 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
         raise InfeasibleError(f"{source}: scene.poses.{obj}: the start pose of {obj} overlaps "
                           f"{_name(m, geom)} by {-dist * 1e3:.1f} mm")
     rest = data.xpos[tid].copy()
-    rest[2] = rest_height(robot, data, obj)
+    rest[2] = rest_height(robot, data, obj, target)
     tyaw = float(np.arctan2(data.xmat[tid][3], data.xmat[tid][0]))
     if not _over_table(robot, data, table, rest[:2]):
         raise InfeasibleError(f"{source}: target: {obj} at the target ({rest[0]:.3f}, {rest[1]:.3f}) is not over the "

@@ -115,8 +115,8 @@ class SimView:
                        {s.body for s in self._sim.wrench_sensors}]
         raise UnknownNameError("site on a body with a force/torque sensor", site, with_sensor)
 
-    def rest_height(self, obj: str) -> float:  # noqa: D102
-        return rest_height(self.robot, self._sim.data, obj)
+    def rest_height(self, obj: str, on: str | None = None) -> float:  # noqa: D102
+        return rest_height(self.robot, self._sim.data, obj, on)
 
     def table_top(self) -> float:  # noqa: D102
         return table_top(self.robot, self._sim.data)[0]

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field, field_validator, model_validator
 
 from nextage_qp.errors import ConfigError, InfeasibleError
 from nextage_qp.manipulation.config import load_config
@@ -113,6 +113,14 @@ class SweepFile(_Strict):
     set: dict[str, Any] = Field(default_factory=dict,
                                 description="Dotted key -> value applied to the base config in every episode.")
     randomize: dict[str, Distribution] = Field(min_length=1)
+
+    @field_validator("randomize", mode="before")
+    @classmethod
+    def _lists_hold_distributions(cls, value: Any) -> Any:
+        """A list with nested distributions in it (``[{uniform: [lo, hi]}, 0.12]``) is a choice of that one list."""
+        if isinstance(value, dict):
+            return {k: {"choice": [v]} if isinstance(v, list) else v for k, v in value.items()}
+        return value
 
 
 class SweepSpec:

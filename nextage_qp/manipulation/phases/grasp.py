@@ -20,63 +20,27 @@ r"""``grasp``: clamp an object between two pads and squeeze it to a measured for
 from __future__ import annotations
 
 from itertools import chain
-from typing import Literal
 
 import numpy as np
-from pydantic import Field
 
 from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import rot_z, wrap, yaw_of
 from nextage_qp.ik import FrameTarget, RelativeTarget
 from nextage_qp.manipulation.context import ROUND_HEADINGS, Grip, View
-from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
+from nextage_qp.manipulation.phases.base import Phase
+from nextage_qp.manipulation.phases.grasp_spec import (
+    APPROACH_TOL,
+    GRIP_MARGIN,
+    GRIP_STEP,
+    HIGH,
+    KNOCKED,
+    OFF_CENTRE_STEP,
+    PLACE_HOVER,
+    SIDES,
+    GraspSpec,
+)
 from nextage_qp.manipulation.route import PlannedRoute
 from nextage_qp.servo import Command
-
-SIDES = (1.0, -1.0)
-HIGH = 0.08
-"""The pads first go this far over their approach point, so the swing there passes over the object [m]."""
-APPROACH_TOL = 0.006
-"""The pads may stop this far from their approach waypoints [m]: near the edge of the workspace the arms reach a few
-millimetres short, and the close moves the pads in anyway."""
-KNOCKED = 0.3
-"""Tilt of the object [rad] during the approach at which the grasp fails: the arms have knocked it over."""
-OFF_CENTRE_STEP = 0.0175
-"""Spacing of the clamp points tried along the faces, from the centre out to ``off_centre`` [m]."""
-PLACE_HOVER = 0.02
-"""Height over the resting pose at which the clamp must reach ``place_at`` [m]."""
-"""The first pad sits on the +y side of the object's heading, the second on the -y side."""
-
-
-class GraspSpec(Spec):
-    """Clamp an object between two pad frames and squeeze it to a measured force."""
-
-    kind: Literal["grasp"]
-    object: str = name_field("object")
-    frames: tuple[str, str] | None = name_field(
-        "frame", default=None, description="Pads on the +y and -y side (default: the robot's arms' pads)."
-    )
-    half_width: float | None = Field(default=None, gt=0, le=0.5,
-                                     description="Half the object's width between the pads [m] (default: from its "
-                                                 "geometry at the pads' height).")
-    height: float | None = Field(default=None, ge=-0.5, le=0.5,
-                                 description="Pad height relative to the object origin [m] (default: the middle "
-                                             "of its widest part, the highest of several).")
-    gap: float = Field(default=0.03, gt=0, le=0.2, description="Pad distance from the surface before closing [m].")
-    clearance: float = Field(default=0.04, gt=0, le=0.3,
-                             description="Pad height over the object's top before going down beside it [m].")
-    force: float = Field(default=10.0, gt=0, le=100.0, description="Squeeze force per pad [N].")
-    force_gain: float = Field(default=0.0005, gt=0, le=0.05, description="Force loop gain [m/s per N].")
-    close_speed: float = Field(default=0.02, gt=0, le=0.2, description="Closing speed [m/s].")
-    max_squeeze: float = Field(default=0.02, gt=0, le=0.1,
-                               description="Deepest pad target inside the surface before the grasp fails [m].")
-    hold: float = Field(default=0.5, ge=0, le=MAX_SECONDS, description="Time the force is held [s].")
-    off_centre: float = Field(default=0.0, ge=0, le=0.2,
-                              description="Farthest the pads may clamp off the centre of the faces, along them, "
-                                          "where the centre is out of reach at the object or at the placement [m].")
-    place_at: str | None = name_field("body", default=None,
-                                      description="Body where the object will be set down: the pads take a grip "
-                                                  "that reaches there too; none fails the grasp before moving.")
 
 
 def squeeze_force(view: View, frame: str, side: float, lateral: np.ndarray) -> float:
@@ -101,27 +65,26 @@ class Grasp(Phase):
         self.place_q: np.ndarray | None = None
         self.route = PlannedRoute([])
         self.shift = 0.0
-        self.placements: dict[float, list[tuple[list[np.ndarray], np.ndarray]]] = {}
+        self.placements: dict[tuple[float, ...], list[tuple[list[np.ndarray], np.ndarray]]] = {}
         found = None
-        for heading in headings:
-            self.yaw, self.rz = heading, rot_z(heading)
-            self.lateral = self.rz[:, 1]
-            turn = wrap(heading - yaw_of(rot))
-            turn = round(turn / sym) * sym if sym < 2 * np.pi else turn  # an equivalent heading: the same faces
-            if c.half_width is None or c.height is None:
-                self.height, self.half = view.grip_geometry(c.object, np.array([-np.sin(turn), np.cos(turn), 0.0]),
-                                                            c.height)
-            self.height = self.height if c.height is None else c.height
-            self.half = self.half if c.half_width is None else c.half_width
-            found = self._plan_approach(view, obj, top)
-            if found:
+        for raise_by in self._raises(view):
+            for heading in headings:
+                self.yaw, self.rz = heading, rot_z(heading)
+                self.lateral = self.rz[:, 1]
+                turn = wrap(heading - yaw_of(rot))
+                turn = round(turn / sym) * sym if sym < 2 * np.pi else turn  # an equivalent heading: the same faces
+                self._grip_at(view, np.array([-np.sin(turn), np.cos(turn), 0.0]), raise_by)
+                found = self._plan_approach(view, obj, top)
+                if found:
+                    break
+            if found and (c.place_at is None or self._placement_found()):  # else: higher, if it may
                 break
         if found is None:
             raise PhaseError(f"phase {self.name!r} (grasp): the pads cannot reach both sides of {c.object} "
                              f"({2e3 * self.half:.0f} mm wide at the pads) at any of its headings "
                              f"({', '.join(f'{np.degrees(h):.0f}' for h in headings)} deg): too wide for the "
                              "clamp, or out of the arms' reach")
-        if c.place_at is not None and not any(self.placements.values()):  # checked before anything moves
+        if c.place_at is not None and not self._placement_found():  # checked before anything moves
             raise PhaseError(f"phase {self.name!r} (grasp): the clamp cannot reach {c.place_at}'s pose with "
                              f"{c.object} at any of its equivalent yaws, at the faces' centre or up to "
                              f"{c.off_centre * 1e3:g} mm off it: the target is out of the arms' reach")
@@ -133,6 +96,35 @@ class Grasp(Phase):
         self.stage, self.hold_from = "approach", 0.0
         self.made: Grip | None = None
         self.info.update(heading_rad=round(self.yaw, 4))
+
+    def _placement_found(self) -> bool:
+        """Whether a grip at the current clamp height reaches the placement too."""
+        at = (round(self.height, 6), round(self.half, 6))
+        return any(grips for key, grips in self.placements.items() if key[1:] == at)
+
+    def _raises(self, view: View) -> list[float]:
+        """How far above its default height the clamp may go [m], in the order tried.
+
+        Not at all first; then (a default height only) in ``GRIP_STEP`` steps while the clamp point stays
+        ``GRIP_MARGIN`` below the object's top: an object whose middle the pads cannot reach down to is held higher.
+        """
+        c = self.spec
+        if c.height is not None:
+            return [0.0]
+        low = view.grip_geometry(c.object, np.array([0.0, 1.0, 0.0]))[0]
+        room = view.extent(c.object, np.array([0.0, 0.0, 1.0])) - GRIP_MARGIN - low
+        return [k * GRIP_STEP for k in range(int(max(room, 0.0) / GRIP_STEP) + 1)]
+
+    def _grip_at(self, view: View, lateral: np.ndarray, raise_by: float) -> None:
+        """Set the clamp's height and half-width for pads closing along ``lateral`` (object frame)."""
+        c = self.spec
+        if c.half_width is not None and c.height is not None:
+            self.height, self.half = c.height, c.half_width
+        else:
+            base = c.height if c.height is not None else view.grip_geometry(c.object, lateral)[0]
+            self.height, half = view.grip_geometry(c.object, lateral, base + raise_by)
+            self.half = half if c.half_width is None else c.half_width
+        self.info["grip_height_m"] = round(self.height, 4)
 
     def _plan_approach(self, view: View, obj: np.ndarray, top: float) -> tuple[float, bool] | None:
         """Plan the approach at the current heading: (gap, rolls fit the placement), or None when out of reach.
@@ -179,12 +171,12 @@ class Grasp(Phase):
         c = self.spec
         if c.place_at is None:
             return []
-        key = round(shift, 6)
+        key = (round(shift, 6), round(self.height, 6), round(self.half, 6))
         if key in self.placements:
             return self.placements[key]
         tgt, trot = view.body_pose(c.place_at)
         sym = view.yaw_symmetry(c.object) or ROUND_HEADINGS  # a round object: headings this far apart
-        centre = np.array([tgt[0], tgt[1], view.rest_height(c.object) + self.height + PLACE_HOVER])
+        centre = np.array([tgt[0], tgt[1], view.rest_height(c.object, c.place_at) + self.height + PLACE_HOVER])
         out: list[tuple[list[np.ndarray], np.ndarray]] = []
         for k in range(max(1, round(2 * np.pi / sym))):
             rz = rot_z(yaw_of(trot) + k * sym)

@@ -82,9 +82,9 @@ class Place(Phase):
         self.clamp.level_gain = c.level_gain
         obj, rot = view.body_pose(c.object)
         tgt, trot = view.body_pose(c.target)
-        self.rest = view.rest_height(c.object)
-        depth = self.rest - view.table_top()
-        carry = max(obj[2] + c.lift, view.obstacle_top() + c.clearance + depth)
+        self.rest = view.rest_height(c.object, c.target)  # on the table, or on the target object (a stack)
+        depth = view.rest_height(c.object) - view.table_top()
+        carry = max(obj[2] + c.lift, view.obstacle_top() + c.clearance + depth, self.rest + c.clearance)
         self.sp, self.yaw = Setpoint(obj.copy()), yaw_of(rot)
         self.goal = np.array([tgt[0], tgt[1], self.rest + c.hover])
         self.goal_yaw, self.posture = self._reachable_yaw(view, yaw_of(trot))
