@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from nextage_qp.errors import PhaseError
+from nextage_qp.errors import InfeasibleError, PhaseError
 from nextage_qp.geometry import Pose, rot_z, yaw_of
 from nextage_qp.ik import FrameTarget, RelativeTarget
 from nextage_qp.manipulation.clamp import MAX_ROLL, Clamp
@@ -283,14 +283,17 @@ def test_grasp_comes_in_closer_when_the_arms_cannot_spread_and_refuses_when_they
     phase.start(view)
     assert phase.info["approach_gap_m"] == pytest.approx(0.35 * 0.04)
     view.reach = lambda targets: False
-    with pytest.raises(PhaseError, match=r"cannot reach both sides of dumbbell \(168 mm wide at the pads\) at any of its headings \(0, -180 deg\)"):
-        make_grasp().start(view)
+    with pytest.raises(InfeasibleError, match=r"cannot reach both sides of dumbbell \(168 mm wide at the pads\) at any of its headings \(0, -180 deg\)"):
+        make_grasp().start(view)  # before anything moved: a refusal (exit 2)
+    view.t = 1.0
+    with pytest.raises(PhaseError, match="cannot reach both sides"):
+        make_grasp().start(view)  # after an earlier phase: the phase fails
 
 
 def test_grasp_clamps_off_the_centre_of_the_faces_when_the_centre_is_out_of_reach():
     view = grasp_view()
     view.reach = lambda targets: all(t.pos[0] <= 0.49 for t in targets if t.pos[2] < 1.2)  # nothing past x = 0.49
-    with pytest.raises(PhaseError, match="cannot reach both sides"):
+    with pytest.raises(InfeasibleError, match="cannot reach both sides"):
         make_grasp().start(view)  # the centre only
     phase = make_grasp(off_centre=0.035)
     phase.start(view)
@@ -308,7 +311,7 @@ def test_grasp_takes_the_off_centre_grip_that_also_reaches_the_placement():
     assert phase.info["rolls_fit_placement"] and abs(phase.info["off_centre_m"]) == pytest.approx(0.035)
     assert phase.place_q is not None
     view.reach = lambda targets: all(t.pos[1] < 0.2 for t in targets)  # nothing near the target
-    with pytest.raises(PhaseError, match=r"cannot reach target's pose .* out of the arms' reach"):
+    with pytest.raises(InfeasibleError, match=r"cannot reach target's pose .* out of the arms' reach"):
         make_grasp(off_centre=0.035, place_at="target").start(view)
 
 

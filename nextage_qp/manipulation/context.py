@@ -14,6 +14,7 @@ from typing import Any, Protocol
 import mujoco
 import numpy as np
 
+from nextage_qp.errors import InfeasibleError, PhaseError
 from nextage_qp.geometry import Pose, rot_z, yaw_of
 from nextage_qp.ik import FrameTarget, RelativeTarget
 from nextage_qp.sensors import Wrench
@@ -160,6 +161,11 @@ class View(Protocol):
         the objects where they are now (but for the ``allow`` groups, e.g. an object the frames hold); a target
         counts as reached within ``pos_tol`` (default ``sim_view.REACH_POS_TOL``) and ``sim_view.REACH_ROT_TOL``.
         """
+
+
+def refusal(view: View) -> type[PhaseError] | type[InfeasibleError]:
+    """The error for a phase that finds its task impossible: a refusal (exit 2) while nothing has moved yet."""
+    return InfeasibleError if view.t == 0.0 else PhaseError
 
 
 def reference(view: View, relative_to: str) -> tuple[np.ndarray, float]:

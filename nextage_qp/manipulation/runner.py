@@ -14,7 +14,7 @@ from collections.abc import Callable
 from functools import partial
 from typing import Any
 
-from nextage_qp.errors import ConfigError, NextageQPError, PhaseError, UnknownNameError
+from nextage_qp.errors import ConfigError, InfeasibleError, NextageQPError, PhaseError, UnknownNameError
 from nextage_qp.estimate_errors import SHOVE_SETTLE_S
 from nextage_qp.gains import load_gains, robot_gains
 from nextage_qp.ik import QPIK
@@ -162,6 +162,8 @@ class Runner:
                 if on_tick:
                     on_tick(self, None)
         except NextageQPError as exc:
+            if isinstance(exc, InfeasibleError) and self.sim.time == 0.0:
+                raise  # refused before anything moved (exit 2, like an overlapping target)
             self.error = str(exc)
             for rec in self.records:
                 if rec.status == "running":

@@ -26,7 +26,7 @@ import numpy as np
 from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import rot_z, wrap, yaw_of
 from nextage_qp.ik import FrameTarget, RelativeTarget
-from nextage_qp.manipulation.context import ROUND_HEADINGS, Grip, View
+from nextage_qp.manipulation.context import ROUND_HEADINGS, Grip, View, refusal
 from nextage_qp.manipulation.phases.base import Phase
 from nextage_qp.manipulation.phases.grasp_spec import (
     APPROACH_TOL,
@@ -80,12 +80,12 @@ class Grasp(Phase):
             if found and (c.place_at is None or self._placement_found()):  # else: higher, if it may
                 break
         if found is None:
-            raise PhaseError(f"phase {self.name!r} (grasp): the pads cannot reach both sides of {c.object} "
+            raise refusal(view)(f"phase {self.name!r} (grasp): the pads cannot reach both sides of {c.object} "
                              f"({2e3 * self.half:.0f} mm wide at the pads) at any of its headings "
                              f"({', '.join(f'{np.degrees(h):.0f}' for h in headings)} deg): too wide for the "
                              "clamp, or out of the arms' reach")
         if c.place_at is not None and not self._placement_found():  # checked before anything moves
-            raise PhaseError(f"phase {self.name!r} (grasp): the clamp cannot reach {c.place_at}'s pose with "
+            raise refusal(view)(f"phase {self.name!r} (grasp): the clamp cannot reach {c.place_at}'s pose with "
                              f"{c.object} at any of its equivalent yaws, at the faces' centre or up to "
                              f"{c.off_centre * 1e3:g} mm off it: the target is out of the arms' reach")
         gap = found[0]

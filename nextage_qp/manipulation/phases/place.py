@@ -99,9 +99,9 @@ class Place(Phase):
     def _reachable_yaw(self, view: View, target_yaw: float) -> tuple[float, np.ndarray]:
         """The equivalent target yaw nearest the object's own that the clamp can reach, and its hover joints.
 
-        A yaw counts when the planner reaches the clamp at the hover over the target, solved from the commanded
-        joints or, when that stalls (against the obstacle between here and there), from the joints with which the
-        grasp found the placement reachable.
+        A yaw counts when the planner reaches the clamp at the hover over the target and from there at the set-down,
+        solved from the commanded joints or, when that stalls (against the obstacle between here and there), from
+        the joints with which the grasp found the placement reachable.
         """
         c = self.spec
         sym = view.yaw_symmetry(c.object) or ROUND_HEADINGS  # a round object: headings this far apart
@@ -113,7 +113,9 @@ class Place(Phase):
             for start in (None,) if hint is None else (None, hint):  # from here, or from the grasp's check
                 low = view.plan(self.clamp.pads(self.goal, yaw)[0], start=start, allow=frozenset({c.object}),
                                 pos_tol=HOVER_TOL)
-                if low is not None:
+                down = self.goal - np.array([0.0, 0.0, c.hover])  # and down to the set-down from there
+                if low is not None and view.plan(self.clamp.pads(down, yaw)[0], start=low,
+                                                 allow=frozenset({c.object}), pos_tol=HOVER_TOL) is not None:
                     self.info["place_yaw_rad"] = round(yaw, 4)
                     return yaw, low
         raise PhaseError(f"phase {self.name!r} (place): the clamp cannot reach {c.target}'s pose with "
