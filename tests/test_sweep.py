@@ -339,3 +339,12 @@ def test_sweep_cli_writes_summary_plot_and_replays(tmp_path, capsys):
     assert (out / "summary.json").is_file()
     assert main(["sweep", str(QUICK), "--seed", "1", "--only", "2"]) == 0
     assert "episode 2:" in capsys.readouterr().out
+
+
+def test_a_drawn_choice_is_named_by_what_is_not_drawn():
+    from nextage_qp.sweep.nested import choice_label
+
+    assert choice_label({"shape": "prism", "sides": 6, "size": [0.031, 0.035]}) == "shape=prism sides=6"
+    assert choice_label({"shape": "box", "size": [0.02, 0.04, 0.035]}) == "shape=box"
+    assert choice_label("kalman") == "kalman" and choice_label(0.5) == "0.5"
+    assert choice_label([0.1, 0.2]) == "[...]"

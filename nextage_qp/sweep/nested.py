@@ -70,3 +70,27 @@ def extremes(value: Any) -> list[Any]:
 
     low, high = at(value, 0), at(value, -1)
     return [low] if low == high else [low, high]
+
+
+def choice_label(value: Any) -> str:
+    """A short name for a drawn choice, for grouping episodes: its non-float content (``shape=prism sides=6``).
+
+    A value with no floats is its own name; drawn floats (sizes, say) are left out, so the episodes that drew the
+    same entry of a choice share a name.
+    """
+    if isinstance(value, dict):
+        parts = [f"{k}={choice_label(v)}" for k, v in value.items() if not _only_floats(v)]
+        return " ".join(parts) or "{...}"
+    if isinstance(value, list):
+        return "[...]" if _only_floats(value) else "[" + ", ".join(choice_label(v) for v in value) + "]"
+    return str(value)
+
+
+def _only_floats(value: Any) -> bool:
+    if isinstance(value, float):
+        return True
+    if isinstance(value, (list, dict)):
+        items = value.values() if isinstance(value, dict) else value
+        return all(_only_floats(v) for v in items)
+    return False
+

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from nextage_qp.sweep.episode import STATUSES, Episode
+from nextage_qp.sweep.nested import choice_label
 from nextage_qp.sweep.run import replay_commands
 from nextage_qp.sweep.spec import SweepSpec
 
@@ -92,7 +93,7 @@ def by_parameter(spec: SweepSpec, episodes: Sequence[Episode]) -> list[dict[str,
         if span is None:
             groups: dict[str, list[Episode]] = {}
             for e, v in zip(ran, values, strict=True):
-                groups.setdefault(str(v), []).append(e)
+                groups.setdefault(choice_label(v), []).append(e)
             cells = [(name, members) for name, members in groups.items()]
         else:
             edges = np.linspace(span[0], span[1], BINS + 1)

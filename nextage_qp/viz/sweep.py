@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from nextage_qp.sweep.episode import Episode
+from nextage_qp.sweep.nested import choice_label
 from nextage_qp.sweep.spec import SweepSpec
 from nextage_qp.sweep.summary import error_limit, object_error, param_value, parameter_components
 
@@ -44,7 +45,7 @@ def plot_sweep(spec: SweepSpec, episodes: Sequence[Episode], path: Path) -> None
         x = [param_value(e, key, comp) for e in ran]
         y = [max(object_error(e) or 0.0, 1e-5) for e in ran]
         numeric = all(isinstance(v, (int, float)) for v in x)
-        xs = x if numeric else [str(v) for v in x]
+        xs = x if numeric else [choice_label(v) for v in x]
         for flag, colour, name in ((True, "tab:green", "success"), (False, "tab:red", "failure")):
             px = [xv for xv, o in zip(xs, ok, strict=True) if o is flag]
             py = [yv for yv, o in zip(y, ok, strict=True) if o is flag]
