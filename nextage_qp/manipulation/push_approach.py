@@ -20,8 +20,9 @@ from nextage_qp.manipulation.route import PlannedRoute
 
 RAISE_STEP = 0.005
 """Step [m] by which a push whose approach is out of reach at its height is tried higher."""
-FACE_MARGIN = 0.012
-"""Least distance [m] from the tool point to the pushed object's top."""
+FACE_MARGIN = 0.0
+"""Least distance [m] from the tool point to the pushed object's top (0: the tool may rise to the top, the face below
+it still meets the object)."""
 
 
 class Approach(NamedTuple):
@@ -34,6 +35,7 @@ class Approach(NamedTuple):
         route: The planned transit.
         push_z: Tool height while pushing [m].
         tried: Directions tried to find it.
+        raised: How far above ``spec.height`` it pushes [m].
     """
 
     direction: np.ndarray
@@ -42,6 +44,7 @@ class Approach(NamedTuple):
     route: PlannedRoute
     push_z: float
     tried: int
+    raised: float = 0.0
 
 
 def routes(view: View, spec, tool: np.ndarray, d: np.ndarray, raise_by: float = 0.0) -> list[list[np.ndarray]]:
@@ -64,15 +67,16 @@ def routes(view: View, spec, tool: np.ndarray, d: np.ndarray, raise_by: float = 
 
 
 def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: Sequence[float],
-                  target: Callable[[np.ndarray, float], FrameTarget], higher: bool = False) -> Approach | None:
+                  target: Callable[[np.ndarray, float], FrameTarget], higher: bool | float = False) -> Approach | None:
     """The approach closest to the planar direction ``wanted`` within ``fan`` [rad] that the arm reaches, or None.
 
     ``spec`` is the push's spec (frame, object, approach, height, clearance, yaw); ``target(pos, yaw)`` the tool
-    target at ``pos`` for a push at ``yaw``. With ``higher``, a push out of reach at its height is tried higher
-    (:func:`raises`).
+    target at ``pos`` for a push at ``yaw``. With ``higher`` True, a push out of reach at its height is tried higher
+    (:func:`raises`); a number: the push goes that much higher (as an earlier approach found it had to).
     """
     tried = 0
-    for raise_by in raises(view, spec) if higher else [0.0]:
+    heights = raises(view, spec) if higher is True else [float(higher)]  # a number: that raise only
+    for raise_by in heights:
         for deviation in (s * a for a in fan for s in ((1.0,) if a == 0 else (1.0, -1.0))):
             d = rotate2(wanted, deviation)
             yaw = float(np.arctan2(d[1], d[0])) + spec.yaw
@@ -80,7 +84,7 @@ def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: S
             for route in routes(view, spec, tool, d, raise_by):
                 planned = PlannedRoute([(target(p, yaw),) for p in route[1:]])
                 if planned.plan(view):
-                    return Approach(d, route[0], yaw, planned, float(route[-1][2]), tried)
+                    return Approach(d, route[0], yaw, planned, float(route[-1][2]), tried, raise_by)
     return None
 
 

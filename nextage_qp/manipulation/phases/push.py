@@ -56,6 +56,7 @@ class Push(Phase):
         self.tool_yaw = yaw_of(rot)
         self.approaches, self.recoveries, self.full, self.contact = 0, 0, False, PushContact(self.spec.frame)
         self.info.update(attempts=0, nudges=0, contact_onsets=0, contact_losses=0)
+        self.raised = 0.0
         obj, tgt, _ = self._planar(view)
         self._approach(view, unit2((tgt - obj)[:2]))
         if self.plan_failed:
@@ -75,7 +76,8 @@ class Push(Phase):
         self.approaches += 1
         self.nudges = 0
         fan = c.fan if self.approaches == 1 or full else tuple(a for a in c.fan if a <= c.correction_fan)
-        plan = plan_approach(view, c, self.sp.pos, d_goal, fan, self._target, higher=self.approaches == 1)
+        higher: bool | float = True if self.approaches == 1 else self.raised  # later ones at the first one's height
+        plan = plan_approach(view, c, self.sp.pos, d_goal, fan, self._target, higher=higher)
         self.planned_at = view.body_pose(c.object).pos[:2].copy()
         tried = plan.tried if plan else sum(1 + (a != 0) for a in fan)
         self.info.update(attempts=self.approaches, directions_tried=tried)
@@ -83,6 +85,8 @@ class Push(Phase):
         if plan is None:
             return
         self.d, self.lift, self.goal_yaw, self.planned, self.push_z = plan[:5]
+        if self.approaches == 1:
+            self.raised = plan.raised
         self.info["direction"] = self.d.round(4).tolist()
         self.stage, self.lifting = "transit", True
 
