@@ -35,7 +35,6 @@ from nextage_qp.manipulation.phases.grasp_spec import (
     HIGH,
     KNOCKED,
     OFF_CENTRE_STEP,
-    PLACE_HOVER,
     SIDES,
     GraspSpec,
 )
@@ -67,6 +66,8 @@ class Grasp(Phase):
         self.shift = 0.0
         self.placements: dict[tuple[float, ...], list[tuple[list[np.ndarray], np.ndarray]]] = {}
         found = None
+        # the clamp's default height over the object's origin (the middle of its widest part), found once
+        self.base = c.height if c.height is not None else view.grip_geometry(c.object, np.array([0.0, 1.0, 0.0]))[0]
         for raise_by in self._raises(view):
             for heading in headings:
                 self.yaw, self.rz = heading, rot_z(heading)
@@ -111,8 +112,7 @@ class Grasp(Phase):
         c = self.spec
         if c.height is not None:
             return [0.0]
-        low = view.grip_geometry(c.object, np.array([0.0, 1.0, 0.0]))[0]
-        room = view.extent(c.object, np.array([0.0, 0.0, 1.0])) - GRIP_MARGIN - low
+        room = view.extent(c.object, np.array([0.0, 0.0, 1.0])) - GRIP_MARGIN - self.base
         return [k * GRIP_STEP for k in range(int(max(room, 0.0) / GRIP_STEP) + 1)]
 
     def _grip_at(self, view: View, lateral: np.ndarray, raise_by: float) -> None:
@@ -121,8 +121,7 @@ class Grasp(Phase):
         if c.half_width is not None and c.height is not None:
             self.height, self.half = c.height, c.half_width
         else:
-            base = c.height if c.height is not None else view.grip_geometry(c.object, lateral)[0]
-            self.height, half = view.grip_geometry(c.object, lateral, base + raise_by)
+            self.height, half = view.grip_geometry(c.object, lateral, self.base + raise_by)
             self.half = half if c.half_width is None else c.half_width
         self.info["grip_height_m"] = round(self.height, 4)
 
@@ -176,7 +175,7 @@ class Grasp(Phase):
             return self.placements[key]
         tgt, trot = view.body_pose(c.place_at)
         sym = view.yaw_symmetry(c.object) or ROUND_HEADINGS  # a round object: headings this far apart
-        centre = np.array([tgt[0], tgt[1], view.rest_height(c.object, c.place_at) + self.height + PLACE_HOVER])
+        centre = np.array([tgt[0], tgt[1], view.rest_height(c.object, c.place_at) + self.height])
         out: list[tuple[list[np.ndarray], np.ndarray]] = []
         for k in range(max(1, round(2 * np.pi / sym))):
             rz = rot_z(yaw_of(trot) + k * sym)

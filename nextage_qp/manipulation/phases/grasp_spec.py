@@ -9,6 +9,7 @@ from pydantic import Field
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Spec, name_field
 
 SIDES = (1.0, -1.0)
+"""The first pad sits on the +y side of the object's heading, the second on the -y side."""
 HIGH = 0.08
 """The pads first go this far over their approach point, so the swing there passes over the object [m]."""
 APPROACH_TOL = 0.006
@@ -18,9 +19,6 @@ KNOCKED = 0.3
 """Tilt of the object [rad] during the approach at which the grasp fails: the arms have knocked it over."""
 OFF_CENTRE_STEP = 0.0175
 """Spacing of the clamp points tried along the faces, from the centre out to ``off_centre`` [m]."""
-PLACE_HOVER = 0.0
-"""Height over the resting pose at which the clamp must reach ``place_at`` [m]."""
-"""The first pad sits on the +y side of the object's heading, the second on the -y side."""
 
 
 GRIP_STEP = 0.01
