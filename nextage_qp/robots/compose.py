@@ -18,6 +18,7 @@ from nextage_qp.errors import ConfigError
 from nextage_qp.object_build import declare_objects, rest_on_table
 from nextage_qp.robots.description import RobotDescription
 from nextage_qp.scene import SceneOverrides, apply_overrides, load_scene, quiet_prefix_warning
+from nextage_qp.vision.cameras import add_cameras
 
 _ASSETS = ("meshes", "textures", "materials", "hfields", "skins")
 
@@ -53,6 +54,7 @@ def robot_spec(desc: RobotDescription) -> mujoco.MjSpec:
                 raise ConfigError(f"{desc.source}: exclude[{i}]: {name!r} is not a body of the model")
         spec.add_exclude(bodyname1=pair[0], bodyname2=pair[1])
     _add_missing_actuators(spec, desc)
+    add_cameras(spec, dict(desc.cameras), desc.source)
     return spec
 
 

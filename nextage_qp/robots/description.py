@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.robots.paths import PREFIX, missing_package_hint, resolve_package, split_package
 from nextage_qp.robots.schema import FrameFile, GainRule, GroupFile, MountFile, RobotFile
+from nextage_qp.vision.cameras import CameraFile
 from nextage_qp.yaml_file import read_yaml_mapping, validate
 
 DEFAULT_ROBOT = "nextage"
@@ -58,6 +59,7 @@ class RobotDescription:
     gains_dir: Path | None
     torque_limits: float | Mapping[str, float] | None
     velocity_limits: float | Mapping[str, float] | None
+    cameras: Mapping[str, CameraFile] = field(default_factory=dict)
 
     @property
     def joints(self) -> tuple[str, ...]:
@@ -171,4 +173,5 @@ def load_robot(ref: str | Path | None = None) -> RobotDescription:
         gains_dir=(here / doc.gains_dir).resolve() if doc.gains_dir else None,
         torque_limits=doc.torque_limits,
         velocity_limits=doc.velocity_limits,
+        cameras=dict(doc.cameras),
     )

@@ -27,6 +27,7 @@ A robot file names the model (MJCF or URDF) and says what the framework needs to
     gains: gains/twin.yaml           # a gains file, or the rule on the joints' reflected inertia (the default)
     torque_limits: 40.0              # N m, one value or per joint; the file's value wins over the model's
     velocity_limits: 2.0             # rad/s, one value or per joint: caps the trajectory's limits
+    cameras: {head: {body: head_link, pos: [0.1, 0, 0.05], pitch: 0.3, fovx: 70}}  # see nextage_qp.vision.cameras
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, Field, ValidationInfo, field_validator, model_validator
 
+from nextage_qp.vision.cameras import CameraFile
 from nextage_qp.yaml_file import STRICT
 
 Name = Annotated[str, Field(min_length=1)]
@@ -133,6 +135,9 @@ class RobotFile(BaseModel):
     )
     velocity_limits: float | dict[Name, Positive] | None = Field(
         default=None, description="[rad/s], one value or per joint: caps the joint references' velocity."
+    )
+    cameras: dict[Name, CameraFile] = Field(
+        default_factory=dict, description="Cameras on the robot (nextage_qp.vision.cameras), by name."
     )
 
     @field_validator("torque_limits", "velocity_limits", mode="before")

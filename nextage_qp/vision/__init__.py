@@ -1,0 +1,1 @@
+"""Robot cameras: rendering, depth noise, object poses from depth frames, the perception block."""

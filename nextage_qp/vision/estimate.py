@@ -1,0 +1,258 @@
+"""Object poses from one depth frame.
+
+The table is found by RANSAC, the points the robot's model does not explain are clustered, and each object's known
+shape is fitted to its points (Gauss-Newton on the shape's signed distance, over x, y, z and yaw).
+
+The estimator sees what a real robot would: the depth image, the camera's intrinsics and its pose from forward
+kinematics of the measured joints, and the depth the robot's own model expects there (itself and the known static
+scene, no free objects). It never reads simulator state: this module does not import MuJoCo.
+
+Each object gets a :class:`Detection`: a pose, or the reason there is none (``out_of_view``, ``occluded``: the
+model predicts the robot covers too much of it, ``missing``: no points where it should be, ``bad_fit``: its points do
+not fit its shape, e.g. a hand in front of it). Those are dropouts for the filter, not measurements.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from nextage_qp.vision.shapes import ShapeModel
+
+GAP = 0.01
+"""A pixel nearer than the model expects by this much [m] shows something the model does not know (an object)."""
+ABOVE = 0.004
+"""Points this far above the table plane or more belong to objects [m]."""
+MIN_PIXELS = 30
+"""Smallest cluster (and fewest points of a fit) [px]."""
+MAX_RMS = 0.004
+"""Largest RMS distance [m] of an object's points to its fitted shape (beyond: a bad fit)."""
+MAX_OCCLUDED = 0.7
+"""Largest share of an object's predicted surface the robot may cover before the view is a dropout."""
+PARTLY = 0.3
+"""Share of an object's predicted surface covered by the robot from which a frame counts as occluded."""
+FREE_OFFSET = 0.01
+"""Table points seen are moved this far towards the camera to make the free-space points [m]."""
+MAX_POINTS = 400
+"""Points used per fit (a random subset of more)."""
+HUBER = 0.003
+"""Residual [m] beyond which a point's weight falls off (robust fit)."""
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One depth frame: depth and expected depth [m] (H, W; NaN: no return), K (3x3), camera pose (world)."""
+
+    depth: np.ndarray
+    expected: np.ndarray
+    K: np.ndarray
+    cam_pos: np.ndarray
+    cam_rot: np.ndarray  # columns: camera x (right), y (up), z (backwards), MuJoCo's convention
+
+
+@dataclass
+class Detection:
+    """An object's measurement (x, y, z, roll, pitch, yaw) or None, why, and the fit's numbers."""
+
+    pose: np.ndarray | None
+    status: str  # ok, out_of_view, occluded, missing, bad_fit
+    rms: float = float("nan")
+    points: int = 0
+    occluded: float = 0.0
+
+
+def backproject(depth: np.ndarray, K: np.ndarray, pos: np.ndarray, rot: np.ndarray,
+                rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """World points (n, 3) of pixels (rows, cols) with depth (the distance along the optical axis)."""
+    z = depth[rows, cols].astype(float)
+    x = (cols + 0.5 - K[0, 2]) / K[0, 0] * z
+    y = -(rows + 0.5 - K[1, 2]) / K[1, 1] * z
+    return pos + np.stack([x, y, -z], axis=1) @ rot.T
+
+
+def project(points: np.ndarray, K: np.ndarray, pos: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Pixel rows, cols and depth of world points (depth <= 0: behind the camera)."""
+    c = (points - pos) @ rot
+    z = -c[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cols = K[0, 0] * c[:, 0] / z + K[0, 2] - 0.5
+        rows = -K[1, 1] * c[:, 1] / z + K[1, 2] - 0.5
+    return np.rint(rows).astype(int), np.rint(cols).astype(int), z
+
+
+def table_plane(points: np.ndarray, rng: np.random.Generator, iters: int = 80, tol: float = 0.005,
+                max_tilt: float = 0.2) -> tuple[np.ndarray, float] | None:
+    """The largest near-horizontal plane (unit normal n with n_z > 0, offset d: n . p = d) by RANSAC, or None."""
+    if len(points) < 3:
+        return None
+    a, b, c = (points[rng.integers(0, len(points), iters)] for _ in range(3))  # every hypothesis at once
+    n = np.cross(b - a, c - a)
+    norm = np.linalg.norm(n, axis=1)
+    ok = norm > 1e-9
+    n = n[ok] / norm[ok, None]
+    n *= np.where(n[:, 2] >= 0, 1.0, -1.0)[:, None]
+    keep = np.arccos(np.minimum(1.0, n[:, 2])) <= max_tilt
+    n, a = n[keep], a[ok][keep]
+    if not len(n):
+        return None
+    counts = (np.abs(points @ n.T - np.einsum("ij,ij->i", n, a)) < tol).sum(axis=0)
+    k = int(np.argmax(counts))
+    best = (n[k], float(n[k] @ a[k]))
+    inliers = points[np.abs(points @ best[0] - best[1]) < tol]  # least squares on the inliers
+    centre = inliers.mean(axis=0)
+    n = np.linalg.svd(inliers - centre)[2][2]
+    n = n if n[2] > 0 else -n
+    return n, float(n @ centre)
+
+
+def _residuals(shape: ShapeModel, points: np.ndarray, x: np.ndarray) -> np.ndarray:
+    c, s = np.cos(x[3]), np.sin(x[3])
+    local = (points - x[:3]) @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return shape.sdf(local)
+
+
+def _both(shape: ShapeModel, points: np.ndarray, free: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Surface residuals of ``points``, then how deep the shape reaches into ``free`` space (seen through)."""
+    return np.concatenate([_residuals(shape, points, x), np.minimum(_residuals(shape, free, x), 0.0)])
+
+
+def fit(shape: ShapeModel, points: np.ndarray, x0: np.ndarray, free: np.ndarray | None = None,
+        iters: int = 12) -> tuple[np.ndarray, float]:
+    """Pose (x, y, z, yaw) of ``shape`` fitting ``points`` from ``x0`` (robust Gauss-Newton), and its RMS [m].
+
+    ``free``: points the camera saw through (just in front of the table it saw), which the shape may not contain:
+    they pin a partial view (the hand covering part of the object) along the directions its own points leave free.
+    """
+    x = np.asarray(x0, dtype=float).copy()
+    free = np.zeros((0, 3)) if free is None else free
+    steps = np.array([1e-4, 1e-4, 1e-4, 1e-3])
+    for _ in range(iters):
+        r = _both(shape, points, free, x)
+        J = np.stack([(_both(shape, points, free, x + e) - r) / h
+                      for e, h in zip(np.diag(steps), steps, strict=True)], axis=1)
+        w = np.minimum(1.0, HUBER / np.maximum(np.abs(r), 1e-12))
+        H = J.T @ (J * w[:, None]) + 1e-6 * np.eye(4)
+        dx = -np.linalg.solve(H, J.T @ (w * r))
+        x += dx
+        if np.abs(dx[:3]).max() < 1e-5 and abs(dx[3]) < 1e-4:
+            break
+    r = _residuals(shape, points, x)
+    return x, float(np.sqrt(np.mean(r * r)))
+
+
+class Estimator:
+    """Poses of known shapes from depth frames (see the module docstring).
+
+    Args:
+        shapes: Object name -> its shape model.
+        seed: Seed of RANSAC and of the point subsets.
+    """
+
+    def __init__(self, shapes: Mapping[str, ShapeModel], seed: int = 0) -> None:
+        self.shapes = dict(shapes)
+        self.rng = np.random.default_rng(seed)
+        self.plane: tuple[np.ndarray, float] | None = None
+        self.clusters = np.zeros((0, 0), dtype=int)  # labels of the last frame (0: none), for dumps
+        self.free = np.zeros((0, 3))  # free-space points of the last frame
+
+    def segment(self, f: Frame) -> list[np.ndarray]:
+        """World points of each cluster the model does not explain (largest first)."""
+        finite = np.isfinite(f.depth)
+        rows, cols = np.nonzero(finite)
+        pts = backproject(f.depth, f.K, f.cam_pos, f.cam_rot, rows, cols)
+        sub = self.rng.integers(0, len(pts), min(len(pts), 1500)) if len(pts) else np.zeros(0, int)
+        self.plane = table_plane(pts[sub], self.rng) or self.plane
+        with np.errstate(invalid="ignore"):
+            unexplained = finite & ~(f.expected - f.depth < GAP)
+        height = np.full(f.depth.shape, np.inf)
+        if self.plane is not None:
+            height[rows, cols] = pts @ self.plane[0] - self.plane[1]
+        table = np.abs(height) < ABOVE
+        tr, tc = np.nonzero(table)
+        if len(tr) > 4000:
+            pick = self.rng.integers(0, len(tr), 4000)
+            tr, tc = tr[pick], tc[pick]
+        near = backproject(f.depth, f.K, f.cam_pos, f.cam_rot, tr, tc)
+        towards = f.cam_pos - near
+        self.free = near + FREE_OFFSET * towards / np.linalg.norm(towards, axis=1, keepdims=True)
+        labels, n = ndimage.label(unexplained & (height > ABOVE), structure=np.ones((3, 3)))
+        self.clusters = labels
+        sizes = ndimage.sum_labels(np.ones_like(labels), labels, index=np.arange(1, n + 1))
+        out = []
+        for k in np.argsort(-sizes):
+            if sizes[k] < MIN_PIXELS:
+                break
+            r, c = np.nonzero(labels == k + 1)
+            out.append(backproject(f.depth, f.K, f.cam_pos, f.cam_rot, r, c))
+        return out
+
+    def occlusion(self, f: Frame, shape: ShapeModel, prior: np.ndarray) -> float | None:
+        """Share of the shape's surface facing the camera at ``prior`` that the robot covers (None: out of view).
+
+        From the model alone: the expected depth (robot and static scene) in front of the shape's samples.
+        """
+        c, s = np.cos(prior[5]), np.sin(prior[5])
+        rot = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+        pts = shape.samples @ rot + prior[:3]
+        pts = pts[np.einsum("ij,ij->i", shape.normals @ rot, pts - f.cam_pos) < 0]  # faces the camera
+        rows, cols, z = project(pts, f.K, f.cam_pos, f.cam_rot)
+        h, w = f.depth.shape
+        inside = (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        if inside.mean() < 0.5:
+            return None
+        with np.errstate(invalid="ignore"):
+            covered = f.expected[rows[inside], cols[inside]] < z[inside] - GAP
+        return float(covered.mean())
+
+    def estimate(self, f: Frame, priors: Mapping[str, np.ndarray | None]) -> dict[str, Detection]:
+        """A :class:`Detection` per object of ``priors`` (name -> predicted pose vector, or None: not yet seen)."""
+        clusters = self.segment(f)
+        cloud = np.concatenate(clusters) if clusters else np.zeros((0, 3))
+        out: dict[str, Detection] = {}
+        for name in sorted(priors, key=lambda k: priors[k] is None):  # tracked objects first
+            shape, prior = self.shapes[name], priors[name]
+            if prior is not None:
+                share = self.occlusion(f, shape, prior)
+                if share is None:
+                    out[name] = Detection(None, "out_of_view")
+                    continue
+                if share > MAX_OCCLUDED:
+                    out[name] = Detection(None, "occluded", occluded=share)
+                    continue
+                near = cloud[np.linalg.norm(cloud - prior[:3], axis=1) < shape.radius * 1.5 + 0.03]
+                candidates = [(near, [prior[5]], prior)]
+            else:
+                share = 0.0
+                seeds = list(np.arange(6) * (shape.symmetry or 2 * np.pi) / 6)
+                candidates = [(c, seeds, None) for c in clusters]  # type: ignore[misc]
+            best: Detection = Detection(None, "missing", occluded=share)
+            for pts, yaws, pr in candidates:
+                if len(pts) < MIN_PIXELS:
+                    continue
+                if len(pts) > MAX_POINTS:
+                    pts = pts[self.rng.permutation(len(pts))[:MAX_POINTS]]
+                centre = pts.mean(axis=0)
+                z0 = (self.plane[1] - self.plane[0][:2] @ centre[:2]) / self.plane[0][2] - shape.bottom \
+                    if self.plane is not None and pr is None else (pr[2] if pr is not None else centre[2])
+                starts = [np.array([*(pr[:2] if pr is not None else centre[:2]), z0, y]) for y in yaws]
+                free = self.free[np.linalg.norm(self.free[:, :2] - starts[0][:2], axis=1) < shape.radius + 0.03]
+                free = free[:200]
+                for x0 in starts:
+                    x, rms = fit(shape, pts, x0, free)
+                    if best.pose is None or rms < best.rms:
+                        yaw = x[3]
+                        if shape.symmetry and pr is not None:  # the equivalent yaw nearest the prediction
+                            yaw = pr[5] + np.remainder(yaw - pr[5] + shape.symmetry / 2, shape.symmetry) \
+                                - shape.symmetry / 2
+                        best = Detection(np.array([x[0], x[1], x[2], 0.0, 0.0, yaw]), "ok", rms, len(pts), share)
+            if best.pose is not None and best.rms > MAX_RMS:
+                best = Detection(None, "bad_fit", best.rms, best.points, share)
+            out[name] = best
+            if best.pose is not None and prior is None:  # its cluster is taken
+                cloud = cloud[np.abs(_residuals(shape, cloud, best.pose[[0, 1, 2, 5]])) > 0.01]
+                clusters = [c for c in clusters if np.median(np.abs(_residuals(shape, c, best.pose[[0, 1, 2, 5]])))
+                            > 0.01]
+        return out

@@ -1,0 +1,131 @@
+"""A robot camera rendered offscreen: depth (with the sensor's noise), RGB, and what the robot's model expects to see.
+
+:class:`RobotCamera` is the world side of perception: it renders the simulated world from a camera of the robot file
+(markers and collision geoms hidden, no shadows or reflections, as software rendering wants). It also renders the
+*expected background*: the robot's own model at its measured joints with the known static scene (table,
+obstacles) and without the free objects, from the camera pose forward kinematics of the measured joints gives. The
+estimator (:mod:`nextage_qp.vision.estimate`) gets the images, the intrinsics and that pose, nothing else.
+"""
+
+from __future__ import annotations
+
+import time
+
+import mujoco
+import numpy as np
+
+from nextage_qp.vision.cameras import CameraFile
+
+SHOWN_GROUPS = (0, 2)
+"""Geom groups a robot camera sees: scene geoms (0) and visual meshes (2); markers (1), collision geoms (3) and
+debug sites (4+) are the simulator's, not the world's."""
+MAX_RANGE = 3.0
+"""Depth beyond this is no return [m]."""
+AWAY = -50.0
+"""Height [m] the free objects are moved to in the expected-background model (out of every view)."""
+
+
+PACKAGES = "Debian libegl1 libegl-mesa0 libgl1-mesa-dri (MUJOCO_GL=egl) or libosmesa6 (MUJOCO_GL=osmesa)"
+"""What headless rendering needs on a machine without a display."""
+
+
+def render_problem() -> str | None:
+    """None if offscreen rendering works here, else one line saying why and which packages it needs."""
+    try:
+        r = mujoco.Renderer(mujoco.MjModel.from_xml_string("<mujoco/>"), 16, 16)
+        r.close()
+    except Exception as exc:
+        return f"offscreen rendering unavailable ({' '.join(str(exc).split())}); install {PACKAGES}"
+    return None
+
+
+def _option() -> mujoco.MjvOption:
+    opt = mujoco.MjvOption()
+    opt.geomgroup[:] = 0
+    for g in SHOWN_GROUPS:
+        opt.geomgroup[g] = 1
+    opt.sitegroup[:] = 0
+    return opt
+
+
+class RobotCamera:
+    """Renders one camera of the robot (see the module docstring).
+
+    Args:
+        model: The compiled task scene with the robot and its cameras.
+        name: The camera's name.
+        spec: The camera's robot-file entry.
+        robot: The :class:`~nextage_qp.robot.Robot` (joint addresses, free objects).
+        seed: Seed of the depth noise.
+    """
+
+    def __init__(self, model: mujoco.MjModel, name: str, spec: CameraFile, robot, seed: int) -> None:
+        self.model, self.name, self.spec, self.robot = model, name, spec, robot
+        self.cam_id = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, name))
+        self.K = spec.intrinsics
+        self.renderer = mujoco.Renderer(model, spec.height, spec.width)
+        self.option = _option()
+        self.rng = np.random.default_rng(seed)
+        self.kin = mujoco.MjData(model)  # the robot's own model at its measured joints, objects away
+        for obj in robot.object_names:
+            s = robot.object_qpos_slice(obj)
+            self.kin.qpos[s.start + 2] = AWAY
+        self.seconds = {"render": 0.0}
+
+    def _render(self, data: mujoco.MjData, depth: bool) -> np.ndarray:
+        r = self.renderer
+        r.update_scene(data, camera=self.cam_id, scene_option=self.option)
+        flags = mujoco.mjtRndFlag
+        for flag in (flags.mjRND_SHADOW, flags.mjRND_REFLECTION, flags.mjRND_SKYBOX):
+            r.scene.flags[flag] = 0
+        if depth:
+            r.enable_depth_rendering()
+        else:
+            r.disable_depth_rendering()
+        out = r.render()
+        if depth:
+            out = np.where(out < MAX_RANGE, out, np.nan).astype(np.float32)
+        return out
+
+    def pose(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The camera's pose (position [m], 3x3 rotation) from forward kinematics of the measured joints ``q``."""
+        self.robot.set_q(self.kin, q)
+        mujoco.mj_kinematics(self.model, self.kin)
+        mujoco.mj_camlight(self.model, self.kin)
+        return self.kin.cam_xpos[self.cam_id].copy(), self.kin.cam_xmat[self.cam_id].reshape(3, 3).copy()
+
+    def expected(self) -> np.ndarray:
+        """Depth [m] the model expects at the pose of the last :meth:`pose`: the robot and the static scene only."""
+        return self._render(self.kin, depth=True)
+
+    def depth(self, data: mujoco.MjData) -> np.ndarray:
+        """The sensor's depth image [m] of the world ``data`` (NaN: no return), with its noise model."""
+        start = time.perf_counter()
+        z = self._render(data, depth=True)
+        self.seconds["render"] += time.perf_counter() - start
+        return self.noisy(z)
+
+    def noisy(self, z: np.ndarray) -> np.ndarray:
+        """``z`` with axial noise growing with the distance squared and missing pixels at depth edges."""
+        n = self.spec.depth_noise
+        if n.sigma_m == 0 and n.per_m2 == 0 and n.edge_dropout == 0:
+            return z
+        out = z + self.rng.standard_normal(z.shape).astype(np.float32) * (n.sigma_m + n.per_m2 * z * z)
+        if n.edge_dropout > 0:
+            step = np.zeros(z.shape, dtype=bool)
+            with np.errstate(invalid="ignore"):
+                dy, dx = np.abs(np.diff(z, axis=0)) > n.edge_m, np.abs(np.diff(z, axis=1)) > n.edge_m
+            step[1:] |= dy
+            step[:-1] |= dy
+            step[:, 1:] |= dx
+            step[:, :-1] |= dx
+            out[step & (self.rng.random(z.shape) < n.edge_dropout)] = np.nan
+        return out
+
+    def rgb(self, data: mujoco.MjData) -> np.ndarray:
+        """The camera's RGB image (H, W, 3) uint8 of the world ``data``."""
+        return self._render(data, depth=False)
+
+    def close(self) -> None:
+        """Free the renderer's GL context."""
+        self.renderer.close()

@@ -1,0 +1,99 @@
+"""Known shape models of the objects: signed distance, surface samples, resting height, from the model's geoms.
+
+A shape is the union of an object's geoms (box, cylinder, capsule, sphere, ellipsoid approximated by a sphere,
+convex mesh such as a prism) in the object's frame. Only the model's constant geometry is read (types, sizes,
+local poses, mesh vertices), never the simulation's state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from scipy.spatial import ConvexHull
+
+_T = mujoco.mjtGeom
+
+
+@dataclass(frozen=True)
+class Part:
+    """One convex part: its type, size, and pose in the object's frame."""
+
+    kind: str
+    size: np.ndarray
+    pos: np.ndarray
+    rot: np.ndarray
+    planes: np.ndarray | None = None  # (k, 4) outward normals and offsets of a convex mesh: n . p <= d inside
+
+
+def _sdf_local(part: Part, p: np.ndarray) -> np.ndarray:
+    """Signed distance [m] of points ``p`` (n, 3) in the part's frame (negative inside)."""
+    s = part.size
+    if part.kind == "box":
+        q = np.abs(p) - s[:3]
+        return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+    if part.kind == "cylinder":
+        d = np.stack([np.linalg.norm(p[:, :2], axis=1) - s[0], np.abs(p[:, 2]) - s[1]], axis=1)
+        return np.linalg.norm(np.maximum(d, 0.0), axis=1) + np.minimum(d.max(axis=1), 0.0)
+    if part.kind == "capsule":
+        z = np.clip(p[:, 2], -s[1], s[1])
+        return np.linalg.norm(p - np.stack([0 * z, 0 * z, z], axis=1), axis=1) - s[0]
+    if part.kind == "sphere":
+        return np.linalg.norm(p, axis=1) - s[0]
+    assert part.planes is not None  # convex mesh: the farthest face plane (exact on the faces)
+    return (p @ part.planes[:, :3].T - part.planes[:, 3]).max(axis=1)
+
+
+class ShapeModel:
+    """An object's shape (see the module docstring), with its yaw symmetry [rad] (0: none)."""
+
+    def __init__(self, parts: list[Part], symmetry: float) -> None:
+        self.parts, self.symmetry = parts, symmetry
+        self.samples = self._sample()
+        self.normals = self._gradient(self.samples)
+        self.bottom = float(self.samples[:, 2].min())  # lowest point below the origin [m] (< 0)
+        self.radius = float(np.linalg.norm(self.samples[:, :2], axis=1).max())
+
+    @classmethod
+    def of_body(cls, model: mujoco.MjModel, body: int, symmetry: float) -> ShapeModel:
+        """The shape of ``body``'s colliding geoms."""
+        parts = []
+        for g in range(model.ngeom):
+            if int(model.geom_bodyid[g]) != body or (model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0):
+                continue
+            kind = {_T.mjGEOM_BOX: "box", _T.mjGEOM_CYLINDER: "cylinder", _T.mjGEOM_CAPSULE: "capsule",
+                    _T.mjGEOM_SPHERE: "sphere", _T.mjGEOM_ELLIPSOID: "sphere", _T.mjGEOM_MESH: "mesh"}.get(
+                        int(model.geom_type[g]))
+            if kind is None:
+                continue
+            rot = np.zeros(9)
+            mujoco.mju_quat2Mat(rot, model.geom_quat[g])
+            planes = None
+            if kind == "mesh":
+                m = int(model.geom_dataid[g])
+                a, n = int(model.mesh_vertadr[m]), int(model.mesh_vertnum[m])
+                hull = ConvexHull(np.asarray(model.mesh_vert[a:a + n], dtype=float))
+                planes = np.column_stack([hull.equations[:, :3], -hull.equations[:, 3]])
+            parts.append(Part(kind, np.array(model.geom_size[g], dtype=float), np.array(model.geom_pos[g]),
+                              rot.reshape(3, 3), planes))
+        return cls(parts, symmetry)
+
+    def sdf(self, p: np.ndarray) -> np.ndarray:
+        """Signed distance [m] of points ``p`` (n, 3) in the object's frame to the union of its parts."""
+        return np.min([_sdf_local(part, (p - part.pos) @ part.rot) for part in self.parts], axis=0)
+
+    def _gradient(self, p: np.ndarray) -> np.ndarray:
+        """Unit gradient of the signed distance at ``p`` (the outward normal on the surface)."""
+        d = self.sdf(p)
+        g = np.stack([(self.sdf(p + e) - d) / 1e-5 for e in np.eye(3) * 1e-5], axis=1)
+        return g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-9)
+
+    def _sample(self, n: int = 4000) -> np.ndarray:
+        """Points on the surface (object frame), by projecting a random cloud in the bounding box onto it."""
+        rng = np.random.default_rng(0)
+        ext = max(float(np.abs(part.pos).max() + part.size.max()) for part in self.parts) * 1.2
+        p = rng.uniform(-ext, ext, (n, 3))
+        for _ in range(8):  # Newton steps along the numerical gradient onto the zero level set
+            p = p - self.sdf(p)[:, None] * self._gradient(p)
+        return p[np.abs(self.sdf(p)) < 1e-4]

@@ -1,0 +1,122 @@
+"""``perception.source: camera``: object measurements from the robot camera's depth frames.
+
+:class:`CameraMeasurer` renders a frame of the world (:class:`~nextage_qp.vision.render.RobotCamera`), computes
+the camera's pose from the *measured* joints, and hands images, intrinsics and pose to the
+:class:`~nextage_qp.vision.estimate.Estimator`; the poses it returns go through the same latency queue and
+Kalman filter as the simulated camera's (:class:`~nextage_qp.perception.FaultySensors`). It counts, per object,
+frames seen, detections, predicted occlusions and the time per frame spent rendering and estimating.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from nextage_qp.errors import ConfigError
+from nextage_qp.vision.config import PerceptionConfig
+from nextage_qp.vision.estimate import PARTLY, Estimator, Frame
+from nextage_qp.vision.render import RobotCamera, render_problem
+from nextage_qp.vision.shapes import ShapeModel
+
+STATUSES = ("ok", "out_of_view", "occluded", "missing", "bad_fit")
+
+
+class CameraMeasurer:
+    """Measurements of every free object from one robot camera (see the module docstring).
+
+    Args:
+        cfg: The config's perception block.
+        robot: The :class:`~nextage_qp.robot.Robot` (its description's cameras, its objects' shape models).
+        data: The simulation's data: the world the camera renders (and nothing else reads).
+        joints: The measured joint positions at a time [s].
+        seed: The run's seed.
+        source: Where the config came from (for messages).
+    """
+
+    def __init__(self, cfg: PerceptionConfig, robot: Any, data: mujoco.MjData, joints: Callable[[float], np.ndarray],
+                 seed: int, source: str = "<config>") -> None:
+        cams = dict(robot.description.cameras) if robot.description is not None else {}
+        if cfg.camera not in cams:
+            raise ConfigError(f"{source}: perception.camera: {cfg.camera!r} is not a camera of robot "
+                              f"{robot.name!r}; valid: {', '.join(sorted(cams)) or '(the robot file has none)'}")
+        problem = render_problem()
+        if problem is not None:
+            raise ConfigError(f"{source}: perception.source: camera: {problem}")
+        self.cfg, self.spec, self.data, self.joints = cfg, cams[cfg.camera], data, joints
+        model = robot.model
+        self.camera = RobotCamera(model, cfg.camera, self.spec, robot, seed)
+        self.symmetry = {n: robot.yaw_symmetry(n) for n in robot.object_names}
+        shapes = {n: ShapeModel.of_body(model, model.body(n).id, self.symmetry[n]) for n in robot.object_names}
+        self.estimator = Estimator(shapes, seed)
+        self.counts = {n: dict.fromkeys((*STATUSES, "partly_occluded"), 0) for n in robot.object_names}
+        self.ms: dict[str, list[float]] = {"render": [], "estimate": []}
+        self.dumped = cfg.dump is None
+
+    @property
+    def rate_hz(self) -> float:
+        """Frame rate [Hz]."""
+        return self.spec.rate_hz
+
+    @property
+    def latency_s(self) -> float:
+        """Age of a measurement when it reaches the filter [s]."""
+        return self.spec.latency_s
+
+    def __call__(self, t: float, priors: Mapping[str, np.ndarray | None]) -> dict[str, np.ndarray | None]:
+        """Measured pose vectors (x, y, z, roll, pitch, yaw) at ``t`` [s], None where the object was not seen."""
+        t0 = time.perf_counter()
+        depth = self.camera.depth(self.data)
+        pos, rot = self.camera.pose(self.joints(t))
+        expected = self.camera.expected()
+        t1 = time.perf_counter()
+        frame = Frame(depth, expected, self.camera.K, pos, rot)
+        detections = self.estimator.estimate(frame, priors)
+        self.ms["render"].append((t1 - t0) * 1e3)
+        self.ms["estimate"].append((time.perf_counter() - t1) * 1e3)
+        for name, det in detections.items():
+            self.counts[name][det.status] += 1
+            self.counts[name]["partly_occluded"] += int(det.status == "ok" and det.occluded > PARTLY)
+        if not self.dumped and t + 1e-9 >= self.cfg.dump_at_s:
+            self.dumped = True
+            self.dump(Path(str(self.cfg.dump)), frame, detections)
+        return {name: det.pose for name, det in detections.items()}
+
+    def dump(self, folder: Path, frame: Frame, detections: Mapping[str, Any]) -> None:
+        """Write the frame's RGB, depth, clusters and fitted poses (drawn over the RGB) as PNGs into ``folder``."""
+        import imageio.v3 as iio
+
+        from nextage_qp.vision.draw import draw_poses
+
+        folder.mkdir(parents=True, exist_ok=True)
+        rgb = self.camera.rgb(self.data)
+        z = np.nan_to_num(frame.depth, nan=0.0)
+        iio.imwrite(folder / "rgb.png", rgb)
+        iio.imwrite(folder / "depth.png", (255 * np.clip(z / max(float(z.max()), 1e-6), 0, 1)).astype(np.uint8))
+        labels = self.estimator.clusters
+        palette = np.random.default_rng(1).integers(60, 255, (int(labels.max()) + 1, 3)).astype(np.uint8)
+        palette[0] = 0
+        iio.imwrite(folder / "clusters.png", palette[labels])
+        shapes = {n: self.estimator.shapes[n] for n in detections}
+        iio.imwrite(folder / "fit.png", draw_poses(rgb, frame, shapes, {n: d.pose for n, d in detections.items()}))
+
+    def report(self) -> dict[str, Any]:
+        """Frames, per object its frames by outcome, its detection rate, and the median ms per frame.
+
+        ``partly_occluded``: detected though the robot covered more than ``PARTLY`` of it; the detection rate is
+        over the frames it was in view and not occluded.
+        """
+        objects = {}
+        for name, c in self.counts.items():
+            seen = c["ok"] + c["missing"] + c["bad_fit"]
+            objects[name] = {**c, "detected_of_unoccluded": c["ok"] / seen if seen else None}
+        med = {f"{k}_ms_median": float(np.median(v)) if v else None for k, v in self.ms.items()}
+        return {"camera": self.cfg.camera, "frames": len(self.ms["render"]), **med, "objects": objects}
+
+    def close(self) -> None:
+        """Free the renderer."""
+        self.camera.close()
