@@ -3,8 +3,9 @@
 :class:`FaultySensors` turns the true state into what the controller gets: object poses from a simulated camera
 (rate, latency, noise, dropouts) through a :class:`~nextage_qp.estimation.PoseKalman` per object (or the latest
 raw measurement), noisy joint states, noisy or failing force/torque sensors. It keeps the numbers the run
-reports: estimate and raw errors against the truth, dropouts, gated measurements. :func:`perception_of` builds them
-and the :class:`~nextage_qp.shoves.Shoves` of a config.
+reports: estimate and raw errors against the truth, dropouts, gated measurements; with a camera
+(:attr:`FaultySensors.measurer`) the measurements come from its images. :mod:`nextage_qp.perception_setup` builds
+them for a config.
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
-import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError
@@ -23,7 +23,6 @@ from nextage_qp.faults import EstimationConfig, FaultsConfig
 from nextage_qp.geometry import Pose, axis_angle, wrap, yaw_of
 from nextage_qp.held import HeldEstimate
 from nextage_qp.sensors import Wrench
-from nextage_qp.shoves import Shoves
 
 
 class _Track:
@@ -54,8 +53,14 @@ class FaultySensors:
     """
 
     def __init__(self, faults: FaultsConfig, estimation: EstimationConfig, seed: int,
-                 wrench_sites: Sequence[str] = (), source: str = "<config>") -> None:
+                 wrench_sites: Sequence[str] = (), source: str = "<config>",
+                 symmetry: Mapping[str, float] | None = None) -> None:
         self.faults, self.estimation = faults, estimation
+        self.symmetry = dict(symmetry or {})  # yaw symmetry per object [rad] (0: none), for yaw errors
+        self.measurer: Any = None
+        """A camera (:class:`~nextage_qp.vision.source.CameraMeasurer`) measuring every object at its rate, or
+        None: ``faults.object_pose``'s simulated camera."""
+        self.filter_noise = (0.002, 0.02)  # what the filter assumes of the camera's measurements [m], [rad]
         self.rng = {k: np.random.default_rng([seed, i]) for i, k in enumerate(("objects", "joints", "wrench"))}
         fail = faults.wrench.fail if faults.wrench else None
         if fail is not None and fail.site not in wrench_sites:
@@ -73,7 +78,8 @@ class FaultySensors:
 
     def _kalman(self) -> PoseKalman:
         cam = self.faults.object_pose
-        noise = (cam.noise_pos_m, cam.noise_rot_rad) if cam else (0.0, 0.0)
+        noise = self.filter_noise if self.measurer is not None else (
+            (cam.noise_pos_m, cam.noise_rot_rad) if cam else (0.0, 0.0))
         return PoseKalman(*noise, accel_pos=self.estimation.accel_pos, accel_rot=self.estimation.accel_rot)
 
     def _track(self, name: str) -> _Track:
@@ -117,30 +123,59 @@ class FaultySensors:
             rot = axis_angle(w / angle, angle) @ rot if angle > 1e-12 else rot
         return np.concatenate([pos, rpy_of(rot)])
 
+    def _yaw_error(self, name: str, a: float, b: float) -> float:
+        sym = self.symmetry.get(name, 0.0)
+        d = wrap(a - b)
+        return abs(float(np.remainder(d + sym / 2, sym) - sym / 2)) if sym else abs(d)
+
+    def _prior(self, name: str, t: float) -> np.ndarray | None:
+        """Where the filter expects ``name`` at ``t`` [s] (None: not seen yet)."""
+        tr = self._tracks.get(name)
+        if tr is None or tr.raw is None:
+            return None
+        if tr.carried is not None:
+            return tr.carried.estimate(t)
+        return tr.kalman.estimate(t) if tr.kalman is not None and tr.kalman.initialised else tr.raw
+
     def objects(self, t: float, true: Mapping[str, Pose]) -> Mapping[str, Pose]:
-        """Estimated (or latest raw) object poses at ``t`` [s]; measurements sampled, delayed, dropped here."""
-        cam = self.faults.object_pose
-        if cam is None:  # no camera faults: the exact poses, unfiltered
+        """Estimated (or latest raw) object poses at ``t`` [s]; measurements sampled, delayed, dropped here.
+
+        With a camera (:attr:`measurer`) an object not seen yet is left out; ``true`` then only scores the
+        estimates (the camera never reads it).
+        """
+        cam, camera = self.faults.object_pose, self.measurer
+        if cam is None and camera is None:  # no camera faults: the exact poses, unfiltered
             return true
+        if camera is not None:
+            rate, latency = camera.rate_hz, camera.latency_s
+        else:
+            assert cam is not None
+            rate, latency = cam.rate_hz, cam.latency_s
         sample = t + 1e-9 >= self._next_sample
         if sample:
-            self._next_sample += 1.0 / cam.rate_hz
+            self._next_sample += 1.0 / rate
+        seen = camera(t, {n: self._prior(n, t) for n in true}) if camera is not None and sample else {}
         out: dict[str, Pose] = {}
         for name, pose in true.items():
             tr, true_yaw = self._track(name), yaw_of(pose.rot)
             self._hold(t, name, tr)
-            first = tr.raw is None and not tr.pending
+            first = tr.raw is None and not tr.pending and camera is None
             if sample or first:
                 tr.taken += 1
-                if not first and self.rng["objects"].random() < cam.dropout:
-                    tr.dropped += 1
+                if camera is not None:
+                    z = seen.get(name)
+                elif not first and self.rng["objects"].random() < cam.dropout:  # type: ignore[union-attr]
+                    z = None
                 else:
                     z = self._measure(pose)
+                if z is None:
+                    tr.dropped += 1
+                else:
                     # The camera sees the object as it is now; the controller gets it latency_s later (the very
-                    # first measurement is taken to exist before the run starts).
-                    tr.pending.append((t if first else t + cam.latency_s, t, z))
+                    # first simulated measurement is taken to exist before the run starts).
+                    tr.pending.append((t if first else t + latency, t, z))
                     err = z[:3] - pose.pos
-                    tr.errors.measurement(float(err @ err), abs(wrap(z[5] - true_yaw)))
+                    tr.errors.measurement(float(err @ err), self._yaw_error(name, z[5], true_yaw))
             delivered = None
             while tr.pending and tr.pending[0][0] <= t + 1e-9:
                 _, stamp, z = tr.pending.popleft()
@@ -149,15 +184,20 @@ class FaultySensors:
                     tr.carried.update(stamp, z)
                 elif tr.kalman is not None:
                     tr.kalman.update(stamp, z)
-            assert tr.raw is not None
+            if tr.raw is None:  # a camera that has not seen it yet
+                continue
             held = tr.raw[:3] - pose.pos
             est = (tr.carried.estimate(t) if tr.carried is not None
                    else tr.kalman.estimate(t) if tr.kalman is not None else tr.raw)
             err = est[:3] - pose.pos
-            tr.errors.tick(t, float(err @ err), abs(wrap(est[5] - true_yaw)), float(held @ held))
+            tr.errors.tick(t, float(err @ err), self._yaw_error(name, est[5], true_yaw), float(held @ held))
             self.history.setdefault(name, []).append((t, est.copy(), delivered))
             out[name] = vector_pose(est)
         return out
+
+    def found(self, names: Sequence[str]) -> bool:
+        """True once every object of ``names`` has a pose estimate."""
+        return all(name in self._tracks and self._tracks[name].raw is not None for name in names)
 
     # -- joints and wrenches --------------------------------------------------------------------------------
 
@@ -215,38 +255,7 @@ class FaultySensors:
                 "rejected": (k.rejected if k else 0) + tr.carried_counts[0] + (c.kalman.rejected if c else 0),
                 "filter_resets": (k.resets if k else 0) + tr.carried_counts[1] + (c.kalman.resets if c else 0),
             }
-        return {"object_filter": self.estimation.object_filter, "objects": objects}
-
-
-def perception_of(cfg: Any, robot: Any, source: str) -> tuple[FaultySensors | None, Shoves | None]:
-    """The faulty sensors and the shoves of a manipulation config (None, None without a ``faults`` block).
-
-    Raises:
-        ConfigError: A shove names a phase the config does not have, or a sensor the scene does not have.
-    """
-    faults = cfg.faults
-    if faults is None:
-        return None, None
-    phases = {cfg.phase_name(i) for i in range(len(cfg.phases))} | {p.kind for p in cfg.phases}
-    for i, s in enumerate(faults.shoves):
-        if s.phase is not None and s.phase not in phases:
-            raise ConfigError(f"{source}: faults.shoves[{i}].phase: {s.phase!r} is not a phase of this config; "
-                              f"valid: {', '.join(sorted(phases))}")
-    sites = [robot.model.site(int(robot.model.sensor_objid[k])).name for k in range(robot.model.nsensor)
-             if int(robot.model.sensor_type[k]) == int(mujoco.mjtSensor.mjSENS_FORCE)]
-    sensors = FaultySensors(faults, cfg.estimation, cfg.seed, sites, source)
-    bodies = {name: robot.model.body(name).id for name in robot.object_names}
-    return sensors, Shoves(faults.shoves, bodies, cfg.timing.ctrl_dt)
-
-
-def log_estimates(sensors: FaultySensors, recorder: Any) -> None:
-    """Add each object's estimate (every tick) and raw measurements (on arrival) to a run's log.
-
-    Arrays ``extra_estimate_<object>`` and ``extra_measurement_<object>`` (k, 6): x, y, z [m], roll, pitch,
-    yaw [rad], with their times in ``..._t``.
-    """
-    for name, rows in sensors.history.items():
-        for t, est, raw in rows:
-            recorder.add(f"estimate_{name}", t, est)
-            if raw is not None:
-                recorder.add(f"measurement_{name}", t, raw)
+        out = {"object_filter": self.estimation.object_filter, "objects": objects}
+        if self.measurer is not None:
+            out["camera"] = self.measurer.report()
+        return out

@@ -34,6 +34,7 @@ import numpy as np
 
 from nextage_qp.geometry import Pose
 from nextage_qp.ik import QPIK, FrameTarget, RelativeTarget
+from nextage_qp.ik.look_at import LookAtTask
 from nextage_qp.ik.model import ObjectPoses
 from nextage_qp.sim import Simulation
 
@@ -87,6 +88,8 @@ class Servo:
 
     def __init__(self, ik: QPIK, sim: Simulation, q0: np.ndarray | None = None) -> None:
         self.ik, self.sim, self.robot = ik, sim, sim.robot
+        self.look: LookAtTask | None = None
+        """A look-at task in every IK step (and run alone on holds): see :func:`~nextage_qp.ik.look_at.watch`."""
         self.reset(sim.ref.q if q0 is None else q0)
 
     def reset(self, q0: np.ndarray) -> None:
@@ -112,21 +115,36 @@ class Servo:
             UnknownJointError: A joint goal names a joint the robot does not have.
         """
         r = self.robot
+        looking = self.look is not None and self.look.point is not None
         if command.joints is not None:
             idx = np.array([r.joint_index(j) for j in command.joints], dtype=int)
             goal = np.fromiter(command.joints.values(), dtype=float, count=len(idx))
+            head = self._q[self.look.dofs].copy() if looking else None  # type: ignore[union-attr]
             self._q[idx] = np.clip(goal, r.lower[idx], r.upper[idx])
             self._last = None
+            if head is not None:  # planned joints move the arms; the head keeps looking
+                self._q[self.look.dofs] = head  # type: ignore[union-attr]
+                self._look()
         elif not command.holds:
             dt = self.sim.ctrl_dt
+            look = (self.look,) if self.look is not None and self.look.point is not None else ()
             v = self.ik.step(self._q, command.targets, dt, relative=command.relative, object_poses=object_poses,
-                             allow=command.allow, posture=command.posture)
+                             allow=command.allow, posture=command.posture, extra=look)
             dq = v * dt
             if self.ik.config.trust_region:
                 dq = self._trust(command, dq, float(np.max(np.abs(v) / self.ik.box.vmax)))
             self._q = np.minimum(np.maximum(self._q + dq, r.lower), r.upper)  # np.clip costs more
+        elif looking:  # a hold: the head still follows its point
+            self._look()
         self.sim.set_target(self._q)
         return self.q_cmd
+
+    def _look(self) -> None:
+        """Step the head alone towards the look-at point."""
+        assert self.look is not None
+        self.ik.configuration.update(self._q)
+        step = self.look.head_step(self.ik.configuration, self.ik.box.vmax * self.sim.ctrl_dt)
+        self._q = np.clip(self._q + step, self.ik.box.lower, self.ik.box.upper)
 
     def _trust(self, command: Command, dq: np.ndarray, speed: float) -> np.ndarray:
         """The step ``dq`` [rad] scaled by the trust region; ``speed``: its largest fraction of a velocity limit."""

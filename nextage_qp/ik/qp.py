@@ -114,13 +114,14 @@ class QPIK:
         object_poses: ObjectPoses | None = None,
         allow: frozenset[str] = frozenset(),
         posture: np.ndarray | None = None,
+        extra: Sequence[mink.Task] = (),
     ) -> np.ndarray:
         """One IK step: the joint velocity v [rad/s] (15,) minimising the task costs for a step of ``dt`` [s].
 
         ``allow`` names collision groups whose pairs are not avoided on this step (e.g. the object a push is
         in contact with); ``posture`` replaces the configured posture target on this step (e.g. a configuration a
         planner found for where the motion is going, so the redundancy heads there; an array not changed in place
-        afterwards: passing the same array again keeps the target as set).
+        afterwards: passing the same array again keeps the target as set); ``extra``: more mink tasks (e.g. a look-at).
 
         Raises:
             IKInfeasibleError: The QP has no solution; the message names the active limits.
@@ -135,7 +136,7 @@ class QPIK:
         if object_poses:
             set_object_poses(self.model, self.configuration.data, object_poses, self._mocap)
         self.configuration.update(np.asarray(q, dtype=float))
-        return self._step(targets, dt, self.tasks.relative(relative))
+        return self._step(targets, dt, [*self.tasks.relative(relative), *extra])
 
     def _step(self, targets: Sequence[FrameTarget], dt: float, extra_tasks: Sequence[mink.Task]) -> np.ndarray:
         """:meth:`step` at the configuration already loaded in :attr:`configuration`."""

@@ -26,6 +26,7 @@ from nextage_qp.scene import package_root
 from nextage_qp.scene_objects import ObjectDecl
 from nextage_qp.sim import Timing
 from nextage_qp.trajectory import TrajectoryLimits
+from nextage_qp.vision.config import PerceptionConfig
 from nextage_qp.yaml_file import STRICT, load_yaml, read_yaml_mapping, validate, yaml_error_line
 
 Vec3 = tuple[float, float, float]
@@ -99,6 +100,7 @@ class ManipulationConfig(_Strict):
     seed: int = Field(default=0, ge=0, description="Seed of the run's own random draws (a sweep sets one per episode).")
     faults: FaultsConfig | None = Field(default=None, description="Sensor faults and shoves (none: perfect sensors).")
     estimation: EstimationConfig = Field(default_factory=EstimationConfig)
+    perception: PerceptionConfig = Field(default_factory=PerceptionConfig)
     phases: list[Spec] = Field(min_length=1)
 
     def phase_name(self, index: int) -> str:

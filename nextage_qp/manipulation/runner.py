@@ -14,17 +14,20 @@ from collections.abc import Callable
 from functools import partial
 from typing import Any
 
+import numpy as np
+
 from nextage_qp.errors import ConfigError, InfeasibleError, NextageQPError, PhaseError, UnknownNameError
 from nextage_qp.estimate_errors import SHOVE_SETTLE_S
 from nextage_qp.gains import load_gains, robot_gains
 from nextage_qp.ik import QPIK
+from nextage_qp.ik.look_at import watch
 from nextage_qp.manipulation.config import ManipulationConfig
 from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, summarize
 from nextage_qp.manipulation.phases import Phase, build, names_in
 from nextage_qp.manipulation.placement import check_placement
 from nextage_qp.manipulation.sim_view import SimView
 from nextage_qp.object_checks import check_clear
-from nextage_qp.perception import log_estimates, perception_of
+from nextage_qp.perception_setup import attach_camera, log_estimates, perception_of
 from nextage_qp.robot import Robot, tool_frames
 from nextage_qp.robots.description import load_robot
 from nextage_qp.scene import BodyPose, SceneOverrides
@@ -32,6 +35,8 @@ from nextage_qp.servo import HOLD, Command, Servo
 from nextage_qp.sim import Simulation
 
 TickCallback = Callable[["Runner", Phase | None], None]
+SEARCH_S = 3.0
+"""With a camera, how long [s] the run waits, still, for every object to be seen before its first phase."""
 
 
 def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
@@ -100,11 +105,16 @@ class Runner:
         frames = tool_frames(self.robot)
         self.sensors, self.shoves = perception_of(cfg, self.robot, source)
         self.sim = Simulation(self.robot, gains, cfg.trajectory, timing=cfg.timing, frames=frames, sensors=self.sensors)
+        if self.sensors is not None:
+            attach_camera(cfg, self.sensors, self.robot, self.sim.data, source)
         q0 = (self.robot.keyframe_q(cfg.start) if isinstance(cfg.start, str)
               else self.robot.q_from_names(cfg.start, base=self.robot.keyframe_q("home")))
         self.placement = check_placement(self.robot, cfg.object, cfg.target, q0, source)
         self.sim.reset(q0)
         self.servo = Servo(self.ik, self.sim, q0)
+        self.camera = None if self.sensors is None else self.sensors.measurer
+        if self.camera is not None and cfg.perception.look_at:
+            self.servo.look = watch(self.ik, cfg.perception.camera, cfg.perception.look_cost)
         self.view = SimView(self.robot, self.sim, self.servo)
         self.records = [PhaseRecord(cfg.phase_name(i), p.kind) for i, p in enumerate(cfg.phases)]
         self.monitor = OutcomeMonitor(self.robot, cfg.object)
@@ -119,6 +129,8 @@ class Runner:
         if self.shoves is not None:
             self.shoves.update(self.sim.data, self.sim.time, self._phase)
         objects = {name: (pose.pos, pose.quat) for name, pose in self.sim.measured.objects.items()}
+        if self.servo.look is not None:
+            self.servo.look.point = self._look_point()
         if self.sensors is not None:  # a held object is estimated relative to the first pad
             grip = self.view.grip
             carrier = partial(self.view.frame_pose, grip.frames[0]) if grip is not None else None
@@ -133,6 +145,7 @@ class Runner:
         wall0 = time.perf_counter()
         view = self.view
         try:
+            self._find_objects()
             for i, spec in enumerate(self.cfg.phases):
                 rec = self.records[i]
                 phase = build(spec, rec.name)
@@ -174,7 +187,37 @@ class Runner:
             self.wall_s = time.perf_counter() - wall0
             if self.sensors is not None:
                 log_estimates(self.sensors, self.sim.recorder)
+            if self.camera is not None:
+                self.camera.close()
         return self.summary()
+
+    def _look_point(self) -> np.ndarray:
+        """Where the head looks: the middle of the task's object and target, as estimated.
+
+        Before an object is first seen: where the config placed it.
+        """
+        seen, points = self.sim.measured.objects, []
+        for name in (self.cfg.object, self.cfg.target):
+            if name in seen:
+                points.append(seen[name].pos)
+            elif name in self.robot.object_names:
+                points.append(self.robot.model.body(name).pos)
+            else:  # a marker: the task's own goal
+                points.append(self.view.body_pose(name).pos)
+        return np.mean(points, axis=0)
+
+    def _find_objects(self) -> None:
+        """With a camera, hold still (the head turning) until every object has been seen, or fail after SEARCH_S."""
+        if self.camera is None or self.sensors is None:
+            return
+        names = self.robot.object_names
+        while not self.sensors.found(names):
+            if self.sim.time > SEARCH_S:
+                report = self.camera.report()["objects"]
+                lost = {n: {k: v for k, v in report[n].items() if v} for n in names if not self.sensors.found([n])}
+                raise PhaseError(f"perception: {', '.join(lost)} not found by camera {self.cfg.perception.camera} "
+                                 f"in {SEARCH_S:g} s (frames by outcome: {lost})")
+            self.tick(HOLD)
 
     def summary(self) -> dict[str, Any]:
         """The result record printed by ``nextage-qp run --json``."""
