@@ -59,8 +59,8 @@ class FaultySensors:
         self.symmetry = dict(symmetry or {})  # yaw symmetry per object [rad] (0: none), for yaw errors
         self.measurer: Any = None
         """A camera (:class:`~nextage_qp.vision.source.CameraMeasurer`) measuring every object at its rate, or
-        None: ``faults.object_pose``'s simulated camera."""
-        self.filter_noise = (0.002, 0.02)  # what the filter assumes of the camera's measurements [m], [rad]
+        None: ``faults.object_pose``'s simulated camera (see :meth:`use_camera`)."""
+        self.filter_noise = (0.0, 0.0)  # what the filter assumes of the camera's measurements [m], [rad]
         self.rng = {k: np.random.default_rng([seed, i]) for i, k in enumerate(("objects", "joints", "wrench"))}
         fail = faults.wrench.fail if faults.wrench else None
         if fail is not None and fail.site not in wrench_sites:
@@ -75,6 +75,10 @@ class FaultySensors:
         """Per object: (t, estimate vector, raw measurement delivered this tick or None), for logs and plots."""
 
     # -- objects --------------------------------------------------------------------------------------------
+
+    def use_camera(self, measurer: Any, noise_pos_m: float, noise_rot_rad: float) -> None:
+        """Measure every object with ``measurer``; the filter assumes this noise of its measurements [m], [rad]."""
+        self.measurer, self.filter_noise = measurer, (noise_pos_m, noise_rot_rad)
 
     def _kalman(self) -> PoseKalman:
         cam = self.faults.object_pose

@@ -53,7 +53,6 @@ def perception_of(cfg: Any, robot: Any, source: str) -> tuple[FaultySensors | No
              if int(robot.model.sensor_type[k]) == int(mujoco.mjtSensor.mjSENS_FORCE)]
     symmetry = {name: robot.yaw_symmetry(name) for name in robot.object_names}
     sensors = FaultySensors(faults, cfg.estimation, cfg.seed, sites, source, symmetry)
-    sensors.filter_noise = (cfg.perception.noise_pos_m, cfg.perception.noise_rot_rad)
     bodies = {name: robot.model.body(name).id for name in robot.object_names}
     return sensors, Shoves(faults.shoves, bodies, cfg.timing.ctrl_dt)
 
@@ -67,7 +66,8 @@ def attach_camera(cfg: Any, sensors: FaultySensors, robot: Any, data: mujoco.MjD
     def joints(t: float) -> Any:  # the measured joints (the same draw the PD law and the phases get at t)
         return sensors.joints(t, robot.get_q(data), robot.get_qd(data))[0]
 
-    sensors.measurer = CameraMeasurer(cfg.perception, robot, data, joints, cfg.seed, source)
+    pc = cfg.perception
+    sensors.use_camera(CameraMeasurer(pc, robot, data, joints, cfg.seed, source), pc.noise_pos_m, pc.noise_rot_rad)
 
 
 def log_estimates(sensors: FaultySensors, recorder: Any) -> None:

@@ -115,35 +115,33 @@ class Servo:
             UnknownJointError: A joint goal names a joint the robot does not have.
         """
         r = self.robot
-        looking = self.look is not None and self.look.point is not None
+        look = self.look if self.look is not None and self.look.point is not None else None
         if command.joints is not None:
             idx = np.array([r.joint_index(j) for j in command.joints], dtype=int)
             goal = np.fromiter(command.joints.values(), dtype=float, count=len(idx))
-            head = self._q[self.look.dofs].copy() if looking else None  # type: ignore[union-attr]
+            head = self._q[look.dofs].copy() if look is not None else None
             self._q[idx] = np.clip(goal, r.lower[idx], r.upper[idx])
             self._last = None
-            if head is not None:  # planned joints move the arms; the head keeps looking
-                self._q[self.look.dofs] = head  # type: ignore[union-attr]
-                self._look()
+            if look is not None and head is not None:  # planned joints move the arms; the head keeps looking
+                self._q[look.dofs] = head
+                self._look(look)
         elif not command.holds:
             dt = self.sim.ctrl_dt
-            look = (self.look,) if self.look is not None and self.look.point is not None else ()
             v = self.ik.step(self._q, command.targets, dt, relative=command.relative, object_poses=object_poses,
-                             allow=command.allow, posture=command.posture, extra=look)
+                             allow=command.allow, posture=command.posture, extra=() if look is None else (look,))
             dq = v * dt
             if self.ik.config.trust_region:
                 dq = self._trust(command, dq, float(np.max(np.abs(v) / self.ik.box.vmax)))
             self._q = np.minimum(np.maximum(self._q + dq, r.lower), r.upper)  # np.clip costs more
-        elif looking:  # a hold: the head still follows its point
-            self._look()
+        elif look is not None:  # a hold: the head still follows its point
+            self._look(look)
         self.sim.set_target(self._q)
         return self.q_cmd
 
-    def _look(self) -> None:
+    def _look(self, look: LookAtTask) -> None:
         """Step the head alone towards the look-at point."""
-        assert self.look is not None
         self.ik.configuration.update(self._q)
-        step = self.look.head_step(self.ik.configuration, self.ik.box.vmax * self.sim.ctrl_dt)
+        step = look.head_step(self.ik.configuration, self.ik.box.vmax * self.sim.ctrl_dt)
         self._q = np.clip(self._q + step, self.ik.box.lower, self.ik.box.upper)
 
     def _trust(self, command: Command, dq: np.ndarray, speed: float) -> np.ndarray:

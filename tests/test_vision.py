@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+from dataclasses import replace
 from pathlib import Path
 
 import mink
@@ -11,6 +12,7 @@ import numpy as np
 import pytest
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.geometry import wrap
 from nextage_qp.ik import QPIK
 from nextage_qp.ik.config import IKConfig
 from nextage_qp.ik.look_at import watch
@@ -37,15 +39,6 @@ SHAPES = {
 }
 
 
-def scene(shape: str, x: float, yaw: float):
-    """The push scene with the cube swapped for ``shape`` at ``x`` [m] ahead, yawed."""
-    cfg = load_config(PUSH, [f"scene.objects.cube={SHAPES[shape]}", f"scene.poses.cube.pos=[{x},0.05,0.91]",
-                             f"scene.poses.cube.yaw={yaw}"])
-    robot = build_robot(cfg, str(PUSH))
-    data = mujoco.MjData(robot.model)
-    return cfg, robot, data
-
-
 def look_at_cube(robot, q: np.ndarray, data: mujoco.MjData) -> np.ndarray:
     """The head turned (a few look-at steps) so the cube is on the RGB-D camera's axis."""
     ik = QPIK(robot, IKConfig())
@@ -58,28 +51,38 @@ def look_at_cube(robot, q: np.ndarray, data: mujoco.MjData) -> np.ndarray:
     return q
 
 
-def measure(shape: str, x: float, yaw: float, noise: DepthNoise) -> tuple[float, float, float]:
-    """Distance to the camera, position error [m] and yaw error [rad] (modulo symmetry) of one estimate."""
-    _, robot, data = scene(shape, x, yaw)
+def aimed_frame(shape: str, x: float, yaw: float, noise: DepthNoise | None = None, seed: int = 0):
+    """The push scene with the cube swapped for ``shape`` at ``x`` [m] ahead, yawed, the head turned at it: the
+    robot, the world, one depth frame of the RGB-D camera, and the cube's shape model."""
+    cfg = load_config(PUSH, [f"scene.objects.cube={SHAPES[shape]}", f"scene.poses.cube.pos=[{x},0.05,0.91]",
+                             f"scene.poses.cube.yaw={yaw}"])
+    robot = build_robot(cfg, str(PUSH))
+    data = mujoco.MjData(robot.model)
     q = robot.keyframe_q("home")
     robot.set_q(data, q)
     mujoco.mj_forward(robot.model, data)
     q = look_at_cube(robot, q, data)
     robot.set_q(data, q)
     mujoco.mj_forward(robot.model, data)
-    spec = robot.description.cameras["head_rgbd"].model_copy(update={"depth_noise": noise})
-    cam = RobotCamera(robot.model, "head_rgbd", spec, robot, seed=3)
-    sym = robot.yaw_symmetry("cube")
-    est = Estimator({"cube": ShapeModel.of_body(robot.model, robot.model.body("cube").id, sym)}, seed=1)
+    spec = robot.description.cameras["head_rgbd"]
+    if noise is not None:
+        spec = spec.model_copy(update={"depth_noise": noise})
+    cam = RobotCamera(robot.model, "head_rgbd", spec, robot, seed=seed)
     pos, rot = cam.pose(q)
-    det = est.estimate(Frame(cam.depth(data), cam.expected(), cam.K, pos, rot), {"cube": None})["cube"]
+    frame = Frame(cam.depth(data), cam.expected(), cam.K, pos, rot)
     cam.close()
+    shape_model = ShapeModel.of_body(robot.model, robot.model.body("cube").id, robot.yaw_symmetry("cube"))
+    return robot, data, frame, shape_model
+
+
+def measure(shape: str, x: float, yaw: float, noise: DepthNoise) -> tuple[float, float, float]:
+    """Distance to the camera, position error [m] and yaw error [rad] (modulo symmetry) of one estimate."""
+    robot, data, frame, model = aimed_frame(shape, x, yaw, noise, seed=3)
+    det = Estimator({"cube": model}, seed=1).estimate(frame, {"cube": None})["cube"]
     assert det.status == "ok", det
     truth = data.xpos[robot.model.body("cube").id]
-    d = (det.pose[5] - yaw + np.pi) % (2 * np.pi) - np.pi
-    if sym:
-        d = (d + sym / 2) % sym - sym / 2
-    return float(np.linalg.norm(truth - pos)), float(np.linalg.norm(det.pose[:3] - truth)), abs(float(d))
+    return (float(np.linalg.norm(truth - frame.cam_pos)), float(np.linalg.norm(det.pose[:3] - truth)),
+            abs(wrap(det.pose[5] - yaw, model.symmetry)))
 
 
 @needs_gl
@@ -115,46 +118,24 @@ def test_estimator_never_reads_simulator_state() -> None:
 
 @needs_gl
 def test_same_frame_same_estimate_whatever_the_world_does() -> None:
-    _, robot, data = scene("box", 0.4, 0.2)
-    q = robot.keyframe_q("home")
-    robot.set_q(data, q)
-    mujoco.mj_forward(robot.model, data)
-    q = look_at_cube(robot, q, data)
-    robot.set_q(data, q)
-    mujoco.mj_forward(robot.model, data)
-    cam = RobotCamera(robot.model, "head_rgbd", robot.description.cameras["head_rgbd"], robot, seed=0)
-    pos, rot = cam.pose(q)
-    frame = Frame(cam.depth(data), cam.expected(), cam.K, pos, rot)
-    shape = ShapeModel.of_body(robot.model, robot.model.body("cube").id, robot.yaw_symmetry("cube"))
+    robot, data, frame, shape = aimed_frame("box", 0.4, 0.2)
     first = Estimator({"cube": shape}, seed=5).estimate(frame, {"cube": None})["cube"].pose
     data.qpos[robot.object_qpos_slice("cube")][:3] += 0.2  # the world changes; the frame does not
     mujoco.mj_forward(robot.model, data)
     again = Estimator({"cube": shape}, seed=5).estimate(frame, {"cube": None})["cube"].pose
     np.testing.assert_array_equal(first, again)
-    cam.close()
 
 
 @needs_gl
 def test_hand_in_front_is_a_dropout() -> None:
-    _, robot, data = scene("box", 0.4, 0.0)
-    q = robot.keyframe_q("home")
-    robot.set_q(data, q)
-    mujoco.mj_forward(robot.model, data)
-    q = look_at_cube(robot, q, data)
-    robot.set_q(data, q)
-    mujoco.mj_forward(robot.model, data)
-    cam = RobotCamera(robot.model, "head_rgbd", robot.description.cameras["head_rgbd"], robot, seed=0)
-    pos, rot = cam.pose(q)
-    depth, expected = cam.depth(data), cam.expected()
-    shape = ShapeModel.of_body(robot.model, robot.model.body("cube").id, robot.yaw_symmetry("cube"))
+    robot, data, frame, shape = aimed_frame("box", 0.4, 0.0)
     prior = np.array([*data.xpos[robot.model.body("cube").id], 0.0, 0.0, 0.0])
-    seen = Estimator({"cube": shape}).estimate(Frame(depth, expected, cam.K, pos, rot), {"cube": prior})["cube"]
+    seen = Estimator({"cube": shape}).estimate(frame, {"cube": prior})["cube"]
     assert seen.status == "ok"
     # The model says a hand is 10 cm in front of the camera over the whole view: the object is covered.
-    covered = Estimator({"cube": shape}).estimate(Frame(depth, np.full_like(expected, 0.1), cam.K, pos, rot),
-                                                  {"cube": prior})["cube"]
+    covered_frame = replace(frame, expected=np.full_like(frame.expected, 0.1))
+    covered = Estimator({"cube": shape}).estimate(covered_frame, {"cube": prior})["cube"]
     assert covered.status == "occluded" and covered.pose is None
-    cam.close()
 
 
 def test_look_at_moves_only_the_head(push_robot) -> None:

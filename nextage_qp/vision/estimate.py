@@ -5,7 +5,7 @@ shape is fitted to its points (Gauss-Newton on the shape's signed distance, over
 
 The estimator sees what a real robot would: the depth image, the camera's intrinsics and its pose from forward
 kinematics of the measured joints, and the depth the robot's own model expects there (itself and the known static
-scene, no free objects). It never reads simulator state: this module does not import MuJoCo.
+scene, no free objects). It never reads simulator state: it gets arrays only, and does not import MuJoCo itself.
 
 Each object gets a :class:`Detection`: a pose, or the reason there is none (``out_of_view``, ``occluded``: the
 model predicts the robot covers too much of it, ``missing``: no points where it should be, ``bad_fit``: its points do
@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from nextage_qp.geometry import wrap
 from nextage_qp.vision.shapes import ShapeModel
 
 GAP = 0.01
@@ -245,14 +246,12 @@ class Estimator:
                     if best.pose is None or rms < best.rms:
                         yaw = x[3]
                         if shape.symmetry and pr is not None:  # the equivalent yaw nearest the prediction
-                            yaw = pr[5] + np.remainder(yaw - pr[5] + shape.symmetry / 2, shape.symmetry) \
-                                - shape.symmetry / 2
+                            yaw = pr[5] + wrap(yaw - pr[5], shape.symmetry)
                         best = Detection(np.array([x[0], x[1], x[2], 0.0, 0.0, yaw]), "ok", rms, len(pts), share)
             if best.pose is not None and best.rms > MAX_RMS:
                 best = Detection(None, "bad_fit", best.rms, best.points, share)
             out[name] = best
-            if best.pose is not None and prior is None:  # its cluster is taken
-                cloud = cloud[np.abs(_residuals(shape, cloud, best.pose[[0, 1, 2, 5]])) > 0.01]
+            if best.pose is not None and prior is None:  # its cluster is taken (tracked objects came first)
                 clusters = [c for c in clusters if np.median(np.abs(_residuals(shape, c, best.pose[[0, 1, 2, 5]])))
                             > 0.01]
         return out

@@ -9,8 +9,6 @@ estimator (:mod:`nextage_qp.vision.estimate`) gets the images, the intrinsics an
 
 from __future__ import annotations
 
-import time
-
 import mujoco
 import numpy as np
 
@@ -70,7 +68,6 @@ class RobotCamera:
         for obj in robot.object_names:
             s = robot.object_qpos_slice(obj)
             self.kin.qpos[s.start + 2] = AWAY
-        self.seconds = {"render": 0.0}
 
     def _render(self, data: mujoco.MjData, depth: bool) -> np.ndarray:
         r = self.renderer
@@ -100,10 +97,7 @@ class RobotCamera:
 
     def depth(self, data: mujoco.MjData) -> np.ndarray:
         """The sensor's depth image [m] of the world ``data`` (NaN: no return), with its noise model."""
-        start = time.perf_counter()
-        z = self._render(data, depth=True)
-        self.seconds["render"] += time.perf_counter() - start
-        return self.noisy(z)
+        return self.noisy(self._render(data, depth=True))
 
     def noisy(self, z: np.ndarray) -> np.ndarray:
         """``z`` with axial noise growing with the distance squared and missing pixels at depth edges."""
