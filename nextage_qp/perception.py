@@ -56,7 +56,7 @@ class FaultySensors:
                  wrench_sites: Sequence[str] = (), source: str = "<config>",
                  symmetry: Mapping[str, float] | None = None) -> None:
         self.faults, self.estimation = faults, estimation
-        self.symmetry = dict(symmetry or {})  # yaw symmetry per object [rad] (0: none), for yaw errors
+        self.symmetry = dict(symmetry or {})  # yaw symmetry per object [rad] (0: round; 2 pi: none), for yaw errors
         self.measurer: Any = None
         """A camera (:class:`~nextage_qp.vision.source.CameraMeasurer`) measuring every object at its rate, or
         None: ``faults.object_pose``'s simulated camera (see :meth:`use_camera`)."""
@@ -128,9 +128,8 @@ class FaultySensors:
         return np.concatenate([pos, rpy_of(rot)])
 
     def _yaw_error(self, name: str, a: float, b: float) -> float:
-        sym = self.symmetry.get(name, 0.0)
-        d = wrap(a - b)
-        return abs(float(np.remainder(d + sym / 2, sym) - sym / 2)) if sym else abs(d)
+        """|a - b| [rad] modulo the object's yaw symmetry (0 for a round one, as in the run's metrics)."""
+        return abs(wrap(a - b, self.symmetry.get(name, 2.0 * np.pi)))
 
     def _prior(self, name: str, t: float) -> np.ndarray | None:
         """Where the filter expects ``name`` at ``t`` [s] (None: not seen yet)."""
