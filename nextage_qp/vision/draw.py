@@ -6,6 +6,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from nextage_qp.geometry import rot_z
 from nextage_qp.vision.estimate import Frame, project
 from nextage_qp.vision.shapes import ShapeModel
 
@@ -20,8 +21,7 @@ def draw_poses(rgb: np.ndarray, frame: Frame, shapes: Mapping[str, ShapeModel],
     for k, (name, pose) in enumerate(sorted(poses.items())):
         if pose is None:
             continue
-        c, s = np.cos(pose[5]), np.sin(pose[5])
-        pts = shapes[name].samples[::4] @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]]) + pose[:3]
+        pts = shapes[name].samples[::4] @ rot_z(pose[5]).T + pose[:3]
         rows, cols, z = project(pts, frame.K, frame.cam_pos, frame.cam_rot)
         ok = (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
         out[rows[ok], cols[ok]] = COLOURS[k % len(COLOURS)]

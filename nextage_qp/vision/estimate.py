@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from nextage_qp.geometry import wrap
+from nextage_qp.geometry import rot_z, wrap
 from nextage_qp.vision.shapes import ShapeModel
 
 GAP = 0.01
@@ -110,8 +110,7 @@ def table_plane(points: np.ndarray, rng: np.random.Generator, iters: int = 80, t
 
 
 def _residuals(shape: ShapeModel, points: np.ndarray, x: np.ndarray) -> np.ndarray:
-    c, s = np.cos(x[3]), np.sin(x[3])
-    local = (points - x[:3]) @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    local = (points - x[:3]) @ rot_z(x[3])
     return shape.sdf(local)
 
 
@@ -195,8 +194,7 @@ class Estimator:
 
         From the model alone: the expected depth (robot and static scene) in front of the shape's samples.
         """
-        c, s = np.cos(prior[5]), np.sin(prior[5])
-        rot = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+        rot = rot_z(prior[5]).T
         pts = shape.samples @ rot + prior[:3]
         pts = pts[np.einsum("ij,ij->i", shape.normals @ rot, pts - f.cam_pos) < 0]  # faces the camera
         rows, cols, z = project(pts, f.K, f.cam_pos, f.cam_rot)
@@ -215,6 +213,7 @@ class Estimator:
         out: dict[str, Detection] = {}
         for name in sorted(priors, key=lambda k: priors[k] is None):  # tracked objects first
             shape, prior = self.shapes[name], priors[name]
+            candidates: list[tuple[np.ndarray, list[float], np.ndarray | None]]  # points, yaw seeds, prior
             if prior is not None:
                 share = self.occlusion(f, shape, prior)
                 if share is None:
@@ -228,7 +227,7 @@ class Estimator:
             else:
                 share = 0.0
                 seeds = list(np.arange(6) * (shape.symmetry or 2 * np.pi) / 6)
-                candidates = [(c, seeds, None) for c in clusters]  # type: ignore[misc]
+                candidates = [(c, seeds, None) for c in clusters]
             best: Detection = Detection(None, "missing", occluded=share)
             for pts, yaws, pr in candidates:
                 if len(pts) < MIN_PIXELS:
