@@ -107,3 +107,26 @@ def turn2(d: np.ndarray, goal: np.ndarray, max_angle: float) -> np.ndarray:
     """Planar unit vector ``d`` turned towards ``goal`` by at most ``max_angle`` [rad]."""
     angle = float(np.arctan2(d[0] * goal[1] - d[1] * goal[0], d @ goal))
     return rotate2(d, float(np.clip(angle, -max_angle, max_angle)))
+
+
+GeomPart = tuple[int, np.ndarray, np.ndarray, np.ndarray]
+"""(geom type, centre, rotation, size or mesh vertices) of a geom in its body's frame."""
+
+
+def geom_parts(model: mujoco.MjModel, obj: str) -> list[GeomPart]:
+    """Every colliding geom of a body, in the body's frame (type, centre, rotation, size or mesh vertices)."""
+    body = model.body(obj).id
+    out = []
+    for g in range(model.ngeom):
+        if model.geom_bodyid[g] != body or not (model.geom_contype[g] or model.geom_conaffinity[g]):
+            continue
+        rot = np.empty(9)
+        mujoco.mju_quat2Mat(rot, model.geom_quat[g])
+        kind = int(model.geom_type[g])
+        if kind == mujoco.mjtGeom.mjGEOM_MESH:
+            mid = model.geom_dataid[g]
+            size = model.mesh_vert[model.mesh_vertadr[mid]:model.mesh_vertadr[mid] + model.mesh_vertnum[mid]].copy()
+        else:
+            size = model.geom_size[g].copy()
+        out.append((kind, model.geom_pos[g].copy(), rot.reshape(3, 3), size))
+    return out

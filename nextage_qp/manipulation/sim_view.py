@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import UnknownNameError
-from nextage_qp.geometry import Pose, cross
+from nextage_qp.geometry import GeomPart, Pose, cross, geom_parts
 from nextage_qp.ik import QPIK, FrameTarget
 from nextage_qp.kinematics import Kinematics
 from nextage_qp.manipulation.context import Grip
@@ -34,7 +34,7 @@ class SimView:
         self.robot, self._sim, self._servo, self.qd_tol = robot, sim, servo, qd_tol
         self.dt = sim.ctrl_dt
         self.grip: Grip | None = None
-        self._parts: dict[str, list[_Part]] = {}
+        self._parts: dict[str, list[GeomPart]] = {}
         self._planner: QPIK | None = None
         self._kinematics: Kinematics | None = None
 
@@ -142,37 +142,14 @@ class SimView:
         at = [p for p in parts if -_support(p, -z) - 1e-9 <= height <= _support(p, z) + 1e-9]
         return height, max((_support(p, lateral) for p in at), default=0.0)
 
-    def _parts_cached(self, obj: str) -> list[_Part]:
+    def _parts_cached(self, obj: str) -> list[GeomPart]:
         parts = self._parts.get(obj)
         if parts is None:
-            parts = self._parts[obj] = _parts_of(self.robot.model, obj)
+            parts = self._parts[obj] = geom_parts(self.robot.model, obj)
         return parts
 
 
-_Part = tuple[int, np.ndarray, np.ndarray, np.ndarray]
-"""(geom type, centre, rotation, size or mesh vertices) of a geom in its body's frame."""
-
-
-def _parts_of(model: mujoco.MjModel, obj: str) -> list[_Part]:
-    """Every colliding geom of a body, in the body's frame (its extent along a direction: :func:`_support`)."""
-    body = model.body(obj).id
-    out = []
-    for g in range(model.ngeom):
-        if model.geom_bodyid[g] != body or not (model.geom_contype[g] or model.geom_conaffinity[g]):
-            continue
-        rot = np.empty(9)
-        mujoco.mju_quat2Mat(rot, model.geom_quat[g])
-        kind = int(model.geom_type[g])
-        if kind == mujoco.mjtGeom.mjGEOM_MESH:
-            mid = model.geom_dataid[g]
-            size = model.mesh_vert[model.mesh_vertadr[mid]:model.mesh_vertadr[mid] + model.mesh_vertnum[mid]].copy()
-        else:
-            size = model.geom_size[g].copy()
-        out.append((kind, model.geom_pos[g].copy(), rot.reshape(3, 3), size))
-    return out
-
-
-def _support(part: _Part, d: np.ndarray) -> float:
+def _support(part: GeomPart, d: np.ndarray) -> float:
     """How far a geom reaches along the unit direction ``d`` (body frame) from the body's origin [m]."""
     kind, centre, rot, size = part
     local = rot.T @ d

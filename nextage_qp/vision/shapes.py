@@ -13,7 +13,11 @@ import mujoco
 import numpy as np
 from scipy.spatial import ConvexHull
 
+from nextage_qp.geometry import geom_parts
+
 _T = mujoco.mjtGeom
+_KINDS = {_T.mjGEOM_BOX: "box", _T.mjGEOM_CYLINDER: "cylinder", _T.mjGEOM_CAPSULE: "capsule",
+          _T.mjGEOM_SPHERE: "sphere", _T.mjGEOM_ELLIPSOID: "sphere", _T.mjGEOM_MESH: "mesh"}
 
 
 @dataclass(frozen=True)
@@ -21,7 +25,7 @@ class Part:
     """One convex part: its type, size, and pose in the object's frame."""
 
     kind: str
-    size: np.ndarray
+    size: np.ndarray  # MuJoCo's geom size; a convex mesh's vertices
     pos: np.ndarray
     rot: np.ndarray
     planes: np.ndarray | None = None  # (k, 4) outward normals and offsets of a convex mesh: n . p <= d inside
@@ -56,27 +60,18 @@ class ShapeModel:
         self.radius = float(np.linalg.norm(self.samples[:, :2], axis=1).max())
 
     @classmethod
-    def of_body(cls, model: mujoco.MjModel, body: int, symmetry: float) -> ShapeModel:
-        """The shape of ``body``'s colliding geoms."""
+    def of_body(cls, model: mujoco.MjModel, name: str, symmetry: float) -> ShapeModel:
+        """The shape of the body ``name``'s colliding geoms (:func:`~nextage_qp.geometry.geom_parts`)."""
         parts = []
-        for g in range(model.ngeom):
-            if int(model.geom_bodyid[g]) != body or (model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0):
-                continue
-            kind = {_T.mjGEOM_BOX: "box", _T.mjGEOM_CYLINDER: "cylinder", _T.mjGEOM_CAPSULE: "capsule",
-                    _T.mjGEOM_SPHERE: "sphere", _T.mjGEOM_ELLIPSOID: "sphere", _T.mjGEOM_MESH: "mesh"}.get(
-                        int(model.geom_type[g]))
+        for geom_type, centre, rot, size in geom_parts(model, name):
+            kind = _KINDS.get(geom_type)
             if kind is None:
                 continue
-            rot = np.zeros(9)
-            mujoco.mju_quat2Mat(rot, model.geom_quat[g])
             planes = None
-            if kind == "mesh":
-                m = int(model.geom_dataid[g])
-                a, n = int(model.mesh_vertadr[m]), int(model.mesh_vertnum[m])
-                hull = ConvexHull(np.asarray(model.mesh_vert[a:a + n], dtype=float))
+            if kind == "mesh":  # size: the vertices
+                hull = ConvexHull(np.asarray(size, dtype=float))
                 planes = np.column_stack([hull.equations[:, :3], -hull.equations[:, 3]])
-            parts.append(Part(kind, np.array(model.geom_size[g], dtype=float), np.array(model.geom_pos[g]),
-                              rot.reshape(3, 3), planes))
+            parts.append(Part(kind, np.asarray(size, dtype=float), centre, rot, planes))
         return cls(parts, symmetry)
 
     def sdf(self, p: np.ndarray) -> np.ndarray:
@@ -92,7 +87,7 @@ class ShapeModel:
     def _sample(self, n: int = 4000) -> np.ndarray:
         """Points on the surface (object frame), by projecting a random cloud in the bounding box onto it."""
         rng = np.random.default_rng(0)
-        ext = max(float(np.abs(part.pos).max() + part.size.max()) for part in self.parts) * 1.2
+        ext = max(float(np.abs(part.pos).max() + np.abs(part.size).max()) for part in self.parts) * 1.2
         p = rng.uniform(-ext, ext, (n, 3))
         for _ in range(8):  # Newton steps along the numerical gradient onto the zero level set
             p = p - self.sdf(p)[:, None] * self._gradient(p)

@@ -51,7 +51,7 @@ class CameraMeasurer:
         model = robot.model
         self.camera = RobotCamera(model, cfg.camera, self.spec, robot, seed)
         self.symmetry = {n: robot.yaw_symmetry(n) for n in robot.object_names}
-        shapes = {n: ShapeModel.of_body(model, model.body(n).id, self.symmetry[n]) for n in robot.object_names}
+        shapes = {n: ShapeModel.of_body(model, n, self.symmetry[n]) for n in robot.object_names}
         self.estimator = Estimator(shapes, seed)
         self.counts = {n: dict.fromkeys((*STATUSES, "partly_occluded"), 0) for n in robot.object_names}
         self.ms: dict[str, list[float]] = {"render": [], "estimate": []}
