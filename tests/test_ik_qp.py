@@ -74,6 +74,57 @@ def test_unreachable_target_returns_best_q(robot: Robot) -> None:
     assert robot.within_limits(res.q)
 
 
+def test_relaxation_gate_ends_a_search_out_of_reach_without_collision_restarts(robot: Robot) -> None:
+    """A target the search misses even without collision rows: the collision-aware restarts are skipped."""
+    pair = CollisionPairConfig(a="left_arm", b="table", min_distance=0.01, detection_distance=0.05)
+    far = [FrameTarget("left_wrist", pos=np.array([2.0, 0.5, 1.0]))]
+    gated = QPIK(robot, IKConfig(collision_pairs=(pair,), restarts=3, max_iters=60))
+    free = QPIK(robot, IKConfig(restarts=3, max_iters=60))
+    home = robot.keyframe_q("home")
+    res, relaxed = gated.solve(far, home), free.solve(far, home)
+    assert not res.converged and not relaxed.converged
+    first = QPIK(robot, IKConfig(collision_pairs=(pair,), restarts=0, max_iters=60)).solve(far, home)
+    # the first collision-aware descent, then the relaxed search's four: nothing more
+    assert res.iters == first.iters + relaxed.iters
+    np.testing.assert_array_equal(res.q, first.q)
+
+
+def test_relaxation_gate_keeps_searching_where_only_collisions_block(robot: Robot, kin: Kinematics) -> None:
+    """A target reachable without collision rows keeps its collision-aware restarts: the same answer as before."""
+    pair = CollisionPairConfig(a="left_hand", b="table", min_distance=0.01, detection_distance=0.05)
+    ik = QPIK(robot, IKConfig(collision_pairs=(pair,), restarts=2, max_iters=80))
+    below = [FrameTarget("left_wrist", pos=np.array([0.35, 0.25, 0.86]))]  # into the table top
+    res = ik.solve(below, robot.keyframe_q("home"))
+    free = QPIK(robot, IKConfig(restarts=2, max_iters=80)).solve(below, robot.keyframe_q("home"))
+    assert free.converged and not res.converged
+    assert res.iters > free.iters  # the collision-aware restarts ran after the relaxed search reached it
+
+
+def test_memo_returns_the_same_solve_without_iterating(robot: Robot, kin: Kinematics) -> None:
+    pair = CollisionPairConfig(a="left_arm", b="table", min_distance=0.01, detection_distance=0.05)
+    cfg = IKConfig(collision_pairs=(pair,), restarts=2, max_iters=80)
+    memo, plain = QPIK(robot, cfg, memo=8), QPIK(robot, cfg)
+    home = robot.keyframe_q("home")
+    target = [FrameTarget("left_wrist", pos=np.array([0.4, 0.25, 1.0]), axis=np.array([0, 0, 1.0]),
+                          direction=np.array([1.0, 0, 0]))]
+    first, again, reference = memo.solve(target, home), memo.solve(target, home), plain.solve(target, home)
+    assert memo.memo is not None and memo.memo.hits == 1
+    np.testing.assert_array_equal(first.q, again.q)
+    np.testing.assert_array_equal(first.q, reference.q)
+    assert again.iters == first.iters and again.q is not first.q
+    np.testing.assert_array_equal(memo.configuration.q, first.q)  # left at the answer, as a solve leaves it
+    # any other input is another question
+    nudged = home.copy()
+    nudged[robot.joint_index("LARM_JOINT2")] += 0.01
+    memo.solve(target, nudged)
+    memo.solve(target, home, good_enough=(1e-3, 1e-2))
+    other = [FrameTarget("left_wrist", pos=np.array([0.4, 0.25, 1.001]), axis=np.array([0, 0, 1.0]),
+                         direction=np.array([1.0, 0, 0]))]
+    memo.solve(other, home)
+    memo.solve(target, home, object_poses={"dumbbell": (np.array([0.5, 0.1, 1.0]), np.array([1.0, 0, 0, 0]))})
+    assert memo.memo.hits == 1
+
+
 def test_infeasible_start_raises_with_active_limits(robot: Robot) -> None:
     ik = QPIK(robot, IKConfig())
     q0 = robot.keyframe_q("home")

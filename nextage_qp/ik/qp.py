@@ -10,7 +10,7 @@ steps to a tolerance with a backtracking guard that never accepts a q closing a 
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 import mink
 import mujoco
@@ -21,6 +21,7 @@ from nextage_qp.ik.backend import QPSolver
 from nextage_qp.ik.collision import ActiveCollisionLimit
 from nextage_qp.ik.config import IKConfig
 from nextage_qp.ik.limits import JointBoxLimit
+from nextage_qp.ik.memo import SolveMemo
 from nextage_qp.ik.model import (
     Frame,
     ObjectPoses,
@@ -45,13 +46,17 @@ class QPIK:
         config: Costs, limits and solver.
         model: The robot's kinematic model (:func:`kinematic_model`) when another IK of the same robot has it
             already (e.g. a planner beside the servo's IK); compiled otherwise.
+        memo: Remember this many :meth:`solve` results by their inputs (:class:`~nextage_qp.ik.memo.SolveMemo`),
+            so a planner that asks the same question again gets the stored answer; 0: none.
 
     Raises:
         UnknownNameError: A geom group, joint or keyframe named in the config is not in the robot.
     """
 
-    def __init__(self, robot: Robot, config: IKConfig, *, model: mujoco.MjModel | None = None) -> None:
+    def __init__(self, robot: Robot, config: IKConfig, *, model: mujoco.MjModel | None = None,
+                 memo: int = 0) -> None:
         self.robot, self.config = robot, config
+        self.memo = SolveMemo(memo) if memo > 0 else None
         self.model = kinematic_model(robot) if model is None else model
         self._mocap = mocap_ids(self.model)
         self.configuration = mink.Configuration(self.model, robot.keyframe_q("home"))
@@ -182,6 +187,13 @@ class QPIK:
         found; no exception. A step that would bring a watched collision pair below its minimum distance is
         halved until it does not.
 
+        **Relaxation gate.** With collision pairs, when the first descent misses, the same search (same start,
+        same restarts) runs first on the relaxed problem without them, whose steps cost a fraction as much
+        (no distance queries, no collision-safe halving). Collision rows only shrink the set of reachable
+        configurations, so a target the relaxed search misses too is out of reach with them: the collision-aware
+        restarts are skipped and the best of that first descent is returned. A target the relaxed search reaches
+        goes on to the collision-aware restarts as before.
+
         Args:
             targets: Frame targets, solved together in one QP per step.
             q0: Start configuration [rad] (15,).
@@ -201,17 +213,23 @@ class QPIK:
             self.collision.allow(self._allowed(allow))
         if object_poses:
             set_object_poses(self.model, self.configuration.data, object_poses, self._mocap)
+        key = None
+        if self.memo is not None and not extra_tasks:  # a mink task's inputs are not all visible: not remembered
+            data = self.configuration.data
+            key = self.memo.key(targets, q0, (data.mocap_pos, data.mocap_quat, *(good_enough or (None,))),
+                                (str(max_iters), *sorted(allow)))
+            found = self.memo.get(key)
+            if found is not None:
+                self.configuration.update(found.q)
+                return found._replace(time_s=time.perf_counter() - start)
         frames = [self.frame(t.frame) for t in targets]
-        rng = np.random.default_rng(cfg.seed)
-        q, total, best = np.array(q0, dtype=float), 0, None
+        total, best = 0, None
         # Restarts re-draw only the joints that move a target frame; the others keep their q0 values.
-        moving = np.any([chain_dofs(self.model, frame) for frame in frames], axis=0)
-        for attempt in range(cfg.restarts + 1):
-            if attempt:
-                q = np.where(moving, rng.uniform(self.box.lower, self.box.upper), np.asarray(q0, dtype=float))
-            score, q_best, pos_err, rot_err, iters, status = self._descend(
-                targets, frames, q, max_iters or cfg.max_iters, extra_tasks
-            )
+        starts = _Starts(np.array(q0, dtype=float), np.any([chain_dofs(self.model, f) for f in frames], axis=0),
+                         self.box.lower, self.box.upper, cfg.restarts + 1, cfg.seed)
+        cap = max_iters or cfg.max_iters
+        for attempt, q in enumerate(starts):
+            score, q_best, pos_err, rot_err, iters, status = self._descend(targets, frames, q, cap, extra_tasks)
             total += iters
             if best is None or score < best[0]:
                 best = (score, q_best, pos_err, rot_err, status)
@@ -219,10 +237,43 @@ class QPIK:
                 break
             if good_enough is not None and best[2] <= good_enough[0] and best[3] <= good_enough[1]:
                 break
+            if attempt == 0 and starts.count > 1 and self.collision is not None:
+                reached, iters = self._relaxed_reach(targets, frames, starts, cap, extra_tasks, good_enough)
+                total += iters
+                if not reached:
+                    break
         assert best is not None
         _, q_best, pos_err, rot_err, status = best
         self.configuration.update(q_best)
-        return IKResult(q_best, status == "converged", pos_err, rot_err, total, status, time.perf_counter() - start)
+        result = IKResult(q_best, status == "converged", pos_err, rot_err, total, status, time.perf_counter() - start)
+        if key is not None and self.memo is not None:
+            self.memo.put(key, result)
+        return result
+
+    def _relaxed_reach(
+        self,
+        targets: Sequence[FrameTarget],
+        frames: Sequence[Frame],
+        starts: _Starts,
+        cap: int,
+        extra_tasks: Sequence[mink.Task],
+        good_enough: tuple[float, float] | None,
+    ) -> tuple[bool, int]:
+        """Whether the search from ``starts`` reaches the targets without collision rows; (reached, iterations).
+
+        Reached: converged, or within ``good_enough`` where given (what would end the collision-aware search).
+        """
+        collision, self.collision, total = self.collision, None, 0
+        try:
+            for q in starts:
+                _, _, pos_err, rot_err, iters, status = self._descend(targets, frames, q, cap, extra_tasks)
+                total += iters
+                if status == "converged" or (
+                        good_enough is not None and pos_err <= good_enough[0] and rot_err <= good_enough[1]):
+                    return True, total
+            return False, total
+        finally:
+            self.collision = collision
 
     def _descend(
         self,
@@ -268,3 +319,26 @@ class QPIK:
             self.configuration.update(q_new)
             return q_new
         return advance(self.collision, self.configuration, q, dq, self.box.lower, self.box.upper)
+
+
+class _Starts:
+    """Start configurations of the descents: ``q0``, then ``count - 1`` seeded random restarts, drawn when used.
+
+    Restarts re-draw only the ``moving`` joints (within ``lower``/``upper``); the others keep their ``q0`` values.
+    """
+
+    def __init__(self, q0: np.ndarray, moving: np.ndarray, lower: np.ndarray, upper: np.ndarray, count: int,
+                 seed: int) -> None:
+        self.q0, self.moving, self.lower, self.upper, self.count = q0, moving, lower, upper, count
+        self._rng = np.random.default_rng(seed)
+        self._drawn: list[np.ndarray] = [q0]
+
+    def __getitem__(self, k: int) -> np.ndarray:
+        if not 0 <= k < self.count:
+            raise IndexError(k)
+        while len(self._drawn) <= k:
+            self._drawn.append(np.where(self.moving, self._rng.uniform(self.lower, self.upper), self.q0))
+        return self._drawn[k]
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        return (self[k] for k in range(self.count))

@@ -22,6 +22,8 @@ REACH_POS_TOL = 0.003
 """Position error [m] within which :meth:`SimView.plan` counts a target as reached."""
 REACH_ROT_TOL = 0.05
 """Orientation error [rad] within which :meth:`SimView.plan` counts a target as reached."""
+PLAN_MEMO = 1024
+"""Solves the planner remembers by their inputs (a grasp search asks for the same first waypoints again)."""
 
 
 class SimView:
@@ -80,7 +82,7 @@ class SimView:
              allow: frozenset[str] = frozenset(), pos_tol: float | None = None) -> np.ndarray | None:
         if self._planner is None:
             config = self._servo.ik.config.model_copy(update={"restarts": 4, "max_iters": 80})
-            self._planner = QPIK(self.robot, config, model=self._servo.ik.model)
+            self._planner = QPIK(self.robot, config, model=self._servo.ik.model, memo=PLAN_MEMO)
         poses = {name: (p.pos, p.quat) for name, p in self._sim.measured.objects.items()}
         q0 = np.array(self._servo.q_cmd if start is None else start)
         tol = REACH_POS_TOL if pos_tol is None else pos_tol
