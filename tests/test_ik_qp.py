@@ -81,12 +81,15 @@ def test_relaxation_gate_ends_a_search_out_of_reach_without_collision_restarts(r
     gated = QPIK(robot, IKConfig(collision_pairs=(pair,), restarts=3, max_iters=60))
     free = QPIK(robot, IKConfig(restarts=3, max_iters=60))
     home = robot.keyframe_q("home")
-    res, relaxed = gated.solve(far, home), free.solve(far, home)
+    accept = (0.003, 0.05)
+    res, relaxed = gated.solve(far, home, accept=accept), free.solve(far, home)
     assert not res.converged and not relaxed.converged
     first = QPIK(robot, IKConfig(collision_pairs=(pair,), restarts=0, max_iters=60)).solve(far, home)
     # the first collision-aware descent, then the relaxed search's four: nothing more
     assert res.iters == first.iters + relaxed.iters
     np.testing.assert_array_equal(res.q, first.q)
+    # without an accepted error there is no gate: every collision-aware restart runs
+    assert gated.solve(far, home).iters > res.iters
 
 
 def test_relaxation_gate_keeps_searching_where_only_collisions_block(robot: Robot, kin: Kinematics) -> None:
@@ -94,10 +97,14 @@ def test_relaxation_gate_keeps_searching_where_only_collisions_block(robot: Robo
     pair = CollisionPairConfig(a="left_hand", b="table", min_distance=0.01, detection_distance=0.05)
     ik = QPIK(robot, IKConfig(collision_pairs=(pair,), restarts=2, max_iters=80))
     below = [FrameTarget("left_wrist", pos=np.array([0.35, 0.25, 0.86]))]  # into the table top
-    res = ik.solve(below, robot.keyframe_q("home"))
+    res = ik.solve(below, robot.keyframe_q("home"), accept=(0.003, 0.05))
     free = QPIK(robot, IKConfig(restarts=2, max_iters=80)).solve(below, robot.keyframe_q("home"))
     assert free.converged and not res.converged
-    assert res.iters > free.iters  # the collision-aware restarts ran after the relaxed search reached it
+    ungated = QPIK(robot, IKConfig(collision_pairs=(pair,), restarts=2, max_iters=80)).solve(below,
+                                                                                           robot.keyframe_q("home"))
+    # the relaxed search reached it, so the collision-aware restarts ran: the same answer as without the gate
+    np.testing.assert_array_equal(res.q, ungated.q)
+    assert res.iters == ungated.iters + free.iters
 
 
 def test_memo_returns_the_same_solve_without_iterating(robot: Robot, kin: Kinematics) -> None:

@@ -38,6 +38,11 @@ from nextage_qp.ik.tasks import TaskCache
 from nextage_qp.robot import Robot, per_joint
 
 
+RELAXED_MARGIN = 2.0
+"""The relaxation gate of :meth:`QPIK.solve` gives up on a target the search without collision rows misses by more
+than this many times the accepted errors."""
+
+
 class QPIK:
     """QP differential IK over the 15 robot joints (mink tasks, box limits, active collision rows).
 
@@ -178,6 +183,7 @@ class QPIK:
         object_poses: ObjectPoses | None = None,
         allow: frozenset[str] = frozenset(),
         good_enough: tuple[float, float] | None = None,
+        accept: tuple[float, float] | None = None,
     ) -> IKResult:
         """Iterate IK steps of ``config.dt`` from ``q0`` until every target is within tolerance.
 
@@ -187,12 +193,13 @@ class QPIK:
         found; no exception. A step that would bring a watched collision pair below its minimum distance is
         halved until it does not.
 
-        **Relaxation gate.** With collision pairs, when the first descent misses, the same search (same start,
-        same restarts) runs first on the relaxed problem without them, whose steps cost a fraction as much
-        (no distance queries, no collision-safe halving). Collision rows only shrink the set of reachable
-        configurations, so a target the relaxed search misses too is out of reach with them: the collision-aware
-        restarts are skipped and the best of that first descent is returned. A target the relaxed search reaches
-        goes on to the collision-aware restarts as before.
+        **Relaxation gate** (with ``accept`` and collision pairs). When the first descent misses, the same search
+        (same start, same restarts) runs first on the relaxed problem without collision rows, whose steps cost a
+        fraction as much (no distance queries, no collision-safe halving). Collision rows only shrink the set of
+        reachable configurations, so a target the relaxed search misses by more than ``RELAXED_MARGIN`` times the
+        accepted errors is out of reach with them too: the collision-aware restarts are skipped and the best of the
+        first descent is returned. (The margin because both searches are local: on the sweeps, a relaxed miss below
+        the accepted error itself was sometimes beaten by the collision-aware restarts, never one above it.)
 
         Args:
             targets: Frame targets, solved together in one QP per step.
@@ -203,6 +210,8 @@ class QPIK:
             allow: Collision groups whose pairs are not avoided (e.g. an object the frames hold).
             good_enough: Position [m] and orientation [rad] errors at which a stalled descent is kept without
                 restarts (a caller that accepts millimetres need not pay for restarts chasing microns).
+            accept: Position [m] and orientation [rad] errors the caller accepts as reached; turns on the
+                relaxation gate (above).
 
         Raises:
             IKInfeasibleError: A step's QP is infeasible (e.g. ``q0`` far outside the joint limits).
@@ -216,7 +225,8 @@ class QPIK:
         key = None
         if self.memo is not None and not extra_tasks:  # a mink task's inputs are not all visible: not remembered
             data = self.configuration.data
-            key = self.memo.key(targets, q0, (data.mocap_pos, data.mocap_quat, *(good_enough or (None,))),
+            key = self.memo.key(targets, q0, (data.mocap_pos, data.mocap_quat, *(good_enough or (None,)),
+                                              *(accept or (None,))),
                                 (str(max_iters), *sorted(allow)))
             found = self.memo.get(key)
             if found is not None:
@@ -237,8 +247,9 @@ class QPIK:
                 break
             if good_enough is not None and best[2] <= good_enough[0] and best[3] <= good_enough[1]:
                 break
-            if attempt == 0 and starts.count > 1 and self.collision is not None:
-                reached, iters = self._relaxed_reach(targets, frames, starts, cap, extra_tasks, good_enough)
+            if attempt == 0 and starts.count > 1 and self.collision is not None and accept is not None:
+                reached, iters = self._relaxed_reach(targets, frames, starts, cap, extra_tasks,
+                                                     (RELAXED_MARGIN * accept[0], RELAXED_MARGIN * accept[1]))
                 total += iters
                 if not reached:
                     break
@@ -257,19 +268,16 @@ class QPIK:
         starts: _Starts,
         cap: int,
         extra_tasks: Sequence[mink.Task],
-        good_enough: tuple[float, float] | None,
+        within: tuple[float, float],
     ) -> tuple[bool, int]:
-        """Whether the search from ``starts`` reaches the targets without collision rows; (reached, iterations).
-
-        Reached: converged, or within ``good_enough`` where given (what would end the collision-aware search).
-        """
+        """Whether the search from ``starts`` comes ``within`` (position [m], orientation [rad]) of the targets
+        without collision rows; (reached, iterations)."""
         collision, self.collision, total = self.collision, None, 0
         try:
             for q in starts:
                 _, _, pos_err, rot_err, iters, status = self._descend(targets, frames, q, cap, extra_tasks)
                 total += iters
-                if status == "converged" or (
-                        good_enough is not None and pos_err <= good_enough[0] and rot_err <= good_enough[1]):
+                if status == "converged" or (pos_err <= within[0] and rot_err <= within[1]):
                     return True, total
             return False, total
         finally:

@@ -87,7 +87,7 @@ class SimView:
         q0 = np.array(self._servo.q_cmd if start is None else start)
         tol = REACH_POS_TOL if pos_tol is None else pos_tol
         result = self._planner.solve(list(targets), q0, object_poses=poses, allow=allow,
-                                     good_enough=(0.5 * tol, 0.5 * REACH_ROT_TOL))
+                                     good_enough=(0.5 * tol, 0.5 * REACH_ROT_TOL), accept=(tol, REACH_ROT_TOL))
         return result.q if result.pos_err_m <= tol and result.rot_err_rad <= REACH_ROT_TOL else None
 
     def joint_names(self) -> tuple[str, ...]:  # noqa: D102
