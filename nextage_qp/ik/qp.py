@@ -37,7 +37,6 @@ from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, Rela
 from nextage_qp.ik.tasks import TaskCache
 from nextage_qp.robot import Robot, per_joint
 
-
 RELAXED_MARGIN = 2.0
 """The relaxation gate of :meth:`QPIK.solve` gives up on a target the search without collision rows misses by more
 than this many times the accepted errors."""
@@ -270,8 +269,10 @@ class QPIK:
         extra_tasks: Sequence[mink.Task],
         within: tuple[float, float],
     ) -> tuple[bool, int]:
-        """Whether the search from ``starts`` comes ``within`` (position [m], orientation [rad]) of the targets
-        without collision rows; (reached, iterations)."""
+        """Whether the search from ``starts`` without collision rows comes ``within`` the targets: (reached, iters).
+
+        ``within``: position [m] and orientation [rad] errors.
+        """
         collision, self.collision, total = self.collision, None, 0
         try:
             for q in starts:
