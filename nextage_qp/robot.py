@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError, UnknownFrameError, UnknownJointError, UnknownNameError
+from nextage_qp.mobile.base import BASE_BODY, MobileBase
 from nextage_qp.per_joint import PerJoint, per_joint  # noqa: F401 (re-exported)
 from nextage_qp.robots.actuation import torque_limits, velocity_limits
 from nextage_qp.robots.description import Arm, RobotDescription, load_robot
@@ -57,6 +58,7 @@ class Robot:
         lower, upper: Joint position limits [rad] (read-only).
         torque_limit: Actuator torque limit [N m] per joint (read-only).
         velocity_limit: The robot file's velocity limit [rad/s] per joint, inf where none (read-only).
+        base: The wheeled base under the robot (:mod:`nextage_qp.mobile`), or None for a fixed robot.
     """
 
     def __init__(self, model: mujoco.MjModel, description: RobotDescription | None = None, scene: str = "<model>",
@@ -89,6 +91,7 @@ class Robot:
         self.velocity_limit = _ro(velocity_limits(desc, self._names))
         self._joint_index = {name: i for i, name in enumerate(self._names)}
         check_arm_frames(model, desc)
+        self.base = MobileBase(model, desc.base, (desc.mount.pos, desc.mount.yaw), desc.source) if desc.base else None
 
     @classmethod
     def from_scene(cls, scene: str | Path = "scene", overrides: SceneOverrides | None = None,
@@ -102,10 +105,7 @@ class Robot:
 
         desc = robot if isinstance(robot, RobotDescription) else load_robot(robot)
         overrides = overrides or SceneOverrides()
-
-        def spec() -> mujoco.MjSpec:
-            return compose(desc, scene, overrides)
-
+        spec = functools.partial(compose, desc, scene, overrides)
         composed = spec()
         add_touch_sensors(composed, WATCHED_BODIES)
         model = compile_spec(composed, f"scene {str(scene)!r} with robot {desc.name!r}")
@@ -120,8 +120,6 @@ class Robot:
     def arms(self) -> tuple[Arm, ...]:
         """The robot's arms, the first one on the +y side."""
         return self.description.arms
-
-    # Names and indices.
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -184,7 +182,8 @@ class Robot:
     def object_names(self) -> tuple[str, ...]:
         """Free bodies of the scene (the manipulated objects, e.g. ``cube``, ``dumbbell``)."""
         free = self.model.jnt_type == mujoco.mjtJoint.mjJNT_FREE
-        return tuple(self.model.body(int(b)).name for b in self.model.jnt_bodyid[free])
+        names = (self.model.body(int(b)).name for b in self.model.jnt_bodyid[free])
+        return tuple(n for n in names if self.description.base is None or n != BASE_BODY)  # not the robot's base
 
     def yaw_symmetry(self, name: str) -> float:
         """The yaw [rad] after which an object looks the same (custom numeric ``NAME_yaw_symmetry``; 2 pi if none)."""

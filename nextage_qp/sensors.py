@@ -16,6 +16,7 @@ import numpy as np
 
 from nextage_qp.errors import SensorError
 from nextage_qp.geometry import Pose
+from nextage_qp.mobile.kinematics import Pose2
 
 
 class Wrench(NamedTuple):
@@ -74,8 +75,8 @@ class WrenchSensor:
 class Measurement:
     """What the controller knows after a tick.
 
-    Time [s], joint positions [rad] and velocities [rad/s], the pose of every free object, and the contact
-    wrench at every force/torque site.
+    Time [s], joint positions [rad] and velocities [rad/s], the pose of every free object, the contact
+    wrench at every force/torque site, and a mobile robot's base pose.
     """
 
     t: float
@@ -83,6 +84,8 @@ class Measurement:
     qd: np.ndarray
     objects: Mapping[str, Pose] = field(default_factory=dict)
     wrenches: Mapping[str, Wrench] = field(default_factory=dict)
+    base: Pose2 | None = None
+    """A mobile robot's base pose from its wheel odometry (the controller's world); objects are given in it."""
 
 
 class SensorWatch:

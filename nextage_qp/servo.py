@@ -36,6 +36,7 @@ from nextage_qp.geometry import Pose
 from nextage_qp.ik import QPIK, FrameTarget, RelativeTarget
 from nextage_qp.ik.look_at import LookAtTask
 from nextage_qp.ik.model import ObjectPoses
+from nextage_qp.mobile.kinematics import Pose2, body_twist
 from nextage_qp.sim import Simulation
 
 REVERSAL = -0.5
@@ -57,6 +58,7 @@ class Command:
         joints: A joint goal, joint name -> angle [rad]; the IK is not stepped on such a tick.
         allow: Collision groups the IK may let touch on this tick (e.g. the object being pushed).
         posture: Joints [rad] the IK's redundancy heads for on this tick (default: the configured posture).
+        base: A mobile robot's base may move on this tick (whole-body IK); otherwise its wheels hold it still.
         done: The phase has finished (this command still runs for the tick).
     """
 
@@ -65,6 +67,7 @@ class Command:
     joints: Mapping[str, float] | None = None
     allow: frozenset[str] = frozenset()
     posture: np.ndarray | None = None
+    base: bool = False
     done: bool = False
 
     @property
@@ -115,6 +118,8 @@ class Servo:
             UnknownJointError: A joint goal names a joint the robot does not have.
         """
         r = self.robot
+        if r.base is not None and self.sim.measured.base is not None:
+            self.ik.base_pose = np.array(self.sim.measured.base, dtype=float)  # where the odometry says it is
         look = self.look if self.look is not None and self.look.point is not None else None
         if command.joints is not None:
             idx = np.array([r.joint_index(j) for j in command.joints], dtype=int)
@@ -128,21 +133,27 @@ class Servo:
         elif not command.holds:
             dt = self.sim.ctrl_dt
             v = self.ik.step(self._q, command.targets, dt, relative=command.relative, object_poses=object_poses,
-                             allow=command.allow, posture=command.posture, extra=() if look is None else (look,))
+                             allow=command.allow, posture=command.posture, extra=() if look is None else (look,),
+                             base=command.base)
             dq = v * dt
             if self.ik.config.trust_region:
-                dq = self._trust(command, dq, float(np.max(np.abs(v) / self.ik.box.vmax)))
+                dq = self._trust(command, dq, float(np.max(np.abs(v) / self.ik.box.vmax[self.ik.nb :])))
             self._q = np.minimum(np.maximum(self._q + dq, r.lower), r.upper)  # np.clip costs more
         elif look is not None:  # a hold: the head still follows its point
             self._look(look)
+        if self.sim.base is not None:  # the IK's base step, through the base's inverse kinematics; else it stands
+            moving = command.base and not command.holds and command.joints is None
+            world = self.ik.base_velocity if moving else np.zeros(3)
+            self.sim.base.command(self.sim.data, body_twist(Pose2(*self.ik.base_pose), (world[0], world[1], world[2])))
         self.sim.set_target(self._q)
         return self.q_cmd
 
     def _look(self, look: LookAtTask) -> None:
         """Step the head alone towards the look-at point."""
-        self.ik.configuration.update(self._q)
-        step = look.head_step(self.ik.configuration, self.ik.box.vmax * self.sim.ctrl_dt)
-        self._q = np.clip(self._q + step, self.ik.box.lower, self.ik.box.upper)
+        self.ik.load(self._q)
+        nb = self.ik.nb  # a mobile robot's base variables come first
+        step = look.head_step(self.ik.configuration, self.ik.box.vmax * self.sim.ctrl_dt)[nb:]
+        self._q = np.clip(self._q + step, self.ik.box.lower[nb:], self.ik.box.upper[nb:])
 
     def _trust(self, command: Command, dq: np.ndarray, speed: float) -> np.ndarray:
         """The step ``dq`` [rad] scaled by the trust region; ``speed``: its largest fraction of a velocity limit."""
@@ -163,10 +174,16 @@ class Servo:
         self._last = (command, dq)
         return dq
 
+    def pose_at(self, frame: str, q: np.ndarray) -> Pose:
+        """World pose of a frame at robot joints ``q`` [rad] (a mobile robot's base where it is believed to be)."""
+        self.ik.load(q)
+        pos, rot = self.ik.frame(frame).pose(self.ik.configuration.data)
+        return Pose(pos.copy(), rot.copy())
+
     def commanded_pose(self, frame: str) -> Pose:
         """World pose of a frame at ``q_cmd`` (where the robot is being sent)."""
-        if not np.array_equal(self.ik.configuration.q, self._q):
-            self.ik.configuration.update(self._q)
+        if self.ik.nb or not np.array_equal(self.ik.configuration.q, self._q):
+            self.ik.load(self._q)
         pos, rot = self.ik.frame(frame).pose(self.ik.configuration.data)
         return Pose(pos.copy(), rot.copy())
 

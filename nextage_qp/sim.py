@@ -13,12 +13,9 @@ applies the feedback and the clamp; under the ``implicitfast`` integrator the da
 implicitly, so stiff ``kd`` does not destabilise the loop.
 
 What the controller sees passes through one seam, :class:`Sensors`: the joint state the PD law uses and the
-:class:`Measurement` the phases read after every tick; noise, delay or an estimator plug in there.
-
-Every control tick is recorded (:class:`~nextage_qp.recorder.Recorder`: the state at the start of the period,
-its reference and the torque of its first physics step); the saturation counters and the ``substep_hooks`` see
-every physics step. A NaN or a joint faster than ``max_speed`` stops the loop with a
-:class:`~nextage_qp.errors.SimulationError` naming the time and joint.
+:class:`Measurement` the phases read after every tick (with a mobile robot's odometry, and objects in its world).
+Every tick is recorded; the ``substep_hooks`` see every physics step. A NaN or a joint faster than ``max_speed``
+stops the loop with a :class:`~nextage_qp.errors.SimulationError` naming the time and joint.
 """
 
 from __future__ import annotations
@@ -33,6 +30,7 @@ from nextage_qp.control import Gains, PDController
 from nextage_qp.divergence import raise_divergence
 from nextage_qp.errors import ConfigError
 from nextage_qp.mj_warnings import MUJOCO_WARNINGS
+from nextage_qp.mobile.odometry import BaseTrack
 from nextage_qp.recorder import FrameRows, Recorder, StageTimer
 from nextage_qp.robot import Robot
 from nextage_qp.sensors import Measurement, PerfectSensors, Pose, Sensors, SensorWatch, WrenchSensor
@@ -43,7 +41,6 @@ __all__ = ["Hook", "Simulation", "StageTimer", "Timing"]
 
 Hook = Callable[["Simulation"], None]
 _BAD = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
-
 
 def _view(idx: np.ndarray) -> slice | np.ndarray:
     """A slice for a contiguous index array (numpy then returns views, not copies), else the array."""
@@ -72,11 +69,10 @@ class Simulation:
         recorder: The log of the run.
         measured: The :class:`Measurement` after the last tick.
         hooks: Functions called as ``hook(sim)`` after every tick (e.g. to measure clearances).
-        substep_hooks: Functions called as ``hook(sim)`` at every physics step, once its contacts are
-            computed (e.g. to count steps with a contact).
+        substep_hooks: Functions called as ``hook(sim)`` at every physics step, after its contacts.
         timer: A :class:`StageTimer` to profile the loop, or None.
-        physics_s: Wall time spent inside ``mj_step`` since the last :meth:`reset` [s] (every call timed where
-            it is made), so a run can report the share of its wall time its physics takes.
+        physics_s: Wall time inside ``mj_step`` since the last :meth:`reset` [s] (every call timed where it is made).
+        base: A mobile robot's base (:class:`~nextage_qp.mobile.base.BaseTrack`), or None.
     """
 
     def __init__(
@@ -123,6 +119,7 @@ class Simulation:
         self._bad_warnings = [self.data.warning[w] for w in _BAD]  # views into the data
         if not isinstance(ai, slice):
             raise ConfigError("the robot's actuators must be contiguous in the model")
+        self.base = BaseTrack(robot.base) if robot.base is not None else None
         self._fractions = np.arange(self.n_substeps) / self.n_substeps
         self._force = np.zeros((self.n_substeps, robot.nq))
         self._raw: RefState | None = None
@@ -161,7 +158,10 @@ class Simulation:
         wrenches = sensors.wrenches(t, {w.name: w.read(self.data) for w in self.wrench_sensors})
         if not self._perfect:  # the simulator's own readings neither fail nor freeze: only faulty sensors do
             self.watch.check(t, wrenches)
-        self.measured = Measurement(t, q, qd, sensors.objects(t, self.object_poses()), wrenches)
+        objects, base = sensors.objects(t, self.object_poses()), None
+        if self.base is not None:  # odometry; the objects as the robot's own sensors see them, in its world
+            base, objects = self.base.observe(self.data, t, objects)
+        self.measured = Measurement(t, q, qd, objects, wrenches, base)
 
     def reset(self, q0: np.ndarray) -> None:
         """Robot at rest at ``q0`` [rad], objects at their scene start poses, empty log, reference = ``q0``."""
@@ -174,6 +174,8 @@ class Simulation:
         self.watch.reset()
         self.recorder.clear()
         self._raw, self._step, self.physics_s = None, 0, 0.0
+        if self.base is not None:
+            self.base.reset(self.model, self.data)
         self._measure()
 
     def set_target(self, q_des: np.ndarray, qd_des: np.ndarray | None = None, *, shaped: bool = True) -> None:

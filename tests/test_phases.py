@@ -137,7 +137,7 @@ def run_until_done(phase, view, ticks=20000, each=None):
 
 
 def test_registry_lists_every_kind():
-    assert list(REGISTRY) == ["move", "push", "grasp", "carry", "place", "release", "joints", "wait"]
+    assert list(REGISTRY) == ["move", "push", "grasp", "carry", "place", "release", "joints", "wait", "drive"]
 
 
 def test_move_walks_at_its_speed_and_waits_for_the_real_frame():

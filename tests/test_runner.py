@@ -63,6 +63,7 @@ class _CyclingIK:
     def __init__(self, box) -> None:
         self.box, self.sign, self.v = box, 1.0, box.vmax.copy()
         self.config = IKConfig(trust_region=True)
+        self.nb = 0  # a fixed robot: no base variables
 
     def step(self, q, targets, dt, **_):
         self.sign = -self.sign
@@ -181,7 +182,7 @@ def test_a_phase_kind_added_from_a_test_module_runs_from_yaml(tmp_path, nudge_ki
         Runner(load_config(path), str(path))
     doc["phases"][0]["kind"] = "nudg"
     path.write_text(yaml.safe_dump(doc))
-    with pytest.raises(ConfigError, match="unknown kind; valid: move, push, grasp, carry, place, release, joints, wait, nudge"):
+    with pytest.raises(ConfigError, match="unknown kind; valid: move, push, grasp, carry, place, release, joints, wait, drive, nudge"):
         load_config(path)
 
 

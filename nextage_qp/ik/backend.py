@@ -1,8 +1,9 @@
 r"""Solve one IK QP with a qpsolvers backend; DAQP is called directly on reused arrays.
 
-The problem is :math:`\min_x \tfrac12 x^T H x + c^T x` subject to :math:`lb \le x \le ub` (the joint box) and
-:math:`G x \le h` (collision rows). DAQP takes the box as its native simple bounds and the rows as general
-inequalities; its bound and sense vectors are kept between calls, so a step allocates only what DAQP returns.
+The problem is :math:`\min_x \tfrac12 x^T H x + c^T x` subject to :math:`lb \le x \le ub` (the joint box),
+:math:`G x \le h` (collision rows) and :math:`A x = b` (a wheeled base's non-holonomic constraint). DAQP takes
+the box as its native simple bounds and the rows as general inequalities (an equality: a row with equal bounds);
+its bound and sense vectors are kept between calls, so a step allocates only what DAQP returns.
 """
 
 from __future__ import annotations
@@ -17,6 +18,8 @@ except ImportError:  # pragma: no cover - daqp is a dependency, other backends s
 
 _NO_LOWER = -1e30
 """DAQP's 'no lower bound' for a one-sided row."""
+EQUALITY = 5
+"""DAQP's sense of an equality row (active and immutable)."""
 
 
 class QPSolver:
@@ -39,11 +42,14 @@ class QPSolver:
         self._sense = np.zeros(n + rows, dtype=np.int32)
 
     def solve(self, H: np.ndarray, c: np.ndarray, lb: np.ndarray, ub: np.ndarray, G: np.ndarray | None = None,
-              h: np.ndarray | None = None) -> np.ndarray | None:
+              h: np.ndarray | None = None, A: np.ndarray | None = None,
+              b: np.ndarray | None = None) -> np.ndarray | None:
         """The minimiser, or None when the solver found none (infeasible or failed)."""
         if not self._direct:
-            result = qpsolvers.solve_problem(qpsolvers.Problem(H, c, G, h, lb=lb, ub=ub), solver=self.solver)
+            result = qpsolvers.solve_problem(qpsolvers.Problem(H, c, G, h, A, b, lb=lb, ub=ub), solver=self.solver)
             return result.x if result.found else None
+        if A is not None and b is not None:  # DAQP: equalities are rows with equal bounds and sense 5
+            return self._solve_with_equalities(H, c, lb, ub, G, h, A, b)
         n = self.n
         rows = 0 if G is None or h is None else len(h)
         if n + rows > len(self._upper):
@@ -57,3 +63,15 @@ class QPSolver:
         x, _, exitflag, _ = daqp.solve(H, c, a_mat, upper, lower, self._sense[: n + rows])
         return x if exitflag > 0 else None
 
+
+    def _solve_with_equalities(self, H: np.ndarray, c: np.ndarray, lb: np.ndarray, ub: np.ndarray,
+                               G: np.ndarray | None, h: np.ndarray | None, A: np.ndarray,
+                               b: np.ndarray) -> np.ndarray | None:
+        assert daqp is not None
+        rows = [A] if G is None or h is None else [A, G]
+        upper = np.r_[ub, b, () if h is None else h]
+        lower = np.r_[lb, b, np.full(0 if h is None else len(h), _NO_LOWER)]
+        sense = np.zeros(len(upper), dtype=np.int32)
+        sense[self.n : self.n + len(b)] = EQUALITY
+        x, _, exitflag, _ = daqp.solve(H, c, np.ascontiguousarray(np.vstack(rows)), upper, lower, sense)
+        return x if exitflag > 0 else None

@@ -114,6 +114,11 @@ class IKConfig(BaseModel):
     collision_gain: float = Field(
         default=0.85, gt=0.0, le=1.0, description="Fraction of the gap to min_distance a pair may close per step."
     )
+    base_cost: float = Field(
+        default=2.0, ge=0.0, allow_inf_nan=False,
+        description="A mobile robot's base: cost of its planar step [per m and rad]; more than the arms' joints "
+                    "cost, so the arms reach near and the base drives far.",
+    )
     stall_iters: int = Field(
         default=8, ge=1, description="solve(): a descent stalls after this many iterations without 1 % progress."
     )

@@ -17,41 +17,61 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError, UnknownNameError
+from nextage_qp.mobile.build import PLANAR_JOINTS, base_kinematic_joints
 from nextage_qp.robot import Robot
 from nextage_qp.scene import compile_spec
+
+__all__ = ["PLANAR_JOINTS", "Frame", "ObjectPoses", "chain_dofs", "ik_joint_names", "kinematic_model",
+           "lever_bounds", "mocap_ids", "moved_by_a_joint", "resolve_frame", "set_object_poses"]
 
 ObjectPoses = Mapping[str, tuple[np.ndarray, np.ndarray]]
 """Object name -> (position [m], unit quaternion w, x, y, z) in the world."""
 
 
+def ik_joint_names(robot: Robot) -> tuple[str, ...]:
+    """The joints of the IK's kinematic model: a mobile robot's planar base joints first, then the robot's."""
+    return (*PLANAR_JOINTS, *robot.joint_names) if robot.base is not None else robot.joint_names
+
+
 def kinematic_model(robot: Robot) -> mujoco.MjModel:
     """Compile the robot's scene, with its overrides, without free joints (objects become mocap bodies).
 
+    A mobile robot's base keeps three planar joints (world x, y and yaw: :data:`PLANAR_JOINTS`) in place of its
+    free joint, and loses its wheels' joints; the base's pose is the IK's to set, from odometry.
+
     Raises:
-        ConfigError: The scene cannot be recompiled, or the result is not exactly the 15 robot joints.
+        ConfigError: The scene cannot be recompiled, or the result is not exactly the robot's joints (and a
+            mobile base's planar joints before them).
     """
     free = robot.model.jnt_type == mujoco.mjtJoint.mjJNT_FREE
     extra = len(robot.model.jnt_type) - int(free.sum()) != robot.nq
+    wanted = ik_joint_names(robot)
     if not free.any() and not extra:
         model = robot.model
     else:
         if robot.spec is None:
             raise ConfigError(f"{robot.scene}: the IK needs the scene's spec to make its kinematic copy")
         spec = robot.spec()
-        keep = set(robot.joint_names)
+        if robot.base is not None:
+            base_kinematic_joints(spec)
+        keep = set(wanted)
         for joint in list(spec.joints):
             if joint.type == mujoco.mjtJoint.mjJNT_FREE:
                 body = joint.parent
                 spec.delete(joint)
                 body.mocap = True
-            elif joint.name not in keep:  # a joint the robot file leaves out (a gripper's): held at its rest
+            elif joint.name not in keep:  # a joint the robot file leaves out (a gripper's, a wheel): held at its rest
                 spec.delete(joint)
+        joints = {j.name for j in spec.joints}
+        for actuator in list(spec.actuators):  # those of the joints left out go too
+            if actuator.trntype == mujoco.mjtTrn.mjTRN_JOINT and actuator.target not in joints:
+                spec.delete(actuator)
         model = compile_spec(spec, f"{robot.scene} (the IK's kinematic copy)")
         if model.ngeom != robot.model.ngeom or model.nbody != robot.model.nbody:
             raise ConfigError(f"{robot.scene}: kinematic model does not match the robot's model")
     names = tuple(model.joint(i).name for i in range(model.njnt))
-    if names != robot.joint_names or model.nv != robot.nq:
-        raise ConfigError(f"{robot.scene}: IK model must have exactly the joints {robot.joint_names}, got {names}")
+    if names != wanted or model.nv != len(wanted):
+        raise ConfigError(f"{robot.scene}: IK model must have exactly the joints {wanted}, got {names}")
     return model
 
 

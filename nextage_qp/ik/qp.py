@@ -9,8 +9,7 @@ steps to a tolerance with a backtracking guard that never accepts a q closing a 
 
 from __future__ import annotations
 
-import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 
 import mink
 import mujoco
@@ -23,26 +22,23 @@ from nextage_qp.ik.config import IKConfig
 from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.ik.memo import SolveMemo
 from nextage_qp.ik.model import (
+    PLANAR_JOINTS,
     Frame,
     ObjectPoses,
-    chain_dofs,
     kinematic_model,
     mocap_ids,
     resolve_frame,
     set_object_poses,
 )
 from nextage_qp.ik.objective import Objective
-from nextage_qp.ik.safe_step import advance
-from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, RelativeTarget, worst_errors
+from nextage_qp.ik.solve import OfflineSolver
+from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, RelativeTarget
 from nextage_qp.ik.tasks import TaskCache
+from nextage_qp.mobile.rows import BaseRows
 from nextage_qp.robot import Robot, per_joint
 
-RELAXED_MARGIN = 2.0
-"""The relaxation gate of :meth:`QPIK.solve` gives up on a target the search without collision rows misses by more
-than this many times the accepted errors."""
 
-
-class QPIK:
+class QPIK(OfflineSolver):
     """QP differential IK over the 15 robot joints (mink tasks, box limits, active collision rows).
 
     Args:
@@ -63,19 +59,33 @@ class QPIK:
         self.memo = SolveMemo(memo) if memo > 0 else None
         self.model = kinematic_model(robot) if model is None else model
         self._mocap = mocap_ids(self.model)
-        self.configuration = mink.Configuration(self.model, robot.keyframe_q("home"))
+        # A mobile robot's IK variables start with its base's planar joints (world x, y, yaw): their values are
+        # the base pose the controller believes (base_pose, from odometry), their steps the base's motion.
+        self.nb = len(PLANAR_JOINTS) if robot.base is not None else 0
+        self.base = BaseRows(robot.base) if robot.base is not None else None
+        self.base_pose = np.array(robot.base.start, dtype=float) if robot.base is not None else np.zeros(0)
+        """The base's pose (x, y [m], yaw [rad]) in the IK's world, set by the caller (a mobile robot's only)."""
+        self.base_velocity = np.zeros(self.nb)
+        """The base's world velocity (x-dot, y-dot [m/s], yaw rate [rad/s]) of the last :meth:`step`."""
+        self.configuration = mink.Configuration(self.model, self._full(robot.keyframe_q("home")))
         if isinstance(config.posture_target, str):
             q_posture = robot.keyframe_q(config.posture_target)
         else:
             q_posture = robot.q_from_names(config.posture_target, base=robot.keyframe_q("home"))
-        self.posture = mink.PostureTask(self.model, cost=config.posture_cost)
-        self.posture.set_target(q_posture)
+        cost = config.posture_cost if not self.nb else np.r_[np.zeros(self.nb), np.full(robot.nq, config.posture_cost)]
+        self.posture = mink.PostureTask(self.model, cost=cost)  # the base has no posture
+        self.posture.set_target(self._full(q_posture))
         self._posture_goal: np.ndarray | None = None  # the array last given to the posture task by step()
         self.default_posture = q_posture
         default = float(IKConfig.model_fields["velocity_limit"].default)
         vmax = per_joint(config.velocity_limit, default, robot.joint_names)
         margin = np.minimum(config.limit_margin, 0.45 * (robot.upper - robot.lower))
-        self.box = JointBoxLimit(robot.lower + margin, robot.upper - margin, vmax, config.limit_gain)
+        lower, upper = robot.lower + margin, robot.upper - margin
+        if robot.base is not None:  # no bounds on where the base goes; its speed bounded per world axis
+            lim = robot.base.limits
+            lower, upper = np.r_[np.full(self.nb, -np.inf), lower], np.r_[np.full(self.nb, np.inf), upper]
+            vmax = np.r_[lim.speed, lim.speed, lim.turn_rate, vmax]
+        self.box = JointBoxLimit(lower, upper, vmax, config.limit_gain)
         self.groups = groups = robot.collision_geoms(config.group_specs())
         self._allow_masks: dict[frozenset[str], np.ndarray] = {}
         pairs = []
@@ -124,6 +134,7 @@ class QPIK:
         allow: frozenset[str] = frozenset(),
         posture: np.ndarray | None = None,
         extra: Sequence[mink.Task] = (),
+        base: bool = False,
     ) -> np.ndarray:
         """One IK step: the joint velocity v [rad/s] (15,) minimising the task costs for a step of ``dt`` [s].
 
@@ -131,6 +142,8 @@ class QPIK:
         in contact with); ``posture`` replaces the configured posture target on this step (e.g. a configuration a
         planner found for where the motion is going, so the redundancy heads there; an array not changed in place
         afterwards: passing the same array again keeps the target as set); ``extra``: more mink tasks (e.g. a look-at).
+        ``base``: a mobile robot's base may move on this step, within its rows (:class:`~nextage_qp.mobile.rows.
+        BaseRows`); its velocity is then :attr:`base_velocity`. Otherwise it stays where :attr:`base_pose` is.
 
         Raises:
             IKInfeasibleError: The QP has no solution; the message names the active limits.
@@ -140,214 +153,54 @@ class QPIK:
             self.collision.allow(self._allowed(allow))
         goal = self.default_posture if posture is None else posture
         if goal is not self._posture_goal:  # the same array as last time: the task holds it already
-            self.posture.set_target(goal)
+            self.posture.set_target(self._full(goal))
             self._posture_goal = goal
         if object_poses:
             set_object_poses(self.model, self.configuration.data, object_poses, self._mocap)
-        self.configuration.update(np.asarray(q, dtype=float))
-        return self._step(targets, dt, [*self.tasks.relative(relative), *extra])
+        self.configuration.update(self._full(np.asarray(q, dtype=float)))
+        v = self._step(targets, dt, [*self.tasks.relative(relative), *extra], base=base)
+        if not self.nb:
+            return v
+        self.base_velocity = v[: self.nb]
+        return v[self.nb :]
 
-    def _step(self, targets: Sequence[FrameTarget], dt: float, extra_tasks: Sequence[mink.Task]) -> np.ndarray:
-        """:meth:`step` at the configuration already loaded in :attr:`configuration`."""
+    def load(self, q: np.ndarray) -> None:
+        """Put the IK's configuration at robot joints ``q`` [rad] (and a mobile robot's base at :attr:`base_pose`)."""
+        self.configuration.update(self._full(np.asarray(q, dtype=float)))
+
+    def _full(self, q: np.ndarray) -> np.ndarray:
+        """The IK's variables for robot joints ``q``: a mobile robot's base pose first (``q`` itself otherwise)."""
+        return q if not self.nb else np.r_[self.base_pose, q]
+
+    def _step(self, targets: Sequence[FrameTarget], dt: float, extra_tasks: Sequence[mink.Task], *,
+              base: bool = False) -> np.ndarray:
+        """:meth:`step` at the configuration already loaded in :attr:`configuration`: every IK variable's velocity."""
         tasks = [*self.tasks.frames(targets, self.configuration.data), self.posture, *extra_tasks]
         q = self.configuration.data.qpos
         lb, ub = self.box.bounds(q, dt)
         # mink's objective; the box goes to the solver as bounds and the collision rows are added here (computed
         # with the same box, so it is evaluated once).
         H, c = self.objective.build(self.configuration, tasks, self.config.damping)
-        G = h = None
+        G = h = A = b = None
         if self.collision is not None:
             rows = self.collision.compute_qp_inequalities(self.configuration, dt)
             if not rows.inactive:
                 G, h = rows.G, rows.h
-        x = self.qp.solve(H, c, lb, ub, G, h)
+        if self.nb:
+            if base and self.base is not None:  # the base moves within its rows, at a cost ("drive far, reach near")
+                H[range(self.nb), range(self.nb)] += self.config.base_cost**2
+                A, b, base_g, base_h = self.base.rows(float(q[2]), dt, self.model.nv)
+                G, h = (base_g, base_h) if G is None else (np.vstack([G, base_g]), np.r_[h, base_h])
+            else:
+                lb[: self.nb], ub[: self.nb] = 0.0, 0.0
+        x = self.qp.solve(H, c, lb, ub, G, h, A, b)
         if x is None:  # also where the box itself is empty (q outside its limits): lb > ub
             raise IKInfeasibleError(self._explain(q, lb, ub))
         return np.asarray(x) / dt
 
     def _explain(self, q: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> str:
         """Describe the limits active at an infeasible step."""
-        parts = self.box.violated(q, lb, ub, self.robot.joint_names)
+        parts = self.box.violated(q, lb, ub, (*PLANAR_JOINTS[: self.nb], *self.robot.joint_names))
         parts += self.collision.violated(self.model) if self.collision is not None else []
         what = "; ".join(parts) or "no single limit violated (conflicting limits or extra tasks)"
         return f"IK QP infeasible ({self.config.solver}): active limits: {what}"
-
-    def solve(
-        self,
-        targets: Sequence[FrameTarget],
-        q0: np.ndarray,
-        *,
-        max_iters: int | None = None,
-        extra_tasks: Sequence[mink.Task] = (),
-        object_poses: ObjectPoses | None = None,
-        allow: frozenset[str] = frozenset(),
-        good_enough: tuple[float, float] | None = None,
-        accept: tuple[float, float] | None = None,
-    ) -> IKResult:
-        """Iterate IK steps of ``config.dt`` from ``q0`` until every target is within tolerance.
-
-        A descent that stalls in a local minimum (or hits the iteration cap) is restarted up to
-        ``config.restarts`` times from random in-limit configurations (seeded, so deterministic). An
-        unreachable target ends with ``converged=False`` (status ``max_iters`` or ``stalled``) and the best q
-        found; no exception. A step that would bring a watched collision pair below its minimum distance is
-        halved until it does not.
-
-        **Relaxation gate** (with ``accept`` and collision pairs). When the first descent misses, the same search
-        (same start, same restarts) runs first on the relaxed problem without collision rows, whose steps cost a
-        fraction as much (no distance queries, no collision-safe halving). Collision rows only shrink the set of
-        reachable configurations, so a target the relaxed search misses by more than ``RELAXED_MARGIN`` times the
-        accepted errors is out of reach with them too: the collision-aware restarts are skipped and the best of the
-        first descent is returned. (The margin because both searches are local: on the sweeps, a relaxed miss below
-        the accepted error itself was sometimes beaten by the collision-aware restarts, never one above it.)
-
-        Args:
-            targets: Frame targets, solved together in one QP per step.
-            q0: Start configuration [rad] (15,).
-            max_iters: Iteration cap per descent (default ``config.max_iters``).
-            extra_tasks: Further mink tasks added to every step.
-            object_poses: Object name -> (pos, quat wxyz) for collision avoidance.
-            allow: Collision groups whose pairs are not avoided (e.g. an object the frames hold).
-            good_enough: Position [m] and orientation [rad] errors at which a stalled descent is kept without
-                restarts (a caller that accepts millimetres need not pay for restarts chasing microns).
-            accept: Position [m] and orientation [rad] errors the caller accepts as reached; turns on the
-                relaxation gate (above).
-
-        Raises:
-            IKInfeasibleError: A step's QP is infeasible (e.g. ``q0`` far outside the joint limits).
-        """
-        start = time.perf_counter()
-        cfg = self.config
-        if self.collision is not None:
-            self.collision.allow(self._allowed(allow))
-        if object_poses:
-            set_object_poses(self.model, self.configuration.data, object_poses, self._mocap)
-        key = None
-        if self.memo is not None and not extra_tasks:  # a mink task's inputs are not all visible: not remembered
-            data = self.configuration.data
-            key = self.memo.key(targets, q0, (data.mocap_pos, data.mocap_quat, *(good_enough or (None,)),
-                                              *(accept or (None,))),
-                                (str(max_iters), *sorted(allow)))
-            found = self.memo.get(key)
-            if found is not None:
-                self.configuration.update(found.q)
-                return found._replace(time_s=time.perf_counter() - start)
-        frames = [self.frame(t.frame) for t in targets]
-        total, best = 0, None
-        # Restarts re-draw only the joints that move a target frame; the others keep their q0 values.
-        starts = _Starts(np.array(q0, dtype=float), np.any([chain_dofs(self.model, f) for f in frames], axis=0),
-                         self.box.lower, self.box.upper, cfg.restarts + 1, cfg.seed)
-        cap = max_iters or cfg.max_iters
-        for attempt, q in enumerate(starts):
-            score, q_best, pos_err, rot_err, iters, status = self._descend(targets, frames, q, cap, extra_tasks)
-            total += iters
-            if best is None or score < best[0]:
-                best = (score, q_best, pos_err, rot_err, status)
-            if status == "converged":
-                break
-            if good_enough is not None and best[2] <= good_enough[0] and best[3] <= good_enough[1]:
-                break
-            if attempt == 0 and starts.count > 1 and self.collision is not None and accept is not None:
-                reached, iters = self._relaxed_reach(targets, frames, starts, cap, extra_tasks,
-                                                     (RELAXED_MARGIN * accept[0], RELAXED_MARGIN * accept[1]))
-                total += iters
-                if not reached:
-                    break
-        assert best is not None
-        _, q_best, pos_err, rot_err, status = best
-        self.configuration.update(q_best)
-        result = IKResult(q_best, status == "converged", pos_err, rot_err, total, status, time.perf_counter() - start)
-        if key is not None and self.memo is not None:
-            self.memo.put(key, result)
-        return result
-
-    def _relaxed_reach(
-        self,
-        targets: Sequence[FrameTarget],
-        frames: Sequence[Frame],
-        starts: _Starts,
-        cap: int,
-        extra_tasks: Sequence[mink.Task],
-        within: tuple[float, float],
-    ) -> tuple[bool, int]:
-        """Whether the search from ``starts`` without collision rows comes ``within`` the targets: (reached, iters).
-
-        ``within``: position [m] and orientation [rad] errors.
-        """
-        collision, self.collision, total = self.collision, None, 0
-        try:
-            for q in starts:
-                _, _, pos_err, rot_err, iters, status = self._descend(targets, frames, q, cap, extra_tasks)
-                total += iters
-                if status == "converged" or (pos_err <= within[0] and rot_err <= within[1]):
-                    return True, total
-            return False, total
-        finally:
-            self.collision = collision
-
-    def _descend(
-        self,
-        targets: Sequence[FrameTarget],
-        frames: Sequence[Frame],
-        q0: np.ndarray,
-        cap: int,
-        extra_tasks: Sequence[mink.Task],
-    ) -> tuple[float, np.ndarray, float, float, int, str]:
-        """One descent from ``q0``: (score, best q, position error, orientation error, iterations, status)."""
-        cfg, q = self.config, q0.copy()
-        self.configuration.update(q)
-        best = (np.inf, q.copy(), np.inf, np.inf)
-        since_best, iters = 0, 0
-        while True:
-            pos_err, rot_err = worst_errors(targets, [f.pose(self.configuration.data) for f in frames])
-            score = pos_err / cfg.pos_tol + rot_err / cfg.rot_tol
-            if score < best[0]:
-                since_best = 0 if score < 0.99 * best[0] else since_best
-                best = (score, q.copy(), pos_err, rot_err)
-            if pos_err <= cfg.pos_tol and rot_err <= cfg.rot_tol:
-                return (*best, iters, "converged")
-            if iters >= cap:
-                return (*best, iters, "max_iters")
-            if since_best >= cfg.stall_iters:
-                return (*best, iters, "stalled")
-            dq = self._step(targets, cfg.dt, extra_tasks) * cfg.dt
-            q_prev, q = q, self._advance(q, dq)
-            iters, since_best = iters + 1, since_best + 1
-            if q is q_prev:
-                # Every halving of the step ran into a collision pair: the next steps would start from the same q
-                # and be the same, with no progress, until the cap or the stall test ends the descent. End it now
-                # with the same outcome and iteration count.
-                ahead = min(cap - iters, cfg.stall_iters - since_best)
-                if ahead > 0:
-                    iters, since_best = iters + ahead, since_best + ahead
-                return (*best, iters, "max_iters" if iters >= cap else "stalled")
-
-    def _advance(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """Q + dq inside the joint limits, collision-safe (:func:`~nextage_qp.ik.safe_step.advance`)."""
-        if self.collision is None:
-            q_new = np.clip(q + dq, self.box.lower, self.box.upper)
-            self.configuration.update(q_new)
-            return q_new
-        return advance(self.collision, self.configuration, q, dq, self.box.lower, self.box.upper)
-
-
-class _Starts:
-    """Start configurations of the descents: ``q0``, then ``count - 1`` seeded random restarts, drawn when used.
-
-    Restarts re-draw only the ``moving`` joints (within ``lower``/``upper``); the others keep their ``q0`` values.
-    """
-
-    def __init__(self, q0: np.ndarray, moving: np.ndarray, lower: np.ndarray, upper: np.ndarray, count: int,
-                 seed: int) -> None:
-        self.q0, self.moving, self.lower, self.upper, self.count = q0, moving, lower, upper, count
-        self._rng = np.random.default_rng(seed)
-        self._drawn: list[np.ndarray] = [q0]
-
-    def __getitem__(self, k: int) -> np.ndarray:
-        if not 0 <= k < self.count:
-            raise IndexError(k)
-        while len(self._drawn) <= k:
-            self._drawn.append(np.where(self.moving, self._rng.uniform(self.lower, self.upper), self.q0))
-        return self._drawn[k]
-
-    def __iter__(self) -> Iterator[np.ndarray]:
-        return (self[k] for k in range(self.count))

@@ -22,6 +22,7 @@ from nextage_qp.faults import EstimationConfig, FaultsConfig
 from nextage_qp.ik import IKConfig
 from nextage_qp.manipulation.phases import REGISTRY, Spec
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, name_field
+from nextage_qp.robots.schema import MountFile
 from nextage_qp.scene import package_root
 from nextage_qp.scene_objects import ObjectDecl
 from nextage_qp.sim import Timing
@@ -81,6 +82,9 @@ class ManipulationConfig(_Strict):
 
     task: str = Field(description="Name of the run in outputs.")
     robot: str = Field(default="nextage", min_length=1, description="Robot file (bundled name or path).")
+    mount: MountFile | None = Field(
+        default=None, description="Where the robot's own frame stands in the scene (default: the robot file's "
+                                  "mount): a mobile robot's start pose.")
     scene: SceneConfig
     object: str = name_field("object", description="Body whose final error is reported.")
     target: str = name_field("body", description="Body marking the object's target.")

@@ -17,6 +17,8 @@ import numpy as np
 from nextage_qp.errors import InfeasibleError, PhaseError
 from nextage_qp.geometry import Pose, rot_z, yaw_of
 from nextage_qp.ik import FrameTarget, RelativeTarget
+from nextage_qp.mobile.base import MobileBase
+from nextage_qp.mobile.kinematics import Pose2
 from nextage_qp.sensors import Wrench
 
 
@@ -152,6 +154,21 @@ class View(Protocol):
 
     def yaw_symmetry(self, obj: str) -> float:
         """Yaw [rad] after which an object looks the same (2 pi for none)."""
+
+    def base(self) -> MobileBase | None:
+        """The robot's wheeled base (its type, limits and geometry), or None for a fixed robot."""
+
+    def base_pose(self) -> Pose2 | None:
+        """Where the base's odometry says it is (the controller's world), or None for a fixed robot."""
+
+    def footprint(self, name: str) -> tuple[float, float, float, float]:
+        """A body's footprint on the floor as a circle about its origin: x, y, radius [m], and its top's height [m]."""
+
+    def base_radius(self, below: float = np.inf) -> float:
+        """How far [m] the robot on its base reaches from the base's reference point, as it stands now.
+
+        Only its parts that reach down below the height ``below`` [m] count.
+        """
 
     def plan(self, targets: Sequence[FrameTarget], start: np.ndarray | None = None,
              allow: frozenset[str] = frozenset(), pos_tol: float | None = None) -> np.ndarray | None:

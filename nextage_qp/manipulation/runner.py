@@ -9,6 +9,7 @@ period of PD-controlled physics; the outcome monitor watches contacts and the cl
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from functools import partial
@@ -26,6 +27,7 @@ from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, summari
 from nextage_qp.manipulation.phases import Phase, build, names_in
 from nextage_qp.manipulation.placement import check_placement
 from nextage_qp.manipulation.sim_view import SimView
+from nextage_qp.mobile.odometry import base_report
 from nextage_qp.object_checks import check_clear
 from nextage_qp.perception_setup import attach_camera, log_estimates, perception_of
 from nextage_qp.robot import Robot, tool_frames
@@ -54,6 +56,8 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
         description = load_robot(cfg.robot)
     except ConfigError as exc:
         raise ConfigError(f"{source}: robot: {exc}") from None
+    if cfg.mount is not None:
+        description = dataclasses.replace(description, mount=cfg.mount)
     try:
         robot = Robot.from_scene(scene.file, overrides, description)
     except UnknownNameError as exc:
@@ -227,7 +231,9 @@ class Runner:
                          extra={"target_clearance_m": self.placement.target_clearance_m,
                                 "estimation": None if self.sensors is None else self.sensors.report(
                                     self.shoves.windows(SHOVE_SETTLE_S) if self.shoves is not None else ()),
-                                "shoves": self.shoves.applied if self.shoves is not None else []})
+                                "shoves": self.shoves.applied if self.shoves is not None else [],
+                                **({"base": base_report(self.sim.base.log, self.robot.base)}
+                                   if self.sim.base is not None and self.robot.base is not None else {})})
 
 
 def _brief(info: dict[str, Any]) -> str:

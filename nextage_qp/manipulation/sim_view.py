@@ -13,6 +13,9 @@ from nextage_qp.ik import QPIK, FrameTarget
 from nextage_qp.kinematics import Kinematics
 from nextage_qp.manipulation.context import Grip
 from nextage_qp.manipulation.placement import obstacle_top, rest_height, table_top
+from nextage_qp.mobile.base import MobileBase
+from nextage_qp.mobile.kinematics import Pose2
+from nextage_qp.mobile.odometry import to_odometry
 from nextage_qp.robot import Robot
 from nextage_qp.sensors import Wrench
 from nextage_qp.servo import Servo
@@ -53,7 +56,7 @@ class SimView:
         if bid < 0:
             raise UnknownNameError("body", name, self.robot.body_names)
         d = self._sim.data
-        return Pose(d.xpos[bid].copy(), d.xmat[bid].reshape(3, 3).copy())
+        return self._believed(Pose(d.xpos[bid].copy(), d.xmat[bid].reshape(3, 3).copy()))
 
     def frame_pose(self, name: str) -> Pose:  # noqa: D102
         if not self._sim.sensors.joints_exact:  # noisy encoders: the frame where the measured joints put it
@@ -61,8 +64,15 @@ class SimView:
         kind, fid = self.robot.frame(name)
         d = self._sim.data
         if kind == "site":
-            return Pose(d.site_xpos[fid].copy(), d.site_xmat[fid].reshape(3, 3).copy())
-        return Pose(d.xpos[fid].copy(), d.xmat[fid].reshape(3, 3).copy())
+            return self._believed(Pose(d.site_xpos[fid].copy(), d.site_xmat[fid].reshape(3, 3).copy()))
+        return self._believed(Pose(d.xpos[fid].copy(), d.xmat[fid].reshape(3, 3).copy()))
+
+    def _believed(self, pose: Pose) -> Pose:
+        """A true world pose as the controller sees it: on a mobile robot, in the world of its odometry."""
+        base, believed = self.robot.base, self._sim.measured.base
+        if base is None or believed is None:
+            return pose
+        return to_odometry(pose, base.pose(self._sim.data), believed)
 
     def commanded_pose(self, name: str) -> Pose:  # noqa: D102
         return self._servo.commanded_pose(name)
@@ -84,16 +94,37 @@ class SimView:
             config = self._servo.ik.config.model_copy(update={"restarts": 4, "max_iters": 80})
             self._planner = QPIK(self.robot, config, model=self._servo.ik.model, memo=PLAN_MEMO)
         poses = {name: (p.pos, p.quat) for name, p in self._sim.measured.objects.items()}
+        self._planner.base_pose = self._servo.ik.base_pose.copy()  # a mobile robot plans from where it stands
         q0 = np.array(self._servo.q_cmd if start is None else start)
         tol = REACH_POS_TOL if pos_tol is None else pos_tol
         result = self._planner.solve(list(targets), q0, object_poses=poses, allow=allow,
                                      good_enough=(0.5 * tol, 0.5 * REACH_ROT_TOL), accept=(tol, REACH_ROT_TOL))
         return result.q if result.pos_err_m <= tol and result.rot_err_rad <= REACH_ROT_TOL else None
 
+    def base(self) -> MobileBase | None:  # noqa: D102
+        return self.robot.base
+
+    def base_pose(self) -> Pose2 | None:  # noqa: D102
+        return self._sim.measured.base
+
+    def footprint(self, name: str) -> tuple[float, float, float, float]:  # noqa: D102
+        pos = self.body_pose(name).pos
+        radius = max(self.extent(name, np.array([np.cos(a), np.sin(a), 0.0]))
+                     for a in np.linspace(0.0, 2 * np.pi, 16, endpoint=False))
+        top = float(pos[2]) + self.extent(name, np.array([0.0, 0.0, 1.0]))
+        return float(pos[0]), float(pos[1]), float(radius), top
+
+    def base_radius(self, below: float = np.inf) -> float:  # noqa: D102
+        if self.robot.base is None:
+            raise UnknownNameError("base", "base", ())
+        return self.robot.base.radius(self._sim.data, below)
+
     def joint_names(self) -> tuple[str, ...]:  # noqa: D102
         return self.robot.joint_names
 
     def pose_at(self, frame: str, q: np.ndarray) -> Pose:  # noqa: D102
+        if self.robot.base is not None:  # the base where the odometry says it is: the IK's model knows it
+            return self._servo.pose_at(frame, q)
         if self._kinematics is None:
             self._kinematics = Kinematics(self.robot)
         return self._kinematics.fk(frame, q)
@@ -112,7 +143,11 @@ class SimView:
             if sensor.body == body:
                 w = self._sim.measured.wrenches[sensor.name]
                 here = d.xpos[fid] if kind == "body" else d.site_xpos[fid]
-                return Wrench(w.force, w.torque + cross(d.site_xpos[sensor.site] - here, w.force))
+                wrench = Wrench(w.force, w.torque + cross(d.site_xpos[sensor.site] - here, w.force))
+                if self.robot.base is not None and self._sim.measured.base is not None:  # the odometry's axes
+                    rot = self._believed(Pose(np.zeros(3), np.eye(3))).rot
+                    wrench = Wrench(rot @ wrench.force, rot @ wrench.torque)
+                return wrench
         with_sensor = [n for n in self.robot.site_names if int(m.site_bodyid[m.site(n).id]) in
                        {s.body for s in self._sim.wrench_sensors}]
         raise UnknownNameError("site on a body with a force/torque sensor", site, with_sensor)

@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.mobile.build import add_base, add_base_actuators
 from nextage_qp.object_build import declare_objects, rest_on_table
 from nextage_qp.robots.description import RobotDescription
 from nextage_qp.scene import SceneOverrides, apply_overrides, load_scene, quiet_prefix_warning
@@ -110,9 +111,18 @@ def compose(desc: RobotDescription, scene: str | Path, overrides: SceneOverrides
         child.delete(element)
     _rename_clashing_assets(child, parent, desc.name)
     yaw = desc.mount.yaw
-    frame = parent.worldbody.add_frame(pos=list(desc.mount.pos), quat=[np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+    robot_bodies = [b.name for b in child.bodies if b.name and b.name != "world"]
+    if desc.base is not None:  # the robot stands on a wheeled base (nextage_qp.mobile.build)
+        _, frame = add_base(parent, desc.base, desc.mount.pos, yaw)
+    else:
+        frame = parent.worldbody.add_frame(pos=list(desc.mount.pos),
+                                           quat=[np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
     with quiet_prefix_warning():  # an empty prefix: the robot keeps its own names
         parent.attach(child, frame=frame, prefix="")
+    if desc.base is not None:
+        add_base_actuators(parent, desc.base)
+        for name in robot_bodies:  # the base carries the robot: its own feet no longer stand on the floor
+            parent.add_exclude(bodyname1="world", bodyname2=name)
     overrides = overrides or SceneOverrides()
     markers = declare_objects(parent, overrides.objects, str(scene)) if overrides.objects else []
     apply_overrides(parent, overrides, str(scene))

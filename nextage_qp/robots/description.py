@@ -5,8 +5,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.mobile.base_file import BaseFile
 from nextage_qp.robots.paths import PREFIX, missing_package_hint, resolve_package, split_package
 from nextage_qp.robots.schema import FrameFile, GainRule, GroupFile, MountFile, RobotFile
 from nextage_qp.vision.cameras import CameraFile
@@ -60,6 +62,7 @@ class RobotDescription:
     torque_limits: float | Mapping[str, float] | None
     velocity_limits: float | Mapping[str, float] | None
     cameras: Mapping[str, CameraFile] = field(default_factory=dict)
+    base: BaseFile | None = None
 
     @property
     def joints(self) -> tuple[str, ...]:
@@ -127,6 +130,43 @@ def robot_file(ref: str | Path | None) -> Path:
     )
 
 
+_PATH_KEYS = ("model", "gains", "gains_dir")
+"""Keys of a robot file that hold a path relative to the file (and ``package_paths``, a list of them)."""
+
+
+def _read_extended(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """A robot file's mapping, on top of the file it ``extends``.
+
+    Its keys win, its mappings add entries to the other's; the other's relative paths are made absolute.
+
+    Raises:
+        ConfigError: The file, or the one it extends, cannot be read, or the files extend each other in a circle.
+    """
+    doc = read_yaml_mapping(path, "a robot file (a mapping with name, model, arms)")
+    parent = doc.pop("extends", None)
+    if parent is None:
+        return doc
+    if not isinstance(parent, str) or not parent:
+        raise ConfigError(f"{path}: extends: {parent!r} must be a robot file's path (relative to this file)")
+    other = (path.resolve().parent / parent).resolve()
+    if other in (*seen, path.resolve()):
+        raise ConfigError(f"{path}: extends: {parent!r} extends this file again (a circle)")
+    if not other.is_file():
+        raise ConfigError(f"{path}: extends: {parent!r} not found (looked for {other})")
+    base = _read_extended(other, (*seen, path.resolve()))
+    for key in _PATH_KEYS:
+        value = base.get(key)
+        if isinstance(value, str) and not value.startswith(PREFIX) and not Path(value).is_absolute():
+            base[key] = str((other.parent / value).resolve())
+    if isinstance(base.get("package_paths"), list):
+        base["package_paths"] = [str((other.parent / p).resolve()) for p in base["package_paths"]]
+    merged = {**base, **doc}
+    for key, value in doc.items():  # a mapping (collision_groups, frames, cameras, ...) adds to the other's
+        if isinstance(value, dict) and isinstance(base.get(key), dict) and key != "base":
+            merged[key] = {**base[key], **value}
+    return merged
+
+
 def load_robot(ref: str | Path | None = None) -> RobotDescription:
     """Load and validate a robot file (see :mod:`nextage_qp.robots.schema`).
 
@@ -135,9 +175,7 @@ def load_robot(ref: str | Path | None = None) -> RobotDescription:
     """
     path = robot_file(ref)
     shown = str(path)
-    doc: RobotFile = validate(
-        RobotFile, read_yaml_mapping(path, "a robot file (a mapping with name, model, arms)"), shown
-    )
+    doc: RobotFile = validate(RobotFile, _read_extended(path), shown)
     here = path.resolve().parent
     search = tuple((here / p).resolve() for p in doc.package_paths)
     if doc.model.startswith(PREFIX):
@@ -174,4 +212,5 @@ def load_robot(ref: str | Path | None = None) -> RobotDescription:
         torque_limits=doc.torque_limits,
         velocity_limits=doc.velocity_limits,
         cameras=dict(doc.cameras),
+        base=doc.base,
     )

@@ -28,6 +28,7 @@ A robot file names the model (MJCF or URDF) and says what the framework needs to
     torque_limits: 40.0              # N m, one value or per joint; the file's value wins over the model's
     velocity_limits: 2.0             # rad/s, one value or per joint: caps the trajectory's limits
     cameras: {head: {body: head_link, pos: [0.1, 0, 0.05], pitch: 0.3, fovx: 70}}  # see nextage_qp.vision.cameras
+    base: {type: diff_drive, wheel_radius: 0.1, track: 0.7}   # a wheeled base under it: nextage_qp.mobile.base_file
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, Field, ValidationInfo, field_validator, model_validator
 
+from nextage_qp.mobile.base_file import BaseFile
 from nextage_qp.vision.cameras import CameraFile
 from nextage_qp.yaml_file import STRICT
 
@@ -139,6 +141,7 @@ class RobotFile(BaseModel):
     cameras: dict[Name, CameraFile] = Field(
         default_factory=dict, description="Cameras on the robot (nextage_qp.vision.cameras), by name."
     )
+    base: BaseFile | None = Field(default=None, description="A wheeled base under the robot (nextage_qp.mobile).")
 
     @field_validator("torque_limits", "velocity_limits", mode="before")
     @classmethod

@@ -93,6 +93,10 @@ def plot_run(runner: Runner, path: Path) -> None:
         if key in rec:
             ax2.plot(rec[key][:, 0], rec[key][:, 1], lw=1, label=frame)
     ax2.plot(*tgt[:2], "g*", ms=14, label="target")
+    if runner.sim.base is not None and runner.sim.base.log:  # where the base went, and where odometry says it went
+        base = np.array(runner.sim.base.log)
+        ax2.plot(base[:, 1], base[:, 2], color="0.35", lw=2.5, alpha=0.6, label="base (true)")
+        ax2.plot(base[:, 4], base[:, 5], color="m", lw=1, ls="--", label="base (odometry)")
     groups = runner.robot.collision_geoms()
     for g in groups.get("obstacle", ()):
         corners = _box_footprint(runner, g)

@@ -11,6 +11,7 @@ from typing import Any
 
 from nextage_qp.manipulation.phases.base import Phase, Spec, names_in
 from nextage_qp.manipulation.phases.carry import Carry, CarrySpec
+from nextage_qp.manipulation.phases.drive import Drive, DriveSpec
 from nextage_qp.manipulation.phases.grasp import Grasp, GraspSpec
 from nextage_qp.manipulation.phases.joints import Joints, JointsSpec
 from nextage_qp.manipulation.phases.move import Move, MoveSpec
@@ -47,5 +48,6 @@ register(PlaceSpec, Place)
 register(ReleaseSpec, Release)
 register(JointsSpec, Joints)
 register(WaitSpec, Wait)
+register(DriveSpec, Drive)
 
 __all__ = ["REGISTRY", "Phase", "Spec", "build", "names_in", "register", "unregister"]

@@ -1,0 +1,243 @@
+"""The offline solve of :class:`~nextage_qp.ik.qp.QPIK`: IK steps integrated to a tolerance, with restarts.
+
+A descent integrates the QP's steps (``config.dt``) with a collision-safe step (:func:`~nextage_qp.ik.safe_step.
+advance`) until every target is within tolerance, the cap, or a stall; seeded random restarts escape local minima;
+a relaxation gate skips restarts a target out of reach could never use; a memo answers repeated questions.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator, Sequence
+
+import mink
+import mujoco
+import numpy as np
+
+from nextage_qp.ik.collision import ActiveCollisionLimit
+from nextage_qp.ik.config import IKConfig
+from nextage_qp.ik.limits import JointBoxLimit
+from nextage_qp.ik.memo import SolveMemo
+from nextage_qp.ik.model import Frame, ObjectPoses, chain_dofs, set_object_poses
+from nextage_qp.ik.safe_step import advance
+from nextage_qp.ik.targets import FrameTarget, IKResult, worst_errors
+
+RELAXED_MARGIN = 2.0
+"""The relaxation gate of :meth:`QPIK.solve` gives up on a target the search without collision rows misses by more
+than this many times the accepted errors."""
+
+
+class OfflineSolver:
+    """:meth:`solve` and its descents, mixed into :class:`~nextage_qp.ik.qp.QPIK` (whose state they use)."""
+
+    # the state of QPIK this uses
+    config: IKConfig
+    model: mujoco.MjModel
+    configuration: mink.Configuration
+    collision: ActiveCollisionLimit | None
+    box: JointBoxLimit
+    memo: SolveMemo | None
+    nb: int
+    base_pose: np.ndarray
+    _mocap: dict[str, int]
+
+    def frame(self, name: str) -> Frame:  # noqa: D102 (QPIK's)
+        raise NotImplementedError
+
+    def _allowed(self, groups: frozenset[str]) -> np.ndarray:
+        raise NotImplementedError
+
+    def _full(self, q: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def _step(self, targets: Sequence[FrameTarget], dt: float, extra_tasks: Sequence[mink.Task], *,
+              base: bool = False) -> np.ndarray:
+        raise NotImplementedError
+
+    def solve(
+        self,
+        targets: Sequence[FrameTarget],
+        q0: np.ndarray,
+        *,
+        max_iters: int | None = None,
+        extra_tasks: Sequence[mink.Task] = (),
+        object_poses: ObjectPoses | None = None,
+        allow: frozenset[str] = frozenset(),
+        good_enough: tuple[float, float] | None = None,
+        accept: tuple[float, float] | None = None,
+    ) -> IKResult:
+        """Iterate IK steps of ``config.dt`` from ``q0`` until every target is within tolerance.
+
+        A descent that stalls in a local minimum (or hits the iteration cap) is restarted up to
+        ``config.restarts`` times from random in-limit configurations (seeded, so deterministic). An
+        unreachable target ends with ``converged=False`` (status ``max_iters`` or ``stalled``) and the best q
+        found; no exception. A step that would bring a watched collision pair below its minimum distance is
+        halved until it does not.
+
+        **Relaxation gate** (with ``accept`` and collision pairs). When the first descent misses, the same search
+        (same start, same restarts) runs first on the relaxed problem without collision rows, whose steps cost a
+        fraction as much (no distance queries, no collision-safe halving). Collision rows only shrink the set of
+        reachable configurations, so a target the relaxed search misses by more than ``RELAXED_MARGIN`` times the
+        accepted errors is out of reach with them too: the collision-aware restarts are skipped and the best of the
+        first descent is returned. (The margin because both searches are local: on the sweeps, a relaxed miss below
+        the accepted error itself was sometimes beaten by the collision-aware restarts, never one above it.)
+
+        Args:
+            targets: Frame targets, solved together in one QP per step.
+            q0: Start configuration [rad] (15,).
+            max_iters: Iteration cap per descent (default ``config.max_iters``).
+            extra_tasks: Further mink tasks added to every step.
+            object_poses: Object name -> (pos, quat wxyz) for collision avoidance.
+            allow: Collision groups whose pairs are not avoided (e.g. an object the frames hold).
+            good_enough: Position [m] and orientation [rad] errors at which a stalled descent is kept without
+                restarts (a caller that accepts millimetres need not pay for restarts chasing microns).
+            accept: Position [m] and orientation [rad] errors the caller accepts as reached; turns on the
+                relaxation gate (above).
+
+        Raises:
+            IKInfeasibleError: A step's QP is infeasible (e.g. ``q0`` far outside the joint limits).
+        """
+        start = time.perf_counter()
+        cfg = self.config
+        if self.collision is not None:
+            self.collision.allow(self._allowed(allow))
+        if object_poses:
+            set_object_poses(self.model, self.configuration.data, object_poses, self._mocap)
+        key = None
+        if self.memo is not None and not extra_tasks:  # a mink task's inputs are not all visible: not remembered
+            data = self.configuration.data
+            key = self.memo.key(targets, q0, (data.mocap_pos, data.mocap_quat, self.base_pose,
+                                              *(good_enough or (None,)), *(accept or (None,))),
+                                (str(max_iters), *sorted(allow)))
+            found = self.memo.get(key)
+            if found is not None:
+                self.configuration.update(self._full(found.q))
+                return found._replace(time_s=time.perf_counter() - start)
+        frames = [self.frame(t.frame) for t in targets]
+        total, best = 0, None
+        # Restarts re-draw only the joints that move a target frame; the others keep their q0 values (and a mobile
+        # robot's base stays where it is: a solve plans the arms).
+        moving = np.any([chain_dofs(self.model, f) for f in frames], axis=0)
+        moving[: self.nb] = False
+        starts = _Starts(self._full(np.array(q0, dtype=float)), moving, self.box.lower[self.nb :],
+                         self.box.upper[self.nb :], cfg.restarts + 1, cfg.seed)
+        cap = max_iters or cfg.max_iters
+        for attempt, q in enumerate(starts):
+            score, q_best, pos_err, rot_err, iters, status = self._descend(targets, frames, q, cap, extra_tasks)
+            total += iters
+            if best is None or score < best[0]:
+                best = (score, q_best, pos_err, rot_err, status)
+            if status == "converged":
+                break
+            if good_enough is not None and best[2] <= good_enough[0] and best[3] <= good_enough[1]:
+                break
+            if attempt == 0 and starts.count > 1 and self.collision is not None and accept is not None:
+                reached, iters = self._relaxed_reach(targets, frames, starts, cap, extra_tasks,
+                                                     (RELAXED_MARGIN * accept[0], RELAXED_MARGIN * accept[1]))
+                total += iters
+                if not reached:
+                    break
+        assert best is not None
+        _, q_best, pos_err, rot_err, status = best
+        self.configuration.update(q_best)
+        result = IKResult(q_best[self.nb :] if self.nb else q_best, status == "converged", pos_err, rot_err, total,
+                          status, time.perf_counter() - start)
+        if key is not None and self.memo is not None:
+            self.memo.put(key, result)
+        return result
+
+    def _relaxed_reach(
+        self,
+        targets: Sequence[FrameTarget],
+        frames: Sequence[Frame],
+        starts: _Starts,
+        cap: int,
+        extra_tasks: Sequence[mink.Task],
+        within: tuple[float, float],
+    ) -> tuple[bool, int]:
+        """Whether the search from ``starts`` without collision rows comes ``within`` the targets: (reached, iters).
+
+        ``within``: position [m] and orientation [rad] errors.
+        """
+        collision, self.collision, total = self.collision, None, 0
+        try:
+            for q in starts:
+                _, _, pos_err, rot_err, iters, status = self._descend(targets, frames, q, cap, extra_tasks)
+                total += iters
+                if status == "converged" or (pos_err <= within[0] and rot_err <= within[1]):
+                    return True, total
+            return False, total
+        finally:
+            self.collision = collision
+
+    def _descend(
+        self,
+        targets: Sequence[FrameTarget],
+        frames: Sequence[Frame],
+        q0: np.ndarray,
+        cap: int,
+        extra_tasks: Sequence[mink.Task],
+    ) -> tuple[float, np.ndarray, float, float, int, str]:
+        """One descent from ``q0``: (score, best q, position error, orientation error, iterations, status)."""
+        cfg, q = self.config, q0.copy()
+        self.configuration.update(q)
+        best = (np.inf, q.copy(), np.inf, np.inf)
+        since_best, iters = 0, 0
+        while True:
+            pos_err, rot_err = worst_errors(targets, [f.pose(self.configuration.data) for f in frames])
+            score = pos_err / cfg.pos_tol + rot_err / cfg.rot_tol
+            if score < best[0]:
+                since_best = 0 if score < 0.99 * best[0] else since_best
+                best = (score, q.copy(), pos_err, rot_err)
+            if pos_err <= cfg.pos_tol and rot_err <= cfg.rot_tol:
+                return (*best, iters, "converged")
+            if iters >= cap:
+                return (*best, iters, "max_iters")
+            if since_best >= cfg.stall_iters:
+                return (*best, iters, "stalled")
+            dq = self._step(targets, cfg.dt, extra_tasks) * cfg.dt
+            q_prev, q = q, self._advance(q, dq)
+            iters, since_best = iters + 1, since_best + 1
+            if q is q_prev:
+                # Every halving of the step ran into a collision pair: the next steps would start from the same q
+                # and be the same, with no progress, until the cap or the stall test ends the descent. End it now
+                # with the same outcome and iteration count.
+                ahead = min(cap - iters, cfg.stall_iters - since_best)
+                if ahead > 0:
+                    iters, since_best = iters + ahead, since_best + ahead
+                return (*best, iters, "max_iters" if iters >= cap else "stalled")
+
+    def _advance(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """Q + dq inside the joint limits, collision-safe (:func:`~nextage_qp.ik.safe_step.advance`)."""
+        if self.collision is None:
+            q_new = np.clip(q + dq, self.box.lower, self.box.upper)
+            self.configuration.update(q_new)
+            return q_new
+        return advance(self.collision, self.configuration, q, dq, self.box.lower, self.box.upper)
+
+
+class _Starts:
+    """Start configurations of the descents: ``q0``, then ``count - 1`` seeded random restarts, drawn when used.
+
+    Restarts re-draw only the ``moving`` joints (within ``lower``/``upper``, given for the last joints only where
+    ``q0`` starts with a mobile robot's base variables); the others keep their ``q0`` values.
+    """
+
+    def __init__(self, q0: np.ndarray, moving: np.ndarray, lower: np.ndarray, upper: np.ndarray, count: int,
+                 seed: int) -> None:
+        self.q0, self.moving, self.lower, self.upper, self.count = q0, moving, lower, upper, count
+        self._rng = np.random.default_rng(seed)
+        self._drawn: list[np.ndarray] = [q0]
+
+    def __getitem__(self, k: int) -> np.ndarray:
+        if not 0 <= k < self.count:
+            raise IndexError(k)
+        while len(self._drawn) <= k:
+            fixed = len(self.q0) - len(self.lower)  # a mobile robot's base variables: never drawn
+            drawn = np.r_[self.q0[:fixed], self._rng.uniform(self.lower, self.upper)] if fixed else \
+                self._rng.uniform(self.lower, self.upper)
+            self._drawn.append(np.where(self.moving, drawn, self.q0))
+        return self._drawn[k]
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        return (self[k] for k in range(self.count))
