@@ -28,6 +28,10 @@ from nextage_qp.mobile.build import (
 from nextage_qp.mobile.kinematics import Bicycle, DiffDrive, Pose2, Twist
 
 
+HOLD_GAIN = 10.0
+"""Gain [1/s] with which a standing base's driven joints return to the angles they hold."""
+
+
 class MobileBase:
     """A robot's base in one compiled model.
 
@@ -79,25 +83,31 @@ class MobileBase:
             self.steer_actuators = np.array([actuator(n) for n in STEERS]) if self.type == "bicycle" else None
         self.command_twist = Twist(0.0, 0.0, 0.0)
         """The body twist last commanded."""
+        self._hold: np.ndarray | None = None  # the driven joints' angles a standing base holds
         subtree = [b for b in range(model.nbody) if _in_subtree(model, b, self.body)]
         colliding = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
         self._geoms = np.flatnonzero(np.isin(model.geom_bodyid, subtree) & colliding)
-        self._rbound = model.geom_rbound[self._geoms]
+        # each geom's bounding box (local frame: centre, half-sizes) as its 8 corners
+        box = model.geom_aabb[self._geoms].reshape(-1, 2, 3)
+        signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+        self._corners = box[:, None, 0, :] + signs[None] * box[:, None, 1, :]  # (geoms, 8, 3)
 
     def radius(self, data: mujoco.MjData, below: float = np.inf) -> float:
         """How far [m] the robot and its base reach from the reference point in the floor's plane, as they stand.
 
         The circle it sweeps turning in place; only what reaches down below the height ``below`` [m] counts.
         """
-        origin = data.xpos[self.body][:2]
-        low = data.geom_xpos[self._geoms, 2] - self._rbound < below
-        planar = data.geom_xpos[self._geoms[low], :2] - origin
-        return float(np.max(np.hypot(planar[:, 0], planar[:, 1]) + self._rbound[low], initial=0.0))
+        rot = data.geom_xmat[self._geoms].reshape(-1, 3, 3)
+        corners = np.einsum("gij,gkj->gki", rot, self._corners) + data.geom_xpos[self._geoms][:, None, :]
+        low = corners[:, :, 2].min(axis=1) < below
+        planar = corners[low, :, :2] - data.xpos[self.body][:2]
+        return float(np.max(np.hypot(planar[..., 0], planar[..., 1]), initial=0.0))
 
     def reset(self, data: mujoco.MjData) -> None:
         """Put a holonomic base at its start pose (a free base starts there from the model) and stop it."""
         if self.type == "holonomic":
             data.qpos[self.planar_qpos] = self.start
+        self._hold = None
         self.command(data, Twist(0.0, 0.0, 0.0))
 
     def pose(self, data: mujoco.MjData) -> Pose2:
@@ -126,14 +136,24 @@ class MobileBase:
         return data.qpos[self.wheel_qpos].copy()
 
     def command(self, data: mujoco.MjData, twist: Twist) -> Twist:
-        """Send a body twist to the actuators through the inverse kinematics; returns the twist sent.
+        r"""Send a body twist to the actuators through the inverse kinematics; returns the twist sent.
 
         The twist is scaled down uniformly until every wheel speed and the steering angle are within the limits
         (so the path's curvature is kept); a bicycle's lateral velocity is dropped (it has none at its rear axle),
-        and so is a differential drive's.
+        and so is a differential drive's. A zero twist brakes: the driven joints hold the angles they had when it
+        began (velocity commands :math:`-k_{hold}(\varphi - \varphi_{hold})`), so forces on the robot (an arm
+        pushing, its own reaction) do not make a parked base creep.
         """
         lim = self.limits
         vx, vy, w = float(twist.vx), float(twist.vy), float(twist.omega)
+        if vx == 0.0 and vy == 0.0 and w == 0.0:
+            joints = self.planar_qpos if self.type == "holonomic" else self.wheel_qpos
+            if self._hold is None:
+                self._hold = data.qpos[joints].copy()
+            data.ctrl[self.actuators] = -HOLD_GAIN * (data.qpos[joints] - self._hold)
+            self.command_twist = Twist(0.0, 0.0, 0.0)
+            return self.command_twist
+        self._hold = None
         if self.type == "holonomic":
             scale = min(1.0, lim.speed / max(math.hypot(vx, vy), 1e-12), lim.turn_rate / max(abs(w), 1e-12))
             vx, vy, w = vx * scale, vy * scale, w * scale
