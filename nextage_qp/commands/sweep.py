@@ -189,6 +189,12 @@ def _print_summary(s: dict[str, Any], console: Console, *, only: bool, episodes:
             console.print(f"outside the {SHOVE_SETTLE_S:g} s after each shove ({est['shove_ticks']} ticks): estimate "
                           f"RMS {_mm(est['estimate_outside_shoves_rms_m'])} mm "
                           f"({est['estimate_outside_shoves_over_raw']:.2f} of raw)", markup=False)
+    if (mb := s.get("mobile_base")) is not None:
+        drift, drive = mb["odometry_drift_m"], mb["drive_time_s"]
+        console.print(f"base: odometry drift median {_mm(drift['median'])} mm, max {_mm(drift['max'])} mm; drive time "
+                      f"median {drive['median'] or 0:.1f} s, max {drive['max'] or 0:.1f} s; largest lateral speed "
+                      f"{_mm(mb['max_lateral_speed_m_s'])} mm/s; {mb['episodes_sliding']}/{mb['episodes']} episodes "
+                      "with ticks sliding sideways (> 10 mm/s)", markup=False)
     for row in s["by_target_clearance"]:
         lo, hi = row["success_rate_ci95"]
         rate = "-" if row["success_rate"] is None else f"{100 * row['success_rate']:.1f} %"

@@ -25,8 +25,9 @@ from nextage_qp.ik.look_at import watch
 from nextage_qp.manipulation.config import ManipulationConfig
 from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, summarize
 from nextage_qp.manipulation.phases import Phase, build, names_in
-from nextage_qp.manipulation.placement import check_placement
+from nextage_qp.manipulation.placement import Placement, check_placement
 from nextage_qp.manipulation.sim_view import SimView
+from nextage_qp.mobile.build import BASE_BODY
 from nextage_qp.mobile.odometry import base_report
 from nextage_qp.object_checks import check_clear
 from nextage_qp.perception_setup import attach_camera, log_estimates, perception_of
@@ -78,7 +79,8 @@ def check_names(cfg: ManipulationConfig, robot: Robot, source: str) -> None:
         ConfigError: ``source: dotted.key: 'name' is not valid; valid: ...``.
     """
     bodies = sorted(robot.body_names)
-    valid = {"frame": robot.site_names, "object": robot.object_names, "body": bodies,
+    objects = (*robot.object_names, *((BASE_BODY,) if robot.base is not None else ()))  # a base parks, judged
+    valid = {"frame": robot.site_names, "object": objects, "body": bodies,
              "reference": ["world", *bodies], "joint": robot.joint_names}
     accepted = {**valid, "frame": robot.frame_names}
     for key, kind, name in names_in(cfg, ""):
@@ -113,7 +115,10 @@ class Runner:
             attach_camera(cfg, self.sensors, self.robot, self.sim.data, source)
         q0 = (self.robot.keyframe_q(cfg.start) if isinstance(cfg.start, str)
               else self.robot.q_from_names(cfg.start, base=self.robot.keyframe_q("home")))
-        self.placement = check_placement(self.robot, cfg.object, cfg.target, q0, source)
+        if self.robot.base is not None and cfg.object == BASE_BODY:  # a base that parks: nothing to place
+            self.placement = Placement(np.zeros(3), None)
+        else:
+            self.placement = check_placement(self.robot, cfg.object, cfg.target, q0, source)
         self.sim.reset(q0)
         self.servo = Servo(self.ik, self.sim, q0)
         self.camera = None if self.sensors is None else self.sensors.measurer

@@ -27,7 +27,6 @@ from nextage_qp.mobile.build import (
 )
 from nextage_qp.mobile.kinematics import Bicycle, DiffDrive, Pose2, Twist
 
-
 HOLD_GAIN = 10.0
 """Gain [1/s] with which a standing base's driven joints return to the angles they hold."""
 

@@ -154,6 +154,27 @@ def estimation(episodes: Sequence[Episode]) -> dict[str, Any] | None:
     return out
 
 
+def mobile_base(episodes: Sequence[Episode]) -> dict[str, Any] | None:
+    """A mobile robot's base over the episodes that ran (None when none had one).
+
+    Quantiles of the odometry's drift [m] and of the time the drive phases took [s]; the largest true lateral
+    speed [m/s] and the episodes with ticks sliding sideways.
+    """
+    rows = [e.result for e in episodes if e.result and e.result.get("base")]
+    if not rows:
+        return None
+    drives = [p["duration_s"] for r in rows for p in r["phases"] if p["kind"] == "drive" and p["status"] == "done"]
+    return {
+        "episodes": len(rows),
+        "odometry_drift_m": _quantiles([r["base"]["odometry_drift_m"] for r in rows]),
+        "odometry_drift_rad": _quantiles([r["base"]["odometry_drift_rad"] for r in rows]),
+        "drive_time_s": _quantiles(drives),
+        "distance_m": _quantiles([r["base"]["distance_m"] for r in rows]),
+        "max_lateral_speed_m_s": max(r["base"]["max_lateral_speed_m_s"] for r in rows),
+        "episodes_sliding": sum(r["base"]["sliding_ticks"] > 0 for r in rows),
+    }
+
+
 def summarize(spec: SweepSpec, seed: int, episodes: Sequence[Episode], *, session_episodes: int,
               session_wall_s: float) -> dict[str, Any]:
     """The sweep summary printed on the terminal and written by ``--json`` (see ``docs/sweep.md``)."""
@@ -189,6 +210,7 @@ def summarize(spec: SweepSpec, seed: int, episodes: Sequence[Episode], *, sessio
         "by_parameter": by_parameter(spec, episodes),
         "by_target_clearance": by_target_clearance(episodes),
         "estimation": estimation(ran),
+        "mobile_base": mobile_base(ran),
         "episodes_per_minute": 60.0 * session_episodes / session_wall_s if session_wall_s > 0 else None,
         "session": {"episodes_run": session_episodes, "wall_time_s": session_wall_s},
         "failed": listed,

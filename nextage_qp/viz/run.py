@@ -72,7 +72,12 @@ def plot_run(runner: Runner, path: Path) -> None:
 
     rec = runner.sim.recorder.arrays()
     t = rec["t"]
-    obj = rec[f"object_{runner.cfg.object}"][:, :3]
+    key = f"object_{runner.cfg.object}"
+    if key not in rec and runner.sim.base is not None and runner.sim.base.log:  # the object is the robot's base
+        log = np.array(runner.sim.base.log)
+        t, obj = log[:, 0], np.c_[log[:, 1:3], np.zeros(len(log))]
+    else:
+        obj = rec[key][:, :3]
     tgt = runner.view.body_pose(runner.cfg.target).pos
     track = runner.sensors.history.get(runner.cfg.object) if runner.sensors is not None else None
     fig, axes = plt.subplots(1, 3 if track else 2, figsize=(18 if track else 12, 4.5))

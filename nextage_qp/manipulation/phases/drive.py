@@ -1,7 +1,8 @@
 """``drive``: take a mobile robot's base to a pose relative to a body, around obstacles, with the arms held.
 
-The goal is where the robot's own frame (the robot file's mount frame) should stand: ``offset`` (x, y [m]) and
-``yaw`` [rad] in the frame of ``relative_to`` (a body, turned about z only, or the world). The phase plans, from
+The goal is where the robot's own frame (the robot file's mount frame; with ``frame: base``, the base's reference
+point) should stand: ``offset`` (x, y [m]) and ``yaw`` [rad] in the frame of ``relative_to`` (a body, turned about z
+only, or the world). The phase plans, from
 where the odometry puts the base:
 
 * a differential drive or a holonomic base: the shortest polyline that keeps the base's swept circle (how far the
@@ -40,6 +41,8 @@ class DriveSpec(Spec):
 
     kind: Literal["drive"]
     relative_to: str = name_field("reference", default="world", description="Body whose frame the goal is in.")
+    frame: Literal["robot", "base"] = Field(
+        default="robot", description="Whose pose the goal is: the robot's own frame, or the base's reference point.")
     offset: tuple[float, float] = Field(description="Robot frame's x, y in that frame [m].")
     yaw: float = Field(default=0.0, ge=-7.0, le=7.0, description="Robot frame's yaw in that frame [rad].")
     approach: float = Field(default=0.6, ge=0.0, le=10.0, description="Final straight leg [m].")
@@ -70,7 +73,7 @@ class Drive(Phase):
         gx = ref[0] + cos_r * c.offset[0] - sin_r * c.offset[1]
         gy = ref[1] + sin_r * c.offset[0] + cos_r * c.offset[1]
         yaw = ref_yaw + c.yaw
-        ax = base.spec.axle_x  # the goal of the base's reference point: the robot frame's axle point
+        ax = base.spec.axle_x if c.frame == "robot" else 0.0  # the base's reference point: the robot frame's axle
         self.goal = Pose2(gx + math.cos(yaw) * ax, gy + math.sin(yaw) * ax, yaw)
         speed, turn = min(c.speed, base.limits.speed), min(c.turn_rate, base.limits.turn_rate)
         if base.type == "bicycle":
