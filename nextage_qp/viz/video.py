@@ -8,10 +8,15 @@ from typing import TYPE_CHECKING, Any
 import mujoco
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.mobile.build import BASE_BODY
 from nextage_qp.viz.run import FAST_FLAGS, draw_markers, marker_points, marker_starts
 
 if TYPE_CHECKING:
     from nextage_qp.manipulation.runner import Runner
+
+
+FOLLOW = "follow:"
+"""Prefix of a camera name that follows a body: ``follow:BODY``."""
 
 
 def video_process(path: str, fps: int, size: tuple[int, int], camera: str, frames: Any, status: Any) -> None:
@@ -39,12 +44,18 @@ def video_process(path: str, fps: int, size: tuple[int, int], camera: str, frame
         return
     status.send(("ready", None))
     data, count = mujoco.MjData(model), 0
+    view: str | mujoco.MjvCamera = camera
+    if camera.startswith(FOLLOW):  # a camera that follows a body (a mobile robot's base) from behind and above
+        view = mujoco.MjvCamera()
+        view.type, view.trackbodyid = mujoco.mjtCamera.mjCAMERA_TRACKING, model.body(camera[len(FOLLOW):]).id
+        view.distance, view.elevation, view.azimuth = 3.5, -30.0, 150.0
     try:
         while (state := frames.get()) is not None:
             data.qpos[:], data.mocap_pos[:], data.mocap_quat[:], points = state
             mujoco.mj_kinematics(model, data)
+            mujoco.mj_comPos(model, data)  # a tracking camera follows the body's subtree centre of mass
             mujoco.mj_camlight(model, data)
-            renderer.update_scene(data, camera=camera)
+            renderer.update_scene(data, camera=view)
             for flag in FAST_FLAGS:
                 renderer.scene.flags[flag] = False
             draw_markers(renderer.scene, points)
@@ -68,10 +79,12 @@ class VideoRecorder:
     """Frames in flight: when rendering falls behind, the run waits for it rather than holding every frame."""
 
     def __init__(self, runner: Runner, path: Path, *, fps: int = 25, size: tuple[int, int] = (480, 640),
-                 camera: str = "workspace") -> None:
+                 camera: str | None = None) -> None:
         import multiprocessing
         import pickle
 
+        if camera is None:  # the workspace's camera; a mobile robot is followed
+            camera = f"{FOLLOW}{BASE_BODY}" if runner.robot.base is not None else "workspace"
         path.parent.mkdir(parents=True, exist_ok=True)
         ctx = multiprocessing.get_context("spawn")
         self.frames = ctx.Queue(self.QUEUE)
