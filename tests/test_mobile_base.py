@@ -16,7 +16,7 @@ from nextage_qp.ik.model import kinematic_model
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import Runner
 from nextage_qp.mobile import Twist
-from nextage_qp.mobile.build import PLANAR_JOINTS
+from nextage_qp.mobile.build import BASE_BODY, PLANAR_JOINTS
 from nextage_qp.mobile.paths import around
 from nextage_qp.robot import Robot
 from nextage_qp.robots.description import load_robot
@@ -40,8 +40,11 @@ def test_the_base_goes_under_the_robot_file_it_extends(mobile: Robot) -> None:
     desc = load_robot("nextage_mobile")
     assert desc.base is not None and desc.base.type == "diff_drive"
     assert mobile.joint_names == Robot.from_scene("push_cube").joint_names  # the Nextage's joints, driven as before
-    assert "base" not in mobile.object_names and "cube" in mobile.object_names
-    assert "base" in mobile.collision_geoms() and "torso" in mobile.collision_geoms()  # its groups and the Nextage's
+    assert BASE_BODY not in mobile.object_names and "cube" in mobile.object_names
+    groups = mobile.collision_geoms()  # the base's own group (its body and wheels) and the Nextage's
+    assert BASE_BODY in groups and "torso" in groups
+    wheels = {mobile.model.body(int(mobile.model.geom_bodyid[g])).name for g in groups[BASE_BODY]}
+    assert wheels >= {"mobile_base_wheel_right", "mobile_base_wheel_left"} and not set(groups[BASE_BODY]) & set(groups["torso"])
     model = kinematic_model(mobile)
     assert tuple(model.joint(i).name for i in range(model.njnt)) == (*PLANAR_JOINTS, *mobile.joint_names)
 
@@ -82,7 +85,7 @@ def test_ik_base_step_never_slides_sideways_and_respects_the_wheels(mobile: Robo
     for _ in range(60):
         ik.base_pose = np.array([*rng.uniform(-1, 1, 2), rng.uniform(-np.pi, np.pi)])
         goal = ik.base_pose + np.array([*rng.uniform(-2, 2, 2), rng.uniform(-2, 2)])
-        target = FrameTarget("base", pos=np.array([goal[0], goal[1], 0.0]), rot=rot_z(goal[2]),
+        target = FrameTarget(BASE_BODY, pos=np.array([goal[0], goal[1], 0.0]), rot=rot_z(goal[2]),
                              position_cost=20.0, orientation_cost=20.0)
         ik.step(q, [target], dt, base=True)
         xd, yd, w = ik.base_velocity

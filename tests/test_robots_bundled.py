@@ -133,6 +133,16 @@ def test_push_config_of_another_robot_succeeds(robot):
 
 
 @needs_robosuite
+def test_the_same_base_goes_under_another_robot_and_parks_it():
+    cfg = load_config(ROOT / "configs" / "aloha" / "park.yaml")
+    runner = Runner(cfg, "configs/aloha/park.yaml")
+    assert runner.robot.base is not None and runner.robot.base.type == "diff_drive"
+    result = runner.run()
+    assert result["success"], result.get("error")
+    assert result["object_error_xy_m"] < 0.05 and result["base"]["max_lateral_speed_m_s"] < 0.01
+
+
+@needs_robosuite
 def test_sweep_of_another_robot_is_named_after_it():
     spec = SweepSpec(ROOT / "configs" / "yumi" / "sweeps" / "push_cube.yaml")
     assert spec.name == "yumi-push_cube"

@@ -26,6 +26,7 @@ from nextage_qp.mobile.build import (
     start_pose,
 )
 from nextage_qp.mobile.kinematics import Bicycle, DiffDrive, Pose2, Twist
+from nextage_qp.per_joint import descends
 
 HOLD_GAIN = 10.0
 """Gain [1/s] with which a standing base's driven joints return to the angles they hold."""
@@ -83,7 +84,7 @@ class MobileBase:
         self.command_twist = Twist(0.0, 0.0, 0.0)
         """The body twist last commanded."""
         self._hold: np.ndarray | None = None  # the driven joints' angles a standing base holds
-        subtree = [b for b in range(model.nbody) if _in_subtree(model, b, self.body)]
+        subtree = [b for b in range(model.nbody) if descends(model, b, self.body)]
         colliding = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
         self._geoms = np.flatnonzero(np.isin(model.geom_bodyid, subtree) & colliding)
         # each geom's bounding box (local frame: centre, half-sizes) as its 8 corners
@@ -173,11 +174,3 @@ class MobileBase:
         data.ctrl[self.actuators] = (right * scale, left * scale)
         self.command_twist = Twist(vx * scale, 0.0, w * scale)
         return self.command_twist
-
-
-def _in_subtree(model: mujoco.MjModel, body: int, root: int) -> bool:
-    while body > 0:
-        if body == root:
-            return True
-        body = int(model.body_parentid[body])
-    return False

@@ -1,14 +1,14 @@
 """A wheeled base under a robot, added to a scene with MjSpec (the robot file's ``base:`` section).
 
-The base is a body ``base`` on a free joint (``base_free``) whose origin is the middle of the driven axle on the
-floor, x forward. The robot is attached to it so that the robot's own frame lands where the robot file's mount puts
-it. Its weight rests on the wheels and casters, which touch the floor through MuJoCo's contacts:
+The base is a body ``mobile_base`` on a free joint (``mobile_base_free``) whose origin is the middle of the driven
+axle on the floor, x forward. The robot is attached to it so that the robot's own frame lands where the robot file's
+mount puts it. Its weight rests on the wheels and casters, which touch the floor through MuJoCo's contacts:
 
-* ``diff_drive``: two driven wheels (``base_wheel_right`` / ``_left``, hinge joints about the axle, velocity
+* ``diff_drive``: two driven wheels (``mobile_base_wheel_right`` / ``_left``, hinge joints about the axle, velocity
   actuators with the wheel torque limit) and two frictionless caster spheres, in front of and behind the axle;
 * ``bicycle``: the driven rear wheels as above, and two steered front wheels ``wheelbase`` ahead (a steering hinge
-  with a position servo ``base_steer_right`` / ``_left``, Ackermann angles, and a free-rolling wheel);
-* ``holonomic``: no wheels; planar joints ``base_x``, ``base_y``, ``base_yaw`` with velocity actuators (an
+  with a position servo ``mobile_base_steer_right`` / ``_left``, Ackermann angles, and a free-rolling wheel);
+* ``holonomic``: no wheels; planar joints ``mobile_base_x``, ``_y``, ``_yaw`` with velocity actuators (an
   omnidirectional platform) instead of the free joint.
 
 Contacts between the floor and the robot's own root body (its feet, which the base now carries) are excluded.
@@ -23,17 +23,17 @@ import numpy as np
 
 from nextage_qp.mobile.base_file import BaseFile
 
-BASE_BODY = "base"
+BASE_BODY = "mobile_base"
 """Name of the base's body."""
-BASE_JOINT = "base_free"
+BASE_JOINT = "mobile_base_free"
 """Name of the base's free joint (diff_drive, bicycle)."""
-PLANAR_JOINTS = ("base_x", "base_y", "base_yaw")
+PLANAR_JOINTS = ("mobile_base_x", "mobile_base_y", "mobile_base_yaw")
 """The holonomic base's joints, and the IK model's base joints of every base type."""
-WHEELS = ("base_wheel_right", "base_wheel_left")
+WHEELS = ("mobile_base_wheel_right", "mobile_base_wheel_left")
 """The driven wheels' joints and actuators (right first)."""
-STEERS = ("base_steer_right", "base_steer_left")
+STEERS = ("mobile_base_steer_right", "mobile_base_steer_left")
 """The bicycle's steering joints and their servos."""
-FRONT_WHEELS = ("base_front_right", "base_front_left")
+FRONT_WHEELS = ("mobile_base_front_right", "mobile_base_front_left")
 """The bicycle's free-rolling front wheels' joints."""
 WHEEL_HALF_WIDTH = 0.025
 """Half the width of a wheel [m]."""
@@ -56,7 +56,7 @@ def add_base(spec: mujoco.MjSpec, base: BaseFile, pos: tuple[float, float, float
         body = spec.worldbody.add_body(name=BASE_BODY, pos=[x, y, 0.0],
                                        quat=[math.cos(heading / 2), 0.0, 0.0, math.sin(heading / 2)])
     r, half_track = base.wheel_radius, 0.5 * base.track
-    body.add_geom(name="base_chassis", type=mujoco.mjtGeom.mjGEOM_BOX, pos=[0.0, 0.0, r],
+    body.add_geom(name="mobile_base_chassis", type=mujoco.mjtGeom.mjGEOM_BOX, pos=[0.0, 0.0, r],
                   size=[0.5 * r, max(half_track - 2 * WHEEL_HALF_WIDTH, 0.01), base.chassis.half_height],
                   contype=0, conaffinity=0, group=2, rgba=[0.25, 0.27, 0.3, 1.0], mass=base.chassis.mass)
     if base.type == "holonomic":
@@ -71,7 +71,8 @@ def add_base(spec: mujoco.MjSpec, base: BaseFile, pos: tuple[float, float, float
         if base.type == "diff_drive":
             reach = max(2.5 * r, 0.25)
             for x in (reach, -reach):
-                body.add_geom(name=f"base_caster_{'front' if x > 0 else 'back'}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                body.add_geom(name=f"{BASE_BODY}_caster_{'front' if x > 0 else 'back'}",
+                              type=mujoco.mjtGeom.mjGEOM_SPHERE,
                               pos=[x, 0.0, CASTER_RADIUS], size=[CASTER_RADIUS, 0, 0], condim=1, priority=1,
                               rgba=[0.1, 0.1, 0.1, 1.0], mass=0.2)
         else:
@@ -110,7 +111,7 @@ def add_base_actuators(spec: mujoco.MjSpec, base: BaseFile) -> None:
         for name, top, force in zip(PLANAR_JOINTS, (lim.speed, lim.speed, lim.turn_rate), (2000.0, 2000.0, 800.0),
                                     strict=True):
             act = spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
-            act.set_to_velocity(kv=4000.0 if name != "base_yaw" else 1500.0)
+            act.set_to_velocity(kv=4000.0 if name != PLANAR_JOINTS[2] else 1500.0)
             act.ctrlrange, act.ctrllimited = [-top, top], 1
             act.forcerange, act.forcelimited = [-force, force], 1
         return
@@ -135,7 +136,7 @@ def ackermann(steer: float, wheelbase: float, half_track: float) -> tuple[float,
 
 
 def base_kinematic_joints(spec: mujoco.MjSpec) -> None:
-    """Replace the base's free joint by the planar joints ``base_x``, ``base_y``, ``base_yaw`` (the IK's copy)."""
+    """Replace the base's free joint by the planar joints :data:`PLANAR_JOINTS` (the IK's copy)."""
     body = spec.body(BASE_BODY)
     if body is None:
         return

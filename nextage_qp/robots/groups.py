@@ -16,12 +16,14 @@ if TYPE_CHECKING:
 def collision_geoms(robot: Robot, extra: Mapping[str, Any] | None = None) -> dict[str, tuple[int, ...]]:
     """Named groups of a robot's scene's collision geom ids (see :meth:`Robot.collision_geoms`).
 
-    Groups: the robot file's (e.g. ``left_arm``, ``left_hand``, ``torso``), ``table`` and ``obstacle`` when
-    the scene has them, one group per object (e.g. ``cube``), and the ``extra`` groups.
+    Groups: the robot file's (e.g. ``left_arm``, ``left_hand``, ``torso``), a mobile robot's ``mobile_base``
+    (its base's body, wheels and steering, not the robot on it), ``table`` and ``obstacle`` when the scene has
+    them, one group per object (e.g. ``cube``), and the ``extra`` groups.
 
     Raises:
         UnknownNameError: A group names a body that is not in the scene.
     """
+    from nextage_qp.mobile.build import BASE_BODY
     from nextage_qp.per_joint import descends
     from nextage_qp.robot import SCENE_GROUP_BODIES, GroupSpec
 
@@ -49,12 +51,25 @@ def collision_geoms(robot: Robot, extra: Mapping[str, Any] | None = None) -> dic
     groups = {
         name: group(name, GroupSpec(g.bodies, g.subtrees)) for name, g in robot.description.collision_groups.items()
     }
+    if robot.base is not None:  # the base and its wheels: every body below it but those of the robot it carries
+        carried = {b for b in range(m.nbody) if any(descends(m, b, r) for r in robot_roots(robot))}
+        groups[BASE_BODY] = of_bodies({b for b in range(m.nbody) if descends(m, b, robot.base.body)} - carried)
     for name in (*SCENE_GROUP_BODIES, *robot.object_names):
         if found := of_bodies(ids([name], False, "body")):
             groups[name] = found
     for name, spec in (extra or {}).items():
         groups[name] = group(name, spec)
     return groups
+
+
+def robot_roots(robot: Robot) -> list[int]:
+    """The top bodies of the robot a mobile base carries (the base's children that are not its wheels)."""
+    from nextage_qp.mobile.build import BASE_BODY
+
+    m = robot.model
+    base = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, BASE_BODY)
+    return [b for b in range(m.nbody) if int(m.body_parentid[b]) == base and b != base
+            and not m.body(b).name.startswith(BASE_BODY)]
 
 
 def check_arm_frames(model: mujoco.MjModel, desc: Any) -> None:
