@@ -176,3 +176,14 @@ def test_bad_base_sections_and_drive_phases_are_one_line_errors(tmp_path: Path, 
     push = str(ROOT / "configs" / "push_cube.yaml")
     assert main(["run", push, "--set", "phases=[{kind: drive, offset: [0.1, 0.0]}]"]) == 2
     assert "no base" in capsys.readouterr().err
+
+
+def test_a_holonomic_base_parks_too(tmp_path: Path) -> None:
+    robot = tmp_path / "omni.yaml"
+    robot.write_text(f"extends: {ROOT / 'robots' / 'nextage.yaml'}\nname: omni\n"
+                     "base: {type: holonomic, axle_x: -0.19, limits: {speed: 0.4, turn_rate: 0.8}}\n")
+    path = ROOT / "configs" / "park_car.yaml"
+    cfg = load_config(path, [f"robot={robot}", "phases[0].timeout=60", "scene.poses.parking_spot.pos=[1.0, -0.8, 0]"])
+    result = Runner(cfg, str(path)).run()
+    assert result["success"], result["error"]
+    assert result["base"]["type"] == "holonomic" and result["object_error_xy_m"] < 0.01
