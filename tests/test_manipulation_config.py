@@ -43,7 +43,7 @@ def test_override_into_phase_list():
 @pytest.mark.parametrize(
     "edit,message",
     [
-        (lambda d: d.update(taks="x"), "taks: unknown key; valid: estimation, faults, gains, ik, object"),
+        (lambda d: d.update(taks="x"), "taks: unknown key; valid: estimation, faults, gains, ik, mount, object"),
         (lambda d: d["phases"][0].update(tolerence=0.1), "phases[0].tolerence: unknown key; valid: accept, approach"),
         (lambda d: d["phases"][0].update(tolerance=-0.01), "phases[0].tolerance: Input should be greater than 0"),
         (lambda d: d["phases"][0].update(kind="jump"), "phases[0]: unknown kind; valid: move, push"),

@@ -1,0 +1,212 @@
+"""The Python API: what the command line does, as a few functions and small typed records.
+
+.. code-block:: python
+
+    import nextage_qp as nq
+
+    task = nq.load_task("configs/push_cube.yaml", overrides=["scene.poses.cube.yaw=0.3"])
+    result = task.run(on_tick=lambda tick: None)       # a fresh simulation per run
+    print(result.success, result.object_error_xy_m, result.phases[0]["status"])
+
+    summary = nq.run_sweep("configs/sweeps/push_cube.yaml", episodes=20, workers=2)
+    print(summary["success_rate"], summary["success_rate_ci95"])
+
+    robot = nq.load_robot("nextage_mobile")            # a robot file on an empty floor
+    nq.register_phase(MySpec, MyPhase)                 # a phase kind of your own, usable from YAML
+
+Every function raises :class:`~nextage_qp.errors.ConfigError` (with the one-line message the CLI prints) for bad
+input, before anything runs.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from nextage_qp.manipulation.config import ManipulationConfig, load_config
+from nextage_qp.manipulation.phases import Phase, Spec, register, unregister
+from nextage_qp.robot import Robot
+
+if TYPE_CHECKING:
+    from nextage_qp.manipulation.runner import Runner
+
+__all__ = ["RunResult", "Task", "Tick", "load_robot", "load_task", "register_phase", "run_sweep", "run_task",
+           "unregister_phase"]
+
+
+@dataclass(frozen=True)
+class Tick:
+    """What an ``on_tick`` hook sees after every control tick.
+
+    Attributes:
+        t: Simulated time [s].
+        phase: The running phase's name (None while the run settles after its last phase).
+        runner: The run itself: ``runner.sim`` (MuJoCo's ``data``, the measurement, the recorder),
+            ``runner.servo`` (the commanded joints), ``runner.view`` (what the phases see).
+    """
+
+    t: float
+    phase: str | None
+    runner: Runner
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """The outcome of one run (the record ``nextage-qp run --json`` prints is :attr:`record`).
+
+    Attributes:
+        success: Every phase completed and every success criterion held.
+        object_error_xy_m: The object's planar distance to its target at the end [m].
+        object_yaw_error_rad: Its yaw error modulo its symmetry [rad].
+        failed_criteria: The criteria that did not hold.
+        error: Which phase failed and why, or None.
+        phases: Per phase: name, kind, status, start and duration [s] and the phase's own figures.
+        sim_time_s, wall_time_s: Simulated and wall time of the run [s].
+        record: The whole result record.
+        runner: The finished run (its recorder holds every tick's signals: ``runner.sim.recorder.arrays()``).
+    """
+
+    success: bool
+    object_error_xy_m: float
+    object_yaw_error_rad: float
+    failed_criteria: list[str]
+    error: str | None
+    phases: list[dict[str, Any]]
+    sim_time_s: float
+    wall_time_s: float
+    record: dict[str, Any]
+    runner: Runner
+
+
+class Task:
+    """A validated task config, ready to run; each :meth:`run` builds a fresh simulation.
+
+    Args:
+        config: The validated config (:func:`load_task` makes one from a file).
+        source: Where it came from (for messages; relative paths in it are already resolved).
+    """
+
+    def __init__(self, config: ManipulationConfig, source: str = "<config>") -> None:
+        self.config, self.source = config, source
+
+    @property
+    def name(self) -> str:
+        """The config's ``task`` name."""
+        return self.config.task
+
+    def runner(self) -> Runner:
+        """A new run of the task, not started (for a caller that drives it tick by tick or adds hooks)."""
+        from nextage_qp.manipulation.runner import Runner
+
+        return Runner(self.config, self.source)
+
+    def run(self, *, on_tick: Callable[[Tick], None] | None = None) -> RunResult:
+        """Run every phase, then settle; ``on_tick`` is called after every control tick.
+
+        A task that fails (a phase gives up or times out, a criterion does not hold) returns a result with
+        ``success`` False and ``error`` saying which phase and why; it does not raise.
+
+        Raises:
+            ConfigError: The config names something the scene does not have, or a target that cannot be done at all
+                (refused before anything moves).
+        """
+        runner = self.runner()
+        hook = None
+        if on_tick is not None:
+            def hook(r: Runner, phase: Phase | None) -> None:
+                on_tick(Tick(r.sim.time, None if phase is None else phase.name, r))
+
+        record = runner.run(hook)
+        return RunResult(
+            success=bool(record["success"]), object_error_xy_m=float(record["object_error_xy_m"]),
+            object_yaw_error_rad=float(record["object_yaw_error_rad"]),
+            failed_criteria=list(record["failed_criteria"]), error=record["error"], phases=list(record["phases"]),
+            sim_time_s=float(record["sim_time_s"]), wall_time_s=float(record["wall_time_s"]), record=record,
+            runner=runner)
+
+
+def load_task(path: str | Path, *, overrides: Sequence[str] = ()) -> Task:
+    """Load and validate a task config: a path, or a bundled name (``push_cube``, ``dock_dumbbell``, ...).
+
+    ``overrides`` are ``KEY=VALUE`` strings, as ``nextage-qp run --set`` takes them
+    (``"scene.poses.cube.pos=[0.35, 0.02, 0.91]"``).
+
+    Raises:
+        ConfigError: The file is missing or invalid, or an override names a key the config does not have.
+    """
+    return Task(load_config(path, list(overrides)), str(path))
+
+
+def run_task(path: str | Path, *, overrides: Sequence[str] = (), on_tick: Callable[[Tick], None] | None = None
+             ) -> RunResult:
+    """:func:`load_task`, then :meth:`Task.run`."""
+    return load_task(path, overrides=overrides).run(on_tick=on_tick)
+
+
+def run_sweep(path: str | Path, episodes: int, *, seed: int = 0, workers: int | None = None,
+              out: str | Path | None = None, overrides: Sequence[str] = ()) -> dict[str, Any]:
+    """Run ``episodes`` randomised episodes of a sweep file (``nextage-qp sweep``) and return its summary.
+
+    The workers are spawned processes, which import the calling script again: call this under
+    ``if __name__ == "__main__":``.
+
+    Args:
+        path: The sweep file.
+        episodes: How many episodes (indices 0 to ``episodes`` - 1).
+        seed: The sweep's seed: the same seed gives the same scenes.
+        workers: Processes (default: one per core).
+        out: Folder the episode records are kept in (default: ``runs/sweeps/NAME-seedS``).
+        overrides: ``KEY=VALUE`` overrides of the base config.
+
+    Returns:
+        The summary ``nextage-qp sweep --json`` writes: ``success_rate``, ``success_rate_ci95``, error quantiles,
+        failures by phase and criterion, success per parameter bin, and a replay command per failure.
+
+    Raises:
+        ConfigError: The sweep file or an override is invalid.
+    """
+    from nextage_qp.sweep.run import plan
+    from nextage_qp.sweep.run import run_sweep as run
+    from nextage_qp.sweep.spec import SweepSpec
+    from nextage_qp.sweep.store import SweepStore
+    from nextage_qp.sweep.summary import summarize
+
+    spec = SweepSpec(path, list(overrides))
+    folder = Path(out) if out is not None else Path("runs") / "sweeps" / f"{spec.name}-seed{seed}"
+    store = SweepStore(folder, spec, seed, resume=False)
+    tasks = plan(spec, seed, range(episodes))
+    start = time.monotonic()
+    try:
+        done = run(tasks, store=store, workers=max(1, min(workers or os.cpu_count() or 1, len(tasks))))
+    finally:
+        store.close()
+    summary = summarize(spec, seed, done, session_episodes=len(done), session_wall_s=time.monotonic() - start)
+    summary["out"] = str(folder)
+    return summary
+
+
+def load_robot(ref: str | Path | None = None, *, scene: str | Path = "scene") -> Robot:
+    """A robot file (bundled name such as ``nextage``, ``yumi``, ``nextage_mobile``, or a path) in a scene.
+
+    Raises:
+        ConfigError: The robot file or the scene is invalid, or they do not compile together.
+    """
+    return Robot.from_scene(scene, robot=ref)
+
+
+def register_phase(spec: type[Spec], phase: type[Phase]) -> None:
+    """Add a phase kind that task configs loaded afterwards may use (a kind registered again is replaced).
+
+    ``spec`` is a :class:`~nextage_qp.manipulation.phases.base.Spec` with a ``kind`` literal, ``phase`` a
+    :class:`~nextage_qp.manipulation.phases.base.Phase`.
+    """
+    register(spec, phase)
+
+
+def unregister_phase(kind: str) -> None:
+    """Remove a phase kind added with :func:`register_phase`."""
+    unregister(kind)
