@@ -33,6 +33,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="write a PNG: object distance to target, tool paths, phases")
     p.add_argument("--video", type=output_file(".mp4"), metavar="MP4",
                    help="render an MP4 headless (MUJOCO_GL=egl) with debug markers")
+    p.add_argument("--rerun", type=output_file(".rrd"), metavar="RRD",
+                   help="write a Rerun recording: the scene in 3-D, joints, torques, tool frames, contact forces, "
+                        "phases, estimates (the rerun extra)")
     p.add_argument("--viewer", action="store_true", help="open the MuJoCo viewer with debug markers")
     p.set_defaults(func=run)
 
@@ -50,6 +53,12 @@ def run(args: argparse.Namespace) -> int:
 
         recorder_video = VideoRecorder(runner, args.video)
         callbacks.append(recorder_video.on_tick)
+    recording = None
+    if args.rerun:
+        from nextage_qp.viz.rerun_log import RerunRecording
+
+        recording = RerunRecording(runner, args.rerun)
+        callbacks.append(recording.on_tick)
     viewer = None
     if args.viewer:
         from nextage_qp.viz.viewer import LiveViewer
@@ -78,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
                 cb(r, phase)
 
         result = runner.run(on_tick)
-    written, failed = _write_outputs(runner, args, recorder_video)
+    written, failed = _write_outputs(runner, args, recorder_video, recording)
     if written:
         result["outputs"] = written
     if failed:
@@ -97,7 +106,8 @@ def run(args: argparse.Namespace) -> int:
     return 0 if result["success"] else 1
 
 
-def _write_outputs(runner: Runner, args: argparse.Namespace, video: Any) -> tuple[dict[str, str], list[str]]:
+def _write_outputs(runner: Runner, args: argparse.Namespace, video: Any,
+                   recording: Any = None) -> tuple[dict[str, str], list[str]]:
     """Write every output asked for; one that fails does not stop the others (nor the result)."""
     written: dict[str, str] = {}
     failed: list[str] = []
@@ -123,6 +133,12 @@ def _write_outputs(runner: Runner, args: argparse.Namespace, video: Any) -> tupl
             written["plot"] = str(args.plot)
 
         attempt("--plot", args.plot, plot)
+    if recording is not None:
+        def close_recording() -> None:
+            recording.close()
+            written["rerun"] = str(args.rerun)
+
+        attempt("--rerun", args.rerun, close_recording)
     if video is not None:
         def close_video() -> None:
             video.close()

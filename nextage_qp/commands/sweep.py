@@ -231,8 +231,8 @@ def _print_summary(s: dict[str, Any], console: Console, *, only: bool, episodes:
                           + (f"; {ep.reason}" if ep.reason else ""), markup=False)
     failed = s["failed"]
     if failed:
-        console.print(f"{len(failed)} episode(s) not successful; replay one alone with (add --plot/--video/--viewer):",
-                      markup=False)
+        console.print(f"{len(failed)} episode(s) not successful; replay one alone with "
+                      "(add --plot/--video/--rerun/--viewer):", markup=False)
         for f in failed[:10]:
             console.print(f"  [{f['index']}] {f['status']}: {f['reason']}", markup=False, soft_wrap=True)
             console.print(f"      {f['replay']['run']}", markup=False, soft_wrap=True)

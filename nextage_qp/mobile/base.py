@@ -110,6 +110,15 @@ class MobileBase:
         self._hold = None
         self.command(data, Twist(0.0, 0.0, 0.0))
 
+    def place(self, data: mujoco.MjData, pose: tuple[float, float, float] | np.ndarray) -> None:
+        """Put the base at a planar pose (x, y [m], yaw [rad]) in ``data`` (kinematics must be run afterwards)."""
+        x, y, yaw = (float(v) for v in pose)
+        if self.type == "holonomic":
+            data.qpos[self.planar_qpos] = x, y, yaw
+            return
+        data.qpos[self.free_qpos : self.free_qpos + 2] = x, y
+        data.qpos[self.free_qpos + 3 : self.free_qpos + 7] = math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)
+
     def pose(self, data: mujoco.MjData) -> Pose2:
         """The true planar pose of the base's reference point (the driven axle's middle)."""
         if self.type == "holonomic":

@@ -56,6 +56,7 @@ class CameraMeasurer:
         self.counts = {n: dict.fromkeys((*STATUSES, "partly_occluded"), 0) for n in robot.object_names}
         self.ms: dict[str, list[float]] = {"render": [], "estimate": []}
         self.dumped = cfg.dump is None
+        self.last: tuple[float, np.ndarray] | None = None
 
     @property
     def rate_hz(self) -> float:
@@ -75,6 +76,7 @@ class CameraMeasurer:
         expected = self.camera.expected()
         t1 = time.perf_counter()
         frame = Frame(depth, expected, self.camera.K, pos, rot)
+        self.last = (t, depth)  # the latest depth image [m] and its time [s] (for recordings)
         detections = self.estimator.estimate(frame, priors)
         self.ms["render"].append((t1 - t0) * 1e3)
         self.ms["estimate"].append((time.perf_counter() - t1) * 1e3)
