@@ -85,10 +85,14 @@ def bench_success(robot: Robot, n: int, seed: int) -> dict[str, dict[str, dict[s
     return out
 
 
-def bench_step(robot: Robot, n: int, seed: int, collisions: bool) -> dict[str, float]:
+def bench_step(robot: Robot, n: int, seed: int, collisions: bool,
+               given: tuple[CollisionPairConfig, ...] | None = None) -> dict[str, float]:
     rng = np.random.default_rng(seed)
-    chosen = pairs(robot)
-    configs = tuple(CollisionPairConfig(a=a, b=b, min_distance=0.005, detection_distance=0.05) for a, b in chosen)
+    if given is not None:  # a task config's own pairs, with their distances
+        configs, chosen = given, [(p.a, p.b) for p in given]
+    else:
+        chosen = pairs(robot)
+        configs = tuple(CollisionPairConfig(a=a, b=b, min_distance=0.005, detection_distance=0.05) for a, b in chosen)
     cfg = IKConfig(velocity_limit=1.0, collision_pairs=configs if collisions else ())
     ours = QPIK(robot, cfg)
     model, dt = ours.model, 0.004
@@ -104,9 +108,13 @@ def bench_step(robot: Robot, n: int, seed: int, collisions: bool) -> dict[str, f
         mink.ConfigurationLimit(model, gain=cfg.limit_gain),
         mink.VelocityLimit(model, {j: 1.0 for j in (model.joint(i).name for i in range(model.njnt))}),
     ]
-    if collisions:
-        geom_pairs = [(list(groups[a]), list(groups[b])) for a, b in chosen]
-        limits.append(mink.CollisionAvoidanceLimit(model, geom_pairs, 0.85, 0.005, 0.05))
+    if collisions:  # mink's limit takes one minimum and detection distance: one limit per distinct pair of them
+        by_distances: dict[tuple[float, float], list[tuple[list[int], list[int]]]] = {}
+        for c in configs:
+            by_distances.setdefault((c.min_distance, c.detection_distance), []).append(
+                (list(groups[c.a]), list(groups[c.b])))
+        for (dmin, ddet), geom_pairs in by_distances.items():
+            limits.append(mink.CollisionAvoidanceLimit(model, geom_pairs, 0.85, dmin, ddet))
     home = robot.keyframe_q("home")
     kin = Kinematics(robot)
     ours_us, mink_us, active, queries = [], [], [], []
@@ -157,6 +165,8 @@ def main() -> None:
     parser.add_argument("--robot", default=None, help="robot file or bundled name (default: nextage)")
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON ('-' for stdout only)")
     parser.add_argument("--step-only", action="store_true", help="time the IK step only (skip the success sets)")
+    parser.add_argument("--pairs-of", metavar="CONFIG", default=None,
+                        help="also time the step with a task config's collision pairs (configs/dock_dumbbell.yaml)")
     args = parser.parse_args()
     robot = Robot.from_scene(args.scene, robot=args.robot)
     machine = {"platform": platform.platform(), "python": platform.python_version(), "cpu_count": os.cpu_count(),
@@ -165,6 +175,11 @@ def main() -> None:
     start = time.perf_counter()
     step = {"two_wrists_posture_limits": bench_step(robot, args.steps, args.seed, False),
             "plus_collision_pairs": bench_step(robot, args.steps, args.seed, True)}  # fmt: skip
+    if args.pairs_of:
+        from nextage_qp.manipulation.config import load_config
+
+        task = load_config(args.pairs_of)
+        step[f"pairs_of_{task.task}"] = bench_step(robot, args.steps, args.seed, True, task.ik.collision_pairs)
     success = {} if args.step_only else bench_success(robot, args.targets, args.seed)
     report = {"robot": robot.name, "machine": machine, "targets": args.targets, "seed": args.seed, "step": step,
               "success": success, "wall_s": time.perf_counter() - start}  # fmt: skip
