@@ -63,14 +63,14 @@ def test_cli_errors_are_one_line_exit_2(capsys, argv, message):
     assert err.count("\n") == 1 and "Traceback" not in err
 
 
-def test_readme_synopsis_names_every_option_of_every_command():
+def test_docs_synopsis_names_every_option_of_every_command():
     import argparse
     from pathlib import Path
 
     from nextage_qp.cli import build_parser
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    block = readme[readme.index("## Command line"):]
+    readme = (Path(__file__).resolve().parents[1] / "docs" / "getting-started.md").read_text()
+    block = readme[readme.index("## The command line"):]
     block = block[block.index("```") + 3:]
     block = block[: block.index("```")]
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
@@ -81,7 +81,7 @@ def test_readme_synopsis_names_every_option_of_every_command():
         text = line if nxt < 0 else line[:nxt]
         missing += [f"{name} {o}" for a in parser._actions for o in a.option_strings
                     if o.startswith("--") and o != "--help" and o not in text]
-    assert not missing, f"README synopsis lacks: {missing}"
+    assert not missing, f"the synopsis in docs/getting-started.md lacks: {missing}"
 
 
 def test_version(capsys):

@@ -115,8 +115,7 @@ class RerunRecording:
         rec_arrays = runner.sim.recorder.arrays()
         times = rec_arrays["t"]
         if not len(times):
-            rec.flush()
-            return
+            return rec.flush()
         idx = [rr.TimeColumn(TIMELINE, duration=times)]
         names = runner.robot.joint_names
         for j, name in enumerate(names):
@@ -244,7 +243,7 @@ def _log_geoms(rr: Any, rec: Any, path: str, m: mujoco.MjModel, geoms: list[int]
             item = rr.Ellipsoids3D(half_sizes=[size], centers=[pos], quaternions=[quat], colors=[color],
                                    fill_mode="solid")
         elif kind == mujoco.mjtGeom.mjGEOM_CAPSULE:  # rerun's capsule starts at its origin and runs along +z
-            start = pos - _rotate(m.geom_quat[g], np.array([0.0, 0.0, size[1]]))
+            start = pos - _matrix(m.geom_quat[g]) @ np.array([0.0, 0.0, size[1]])
             item = rr.Capsules3D(lengths=[2 * size[1]], radii=[size[0]], translations=[start], quaternions=[quat],
                                  colors=[color])
         elif kind == mujoco.mjtGeom.mjGEOM_CYLINDER:
@@ -269,10 +268,6 @@ def _matrix(quat: np.ndarray) -> np.ndarray:
     out = np.empty(9)
     mujoco.mju_quat2Mat(out, quat)
     return out.reshape(3, 3)
-
-
-def _rotate(quat: np.ndarray, v: np.ndarray) -> np.ndarray:
-    return _matrix(quat) @ v
 
 
 __all__ = ["FORCE_SCALE", "TIMELINE", "RerunRecording"]
