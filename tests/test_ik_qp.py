@@ -129,6 +129,8 @@ def test_memo_returns_the_same_solve_without_iterating(robot: Robot, kin: Kinema
                          direction=np.array([1.0, 0, 0]))]
     memo.solve(other, home)
     memo.solve(target, home, object_poses={"dumbbell": (np.array([0.5, 0.1, 1.0]), np.array([1.0, 0, 0, 0]))})
+    memo.step(home, [], 0.02, posture=nudged)  # a step that moved the posture target: the redundancy heads elsewhere
+    memo.solve(target, home)
     assert memo.memo.hits == 1
 
 

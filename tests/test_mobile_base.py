@@ -107,12 +107,17 @@ def test_path_around_an_obstacle_keeps_its_clearance() -> None:
     assert around(np.array([0.0, 0.0]), np.array([2.0, 0.1]), [(2.0, 0.1, 0.8)]) is None  # the goal inside
 
 
-@pytest.mark.slow
-def test_fetch_push_drives_around_the_crate_and_pushes_the_cube() -> None:
-    path = ROOT / "configs" / "fetch_push.yaml"
+def _run(config: str) -> tuple[Runner, dict]:
+    path = ROOT / "configs" / config
     runner = Runner(load_config(path), str(path))
     result = runner.run()
     assert result["success"], result["error"]
+    return runner, result
+
+
+@pytest.mark.slow
+def test_fetch_push_drives_around_the_crate_and_pushes_the_cube() -> None:
+    _, result = _run("fetch_push.yaml")
     assert result["object_error_xy_m"] < 0.005 and result["obstacle_contacts"] == 0
     base = result["base"]
     assert base["max_lateral_speed_m_s"] < 0.01 and base["sliding_ticks"] == 0
@@ -123,10 +128,7 @@ def test_fetch_push_drives_around_the_crate_and_pushes_the_cube() -> None:
 
 @pytest.mark.slow
 def test_car_parks_within_5cm_and_5deg_never_turning_tighter_than_it_can() -> None:
-    path = ROOT / "configs" / "park_car.yaml"
-    runner = Runner(load_config(path), str(path))
-    result = runner.run()
-    assert result["success"], result["error"]
+    runner, result = _run("park_car.yaml")
     assert result["object_error_xy_m"] <= 0.05 and result["object_yaw_error_rad"] <= math.radians(5)
     base = runner.robot.base
     assert base is not None and base.bicycle is not None and runner.sim.base is not None

@@ -34,6 +34,7 @@ class QPSolver:
         self.solver, self.n = solver, n
         self._direct = solver == "daqp" and daqp is not None
         self._no_rows = np.zeros((0, n))
+        self._eq_rows = 0  # equality rows of the last call (their senses are in _sense)
         self._resize(16)
 
     def _resize(self, rows: int) -> None:
@@ -48,30 +49,25 @@ class QPSolver:
         if not self._direct:
             result = qpsolvers.solve_problem(qpsolvers.Problem(H, c, G, h, A, b, lb=lb, ub=ub), solver=self.solver)
             return result.x if result.found else None
-        if A is not None and b is not None:  # DAQP: equalities are rows with equal bounds and sense 5
-            return self._solve_with_equalities(H, c, lb, ub, G, h, A, b)
         n = self.n
-        rows = 0 if G is None or h is None else len(h)
+        eq = 0 if A is None or b is None else len(b)  # equalities first: rows with equal bounds and sense 5
+        ineq = 0 if G is None or h is None else len(h)
+        rows = eq + ineq
         if n + rows > len(self._upper):
             self._resize(2 * rows)
-        upper, lower = self._upper[: n + rows], self._lower[: n + rows]
+        upper, lower, sense = self._upper[: n + rows], self._lower[: n + rows], self._sense[: n + rows]
         upper[:n], lower[:n] = ub, lb
-        lower[n:] = _NO_LOWER
-        if rows:
-            upper[n:] = h
-        a_mat = self._no_rows if not rows else np.ascontiguousarray(G)
-        x, _, exitflag, _ = daqp.solve(H, c, a_mat, upper, lower, self._sense[: n + rows])
-        return x if exitflag > 0 else None
-
-
-    def _solve_with_equalities(self, H: np.ndarray, c: np.ndarray, lb: np.ndarray, ub: np.ndarray,
-                               G: np.ndarray | None, h: np.ndarray | None, A: np.ndarray,
-                               b: np.ndarray) -> np.ndarray | None:
-        assert daqp is not None
-        rows = [A] if G is None or h is None else [A, G]
-        upper = np.r_[ub, b, () if h is None else h]
-        lower = np.r_[lb, b, np.full(0 if h is None else len(h), _NO_LOWER)]
-        sense = np.zeros(len(upper), dtype=np.int32)
-        sense[self.n : self.n + len(b)] = EQUALITY
-        x, _, exitflag, _ = daqp.solve(H, c, np.ascontiguousarray(np.vstack(rows)), upper, lower, sense)
+        if eq or self._eq_rows:  # equality senses set, or left by the last call, in the reused vector
+            self._sense[n:] = 0
+            sense[n : n + eq] = EQUALITY
+            upper[n : n + eq] = lower[n : n + eq] = b
+            self._eq_rows = eq
+        lower[n + eq :] = _NO_LOWER
+        if ineq:
+            upper[n + eq :] = h
+        if not eq:
+            a_mat = np.ascontiguousarray(G) if ineq else self._no_rows
+        else:
+            a_mat = np.ascontiguousarray(np.vstack([m for m in (A, G) if m is not None]) if ineq else A)
+        x, _, exitflag, _ = daqp.solve(H, c, a_mat, upper, lower, sense)
         return x if exitflag > 0 else None

@@ -157,7 +157,7 @@ class QPIK(OfflineSolver):
             self._posture_goal = goal
         if object_poses:
             set_object_poses(self.model, self.configuration.data, object_poses, self._mocap)
-        self.configuration.update(self._full(np.asarray(q, dtype=float)))
+        self.load(q)
         v = self._step(targets, dt, [*self.tasks.relative(relative), *extra], base=base)
         if not self.nb:
             return v

@@ -36,6 +36,7 @@ class OfflineSolver:
     configuration: mink.Configuration
     collision: ActiveCollisionLimit | None
     box: JointBoxLimit
+    posture: mink.PostureTask
     memo: SolveMemo | None
     nb: int
     base_pose: np.ndarray
@@ -106,7 +107,7 @@ class OfflineSolver:
         key = None
         if self.memo is not None and not extra_tasks:  # a mink task's inputs are not all visible: not remembered
             data = self.configuration.data
-            key = self.memo.key(targets, q0, (data.mocap_pos, data.mocap_quat, self.base_pose,
+            key = self.memo.key(targets, q0, (data.mocap_pos, data.mocap_quat, self.base_pose, self.posture.target_q,
                                               *(good_enough or (None,)), *(accept or (None,))),
                                 (str(max_iters), *sorted(allow)))
             found = self.memo.get(key)

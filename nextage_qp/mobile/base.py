@@ -166,7 +166,8 @@ class MobileBase:
         if self.type == "holonomic":
             scale = min(1.0, lim.speed / max(math.hypot(vx, vy), 1e-12), lim.turn_rate / max(abs(w), 1e-12))
             vx, vy, w = vx * scale, vy * scale, w * scale
-            c, s = math.cos(self.pose(data).yaw), math.sin(self.pose(data).yaw)
+            yaw = self.pose(data).yaw
+            c, s = math.cos(yaw), math.sin(yaw)
             data.ctrl[self.actuators] = (c * vx - s * vy, s * vx + c * vy, w)
             self.command_twist = Twist(vx, vy, w)
             return self.command_twist

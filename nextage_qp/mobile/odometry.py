@@ -111,7 +111,7 @@ LATERAL_LIMIT = 0.01
 
 
 def base_report(log: list[tuple[float, ...]], base: MobileBase) -> dict[str, object]:
-    """What a run's base did, from the simulation's per-tick log (``Simulation.base_log``).
+    """What a run's base did, from the simulation's per-tick log (:attr:`BaseTrack.log`).
 
     Distance driven (true), final true and odometry poses, the odometry's drift (position [m], heading [rad]),
     the largest true lateral speed of the reference point [m/s], and wheel slip: the ticks whose lateral speed

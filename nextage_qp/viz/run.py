@@ -73,9 +73,9 @@ def plot_run(runner: Runner, path: Path) -> None:
     rec = runner.sim.recorder.arrays()
     t = rec["t"]
     key = f"object_{runner.cfg.object}"
-    if key not in rec and runner.sim.base is not None and runner.sim.base.log:  # the object is the robot's base
-        log = np.array(runner.sim.base.log)
-        t, obj = log[:, 0], np.c_[log[:, 1:3], np.zeros(len(log))]
+    base = np.array(runner.sim.base.log) if runner.sim.base is not None and runner.sim.base.log else None
+    if key not in rec and base is not None:  # the object is the robot's base
+        t, obj = base[:, 0], np.c_[base[:, 1:3], np.zeros(len(base))]
     else:
         obj = rec[key][:, :3]
     tgt = runner.view.body_pose(runner.cfg.target).pos
@@ -98,8 +98,7 @@ def plot_run(runner: Runner, path: Path) -> None:
         if key in rec:
             ax2.plot(rec[key][:, 0], rec[key][:, 1], lw=1, label=frame)
     ax2.plot(*tgt[:2], "g*", ms=14, label="target")
-    if runner.sim.base is not None and runner.sim.base.log:  # where the base went, and where odometry says it went
-        base = np.array(runner.sim.base.log)
+    if base is not None:  # where the base went, and where odometry says it went
         ax2.plot(base[:, 1], base[:, 2], color="0.35", lw=2.5, alpha=0.6, label="base (true)")
         ax2.plot(base[:, 4], base[:, 5], color="m", lw=1, ls="--", label="base (odometry)")
     groups = runner.robot.collision_geoms()
