@@ -149,6 +149,18 @@ class ActiveCollisionLimit(mink.Limit):
             kept[i, 0] = distance(model, data, geom1[i], geom2[i], detect[i] + margin, fromto[i])
         return kept[pairs, 0]
 
+    def clear(self, data: mujoco.MjData) -> bool:
+        """Whether every watched pair is at or above its minimum distance at ``data``'s configuration.
+
+        Only pairs whose distance bound (:attr:`bounds`) is below their minimum are measured; the measurements are
+        kept for the next call's rows.
+        """
+        lower = self.bounds.lower(data)
+        check = np.flatnonzero((lower < self.min_distance) & self.enabled)
+        dists = self.measure(data, check)
+        self.bounds.remember(check, dists, exact=True)
+        return bool((dists >= self.min_distance.take(check) - 1e-6).all())
+
     def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
         """Rows of the pairs that can bind only; an inactive constraint when there are none."""
         model, data = self.model, configuration.data

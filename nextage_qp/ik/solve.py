@@ -2,7 +2,8 @@
 
 A descent integrates the QP's steps (``config.dt``) with a collision-safe step (:func:`~nextage_qp.ik.safe_step.
 advance`) until every target is within tolerance, the cap, or a stall; seeded random restarts escape local minima;
-a relaxation gate skips restarts a target out of reach could never use; a memo answers repeated questions.
+a relaxation gate tries each start without collision rows first (cheap), keeping its answer where that is clear of
+every pair and giving the start up where it misses; a memo answers repeated questions.
 """
 
 from __future__ import annotations
@@ -23,8 +24,8 @@ from nextage_qp.ik.safe_step import advance
 from nextage_qp.ik.targets import FrameTarget, IKResult, worst_errors
 
 RELAXED_MARGIN = 2.0
-"""The relaxation gate of :meth:`QPIK.solve` gives up on a target the search without collision rows misses by more
-than this many times the accepted errors."""
+"""The relaxation gate of :meth:`QPIK.solve` gives up on a start whose descent without collision rows misses the
+targets by more than this many times the accepted errors."""
 
 
 class OfflineSolver:
@@ -75,13 +76,14 @@ class OfflineSolver:
         found; no exception. A step that would bring a watched collision pair below its minimum distance is
         halved until it does not.
 
-        **Relaxation gate** (with ``accept`` and collision pairs). When the first descent misses, the same search
-        (same start, same restarts) runs first on the relaxed problem without collision rows, whose steps cost a
-        fraction as much (no distance queries, no collision-safe halving). Collision rows only shrink the set of
-        reachable configurations, so a target the relaxed search misses by more than ``RELAXED_MARGIN`` times the
-        accepted errors is out of reach with them too: the collision-aware restarts are skipped and the best of the
-        first descent is returned. (The margin because both searches are local: on the sweeps, a relaxed miss below
-        the accepted error itself was sometimes beaten by the collision-aware restarts, never one above it.)
+        **Relaxation gate** (with ``accept`` and collision pairs). When the first descent misses, every start (the
+        first, then each restart) gets a descent on the relaxed problem without collision rows first, whose steps
+        cost a fraction as much (no distance queries, no collision-safe halving). A relaxed descent that misses the
+        targets by more than ``RELAXED_MARGIN`` times the accepted errors gives its start up: collision rows only
+        shrink what a descent can reach (on the sweeps, the collision-aware descent from such a start never reached
+        the targets). One that reaches them clear of every watched pair is an answer in itself: it meets every
+        constraint the rows keep. Only one that reaches them through a collision gets the collision-aware descent
+        from its start.
 
         Args:
             targets: Frame targets, solved together in one QP per step.
@@ -123,21 +125,27 @@ class OfflineSolver:
         starts = _Starts(self._full(np.array(q0, dtype=float)), moving, self.box.lower[self.nb :],
                          self.box.upper[self.nb :], cfg.restarts + 1, cfg.seed)
         cap = max_iters or cfg.max_iters
-        for attempt, q in enumerate(starts):
-            score, q_best, pos_err, rot_err, iters, status = self._descend(targets, frames, q, cap, extra_tasks)
+        gated = self.collision is not None and accept is not None and starts.count > 1
+        within = (RELAXED_MARGIN * accept[0], RELAXED_MARGIN * accept[1]) if accept is not None else (0.0, 0.0)
+        # Per start: the collision-aware descent; with the gate, for every start after the first, the gate decides
+        # (the first start's relaxed descent runs after its collision-aware one, as its first restart would).
+        plan = [(q, "descend") for q in starts] if not gated else \
+            [(starts[0], "descend"), (starts[0], "relaxed")] + [(q, "gate") for q in list(starts)[1:]]
+        for q, how in plan:
+            if how == "descend":
+                outcome = self._descend(targets, frames, q, cap, extra_tasks)
+                iters = outcome[4]
+            else:
+                outcome, iters = self._gated(targets, frames, q, cap, extra_tasks, within, descended=how == "relaxed")
             total += iters
-            if best is None or score < best[0]:
-                best = (score, q_best, pos_err, rot_err, status)
-            if status == "converged":
+            if outcome is None:
+                continue
+            if best is None or outcome[0] < best[0]:
+                best = (outcome[0], outcome[1], outcome[2], outcome[3], outcome[5])
+            if outcome[5] == "converged":
                 break
             if good_enough is not None and best[2] <= good_enough[0] and best[3] <= good_enough[1]:
                 break
-            if attempt == 0 and starts.count > 1 and self.collision is not None and accept is not None:
-                reached, iters = self._relaxed_reach(targets, frames, starts, cap, extra_tasks,
-                                                     (RELAXED_MARGIN * accept[0], RELAXED_MARGIN * accept[1]))
-                total += iters
-                if not reached:
-                    break
         assert best is not None
         _, q_best, pos_err, rot_err, status = best
         self.configuration.update(q_best)
@@ -147,29 +155,40 @@ class OfflineSolver:
             self.memo.put(key, result)
         return result
 
-    def _relaxed_reach(
+    def _gated(
         self,
         targets: Sequence[FrameTarget],
         frames: Sequence[Frame],
-        starts: _Starts,
+        q0: np.ndarray,
         cap: int,
         extra_tasks: Sequence[mink.Task],
         within: tuple[float, float],
-    ) -> tuple[bool, int]:
-        """Whether the search from ``starts`` without collision rows comes ``within`` the targets: (reached, iters).
+        *,
+        descended: bool,
+    ) -> tuple[tuple[float, np.ndarray, float, float, int, str] | None, int]:
+        """One start of the relaxation gate: (the start's outcome or None, iterations of every descent it ran).
 
-        ``within``: position [m] and orientation [rad] errors.
+        The descent without collision rows comes first. Missing the targets by more than ``within`` (position [m],
+        orientation [rad]): None, the start is given up. Reaching them clear of every watched pair: that solution is
+        the outcome (it meets the constraints the collision rows keep). Reaching them through a collision: the
+        collision-aware descent from the same start is the outcome, unless ``descended`` (it has run already).
         """
-        collision, self.collision, total = self.collision, None, 0
+        collision, self.collision = self.collision, None
         try:
-            for q in starts:
-                _, _, pos_err, rot_err, iters, status = self._descend(targets, frames, q, cap, extra_tasks)
-                total += iters
-                if status == "converged" or (pos_err <= within[0] and rot_err <= within[1]):
-                    return True, total
-            return False, total
+            relaxed = self._descend(targets, frames, q0, cap, extra_tasks)
         finally:
             self.collision = collision
+        assert collision is not None
+        _, q_relaxed, pos_err, rot_err, iters, _ = relaxed
+        if pos_err > within[0] or rot_err > within[1]:
+            return None, iters
+        self.configuration.update(q_relaxed)
+        if collision.clear(self.configuration.data):
+            return relaxed, iters
+        if descended:
+            return None, iters
+        outcome = self._descend(targets, frames, q0, cap, extra_tasks)
+        return outcome, iters + outcome[4]
 
     def _descend(
         self,
