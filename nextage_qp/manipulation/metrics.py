@@ -75,6 +75,7 @@ class OutcomeMonitor:
         sensor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, touch_sensor("obstacle"))
         self._touch = None if sensor < 0 else slice(int(m.sensor_adr[sensor]), int(m.sensor_adr[sensor]) + 2)
         self._watch = True  # something may touch the obstacle before the next tick: check every physics step
+        self._held: tuple[Grip, list[tuple[str, int]], int, np.ndarray] | None = None
 
     def attach(self, sim: Simulation) -> None:
         """Register the monitor's hooks with a simulation.
@@ -146,14 +147,14 @@ class OutcomeMonitor:
         """Flag a drop when the clamped object is far from the midpoint of the clamp pads (true poses)."""
         if len(grip.frames) < 2:
             return
-        d = sim.data
-        mid = np.zeros(3)
-        for f in grip.frames[:2]:
-            kind, fid = self.robot.frame(f)
+        if self._held is None or self._held[0] is not grip:  # ids and the pads' mean offset, once per grip
+            frames = [self.robot.frame(f) for f in grip.frames[:2]]
+            self._held = (grip, frames, self.model.body(grip.object).id,
+                          np.mean([grip.offsets[p] for p in grip.frames[:2]], axis=0))
+        (_, frames, bid, offset), d, mid = self._held, sim.data, np.zeros(3)
+        for kind, fid in frames:
             mid += 0.5 * (d.site_xpos[fid] if kind == "site" else d.xpos[fid])
-        bid = self.model.body(grip.object).id
-        rot = d.xmat[bid].reshape(3, 3)
-        expected = d.xpos[bid] + rot @ np.mean([grip.offsets[p] for p in grip.frames[:2]], axis=0)
+        expected = d.xpos[bid] + d.xmat[bid].reshape(3, 3) @ offset
         if np.linalg.norm(mid - expected) > self.drop_distance:
             self.dropped = True
 
