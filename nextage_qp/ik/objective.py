@@ -13,9 +13,11 @@ take a short path: a :class:`mink.FrameTask` and a :class:`mink.RelativeFrameTas
 buffers with mink's own compiled SE(3) operations, exactly as mink's tasks compute them (frame: the error
 :math:`\epsilon = T^* \ominus T`, the Jacobian :math:`-J_{log}(T^{*-1} T)\,{}_B J`; relative: the error
 :math:`\epsilon = T_{rf} \ominus T^*` of the frame in the root's frame, the Jacobian
-:math:`J_{log}(T^{*-1} T_{rf})\,({}_f J_f - \mathrm{Ad}(T_{rf}^{-1})\,{}_r J_r)`), and a :class:`mink.PostureTask`
+:math:`J_{log}(T^{*-1} T_{rf})\,({}_f J_f - \mathrm{Ad}(T_{rf}^{-1})\,{}_r J_r)`; axis-align: the error
+:math:`a - R^T t`, the Jacobian :math:`-[R^T t]_\times\,{}_B J_\omega`, in three of its six rows), and a
+:class:`mink.PostureTask`
 (Jacobian :math:`I`) adds :math:`C^2` to the diagonal of :math:`H` instead of stacking an identity. Every other
-task (axis alignment, a user's own) goes through its ``compute_qp_residual`` (or ``compute_qp_objective``) as in
+task (a look-at, a user's own) goes through its ``compute_qp_residual`` (or ``compute_qp_objective``) as in
 mink.
 """
 
@@ -60,7 +62,7 @@ class _Frame:
         return np.matmul(_native.se3_rotation_adjoint_from_xmat(xmat), jac, out=out)
 
 
-_FAST = (mink.FrameTask, mink.RelativeFrameTask)
+_FAST = (mink.FrameTask, mink.RelativeFrameTask, mink.AxisAlignTask)
 
 
 class Objective:
@@ -115,6 +117,20 @@ class Objective:
                 local = f.local_jacobian(model, data, scratch, xmat, self._local)
                 np.matmul(_native.se3_jlog(_native.se3_inverse_multiply(goal, pose)), local, out=rows)
                 np.negative(rows, out=rows)  # J = -J_log(T*^-1 T) B_J
+            elif isinstance(task, mink.AxisAlignTask):  # rows 0-2: -[d]x J_w with d = R^T t; rows 3-5 zero
+                if task.target_dir is None:
+                    raise mink.TargetNotSet(type(task).__name__)
+                f = self._frame(task.frame_name, task.frame_type)
+                _, xmat = f.pose(data)
+                d = xmat.reshape(3, 3).T @ task.target_dir
+                local = f.local_jacobian(model, data, scratch, xmat, self._local)
+                skew = np.array([[0.0, -d[2], d[1]], [d[2], 0.0, -d[0]], [-d[1], d[0], 0.0]])
+                np.matmul(skew, local[3:], out=rows[:3])
+                np.negative(rows[:3], out=rows[:3])
+                rows[3:] = 0.0
+                error[k, :3], error[k, 3:] = task.axis - d, 0.0
+                cost[k, :3], cost[k, 3:], scale[k], lm[k] = task.cost, 0.0, task.gain, task.lm_damping
+                continue
             else:
                 assert isinstance(task, mink.RelativeFrameTask)
                 target = task.transform_target_to_root
