@@ -16,11 +16,9 @@ from __future__ import annotations
 import argparse
 from collections import Counter
 
-import numpy as np
-
 import nextage_qp as nq
 from nextage_qp.ik import solve as solve_module
-from nextage_qp.ik.model import chain_dofs, set_object_poses
+from nextage_qp.ik.model import set_object_poses
 from nextage_qp.sweep.run import plan
 from nextage_qp.sweep.spec import SweepSpec
 
@@ -32,12 +30,8 @@ def examine(ik, targets, q0, kwargs, counts: Counter) -> None:
         set_object_poses(ik.model, ik.configuration.data, kwargs["object_poses"], ik._mocap)
     ik.collision.allow(ik._allowed(kwargs.get("allow", frozenset())))
     frames = [ik.frame(t.frame) for t in targets]
-    moving = np.any([chain_dofs(ik.model, f) for f in frames], axis=0)
-    moving[: ik.nb] = False
-    cfg = ik.config
-    starts = solve_module._Starts(ik._full(np.array(q0, dtype=float)), moving, ik.box.lower[ik.nb :],
-                                  ik.box.upper[ik.nb :], cfg.restarts + 1, cfg.seed)
-    cap = kwargs.get("max_iters") or cfg.max_iters
+    starts = ik.starts(frames, q0)
+    cap = kwargs.get("max_iters") or ik.config.max_iters
     margin = solve_module.RELAXED_MARGIN
     for k, q in enumerate(starts):
         _, _, pos, rot, _, _ = ik._descend(targets, frames, q, cap, ())

@@ -122,12 +122,7 @@ class OfflineSolver:
                 return found._replace(time_s=time.perf_counter() - start)
         frames = [self.frame(t.frame) for t in targets]
         total, best = 0, None
-        # Restarts re-draw only the joints that move a target frame; the others keep their q0 values (and a mobile
-        # robot's base stays where it is: a solve plans the arms).
-        moving = np.any([chain_dofs(self.model, f) for f in frames], axis=0)
-        moving[: self.nb] = False
-        starts = _Starts(self._full(np.array(q0, dtype=float)), moving, self.box.lower[self.nb :],
-                         self.box.upper[self.nb :], cfg.restarts + 1, cfg.seed)
+        starts = self.starts(frames, q0)
         cap = max_iters or cfg.max_iters
         if self.collision is not None and accept is not None:
             best, total = self._gated_search(targets, frames, starts, cap, extra_tasks, good_enough, accept)
@@ -147,6 +142,17 @@ class OfflineSolver:
         if key is not None and self.memo is not None:
             self.memo.put(key, result)
         return result
+
+    def starts(self, frames: Sequence[Frame], q0: np.ndarray) -> _Starts:
+        """The starts of a solve for ``frames`` from ``q0``: ``q0``, then ``config.restarts`` seeded random ones.
+
+        Restarts re-draw only the joints that move a target frame; the others keep their ``q0`` values (and a mobile
+        robot's base stays where it is: a solve plans the arms).
+        """
+        moving = np.any([chain_dofs(self.model, f) for f in frames], axis=0)
+        moving[: self.nb] = False
+        return _Starts(self._full(np.array(q0, dtype=float)), moving, self.box.lower[self.nb :],
+                       self.box.upper[self.nb :], self.config.restarts + 1, self.config.seed)
 
     def _gated_search(
         self,
