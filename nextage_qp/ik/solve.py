@@ -9,7 +9,7 @@ every pair and giving the start up where it misses; a memo answers repeated ques
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 
 import mink
 import mujoco
@@ -21,6 +21,7 @@ from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.ik.memo import SolveMemo
 from nextage_qp.ik.model import Frame, ObjectPoses, chain_dofs, set_object_poses
 from nextage_qp.ik.safe_step import advance
+from nextage_qp.ik.starts import Starts
 from nextage_qp.ik.targets import FrameTarget, IKResult, worst_errors
 
 RELAXED_MARGIN = 2.0
@@ -143,7 +144,7 @@ class OfflineSolver:
             self.memo.put(key, result)
         return result
 
-    def starts(self, frames: Sequence[Frame], q0: np.ndarray) -> _Starts:
+    def starts(self, frames: Sequence[Frame], q0: np.ndarray) -> Starts:
         """The starts of a solve for ``frames`` from ``q0``: ``q0``, then ``config.restarts`` seeded random ones.
 
         Restarts re-draw only the joints that move a target frame; the others keep their ``q0`` values (and a mobile
@@ -151,14 +152,14 @@ class OfflineSolver:
         """
         moving = np.any([chain_dofs(self.model, f) for f in frames], axis=0)
         moving[: self.nb] = False
-        return _Starts(self._full(np.array(q0, dtype=float)), moving, self.box.lower[self.nb :],
+        return Starts(self._full(np.array(q0, dtype=float)), moving, self.box.lower[self.nb :],
                        self.box.upper[self.nb :], self.config.restarts + 1, self.config.seed)
 
     def _gated_search(
         self,
         targets: Sequence[FrameTarget],
         frames: Sequence[Frame],
-        starts: _Starts,
+        starts: Starts,
         cap: int,
         extra_tasks: Sequence[mink.Task],
         good_enough: tuple[float, float] | None,
@@ -251,30 +252,3 @@ class OfflineSolver:
 def _within(best: tuple[float, np.ndarray, float, float, str] | None, errors: tuple[float, float] | None) -> bool:
     """Whether ``best`` (score, q, position error, orientation error, status) is within ``errors``."""
     return best is not None and errors is not None and best[2] <= errors[0] and best[3] <= errors[1]
-
-
-class _Starts:
-    """Start configurations of the descents: ``q0``, then ``count - 1`` seeded random restarts, drawn when used.
-
-    Restarts re-draw only the ``moving`` joints (within ``lower``/``upper``, given for the last joints only where
-    ``q0`` starts with a mobile robot's base variables); the others keep their ``q0`` values.
-    """
-
-    def __init__(self, q0: np.ndarray, moving: np.ndarray, lower: np.ndarray, upper: np.ndarray, count: int,
-                 seed: int) -> None:
-        self.q0, self.moving, self.lower, self.upper, self.count = q0, moving, lower, upper, count
-        self._rng = np.random.default_rng(seed)
-        self._drawn: list[np.ndarray] = [q0]
-
-    def __getitem__(self, k: int) -> np.ndarray:
-        if not 0 <= k < self.count:
-            raise IndexError(k)
-        while len(self._drawn) <= k:
-            fixed = len(self.q0) - len(self.lower)  # a mobile robot's base variables: never drawn
-            drawn = np.r_[self.q0[:fixed], self._rng.uniform(self.lower, self.upper)] if fixed else \
-                self._rng.uniform(self.lower, self.upper)
-            self._drawn.append(np.where(self.moving, drawn, self.q0))
-        return self._drawn[k]
-
-    def __iter__(self) -> Iterator[np.ndarray]:
-        return (self[k] for k in range(self.count))
