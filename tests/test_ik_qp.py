@@ -431,3 +431,17 @@ def test_step_equals_plain_minks_solve_ik(robot: Robot, kin: Kinematics) -> None
         tasks = [*ik.tasks.frames(targets, config.data), posture]
         ref = mink.solve_ik(config, tasks, 0.004, "daqp", damping=cfg.damping, limits=limits)
         assert v == pytest.approx(ref, abs=1e-7)
+
+
+def test_axis_targets_are_set_again_whenever_they_change(robot: Robot) -> None:
+    """The task cache skips mink's setters for an unchanged axis target, and only then."""
+    ik = QPIK(robot, IKConfig())
+    data = ik.configuration.data
+    down, side = np.array([0.0, 0.0, -1.0]), np.array([0.0, 1.0, 0.0])
+    for direction, cost in ((down, None), (down, None), (side, None), (side, 0.3), (down, 0.3)):
+        target = FrameTarget("left_wrist", pos=np.array([0.4, 0.2, 1.0]), axis=np.array([1.0, 0.0, 0.0]),
+                             direction=direction, orientation_cost=cost)
+        (_, axis_task) = ik.tasks.frames([target], data)
+        np.testing.assert_array_equal(axis_task.target_dir, direction)
+        np.testing.assert_array_equal(axis_task.axis, [1.0, 0.0, 0.0])
+        assert axis_task.cost[0] == (ik.config.orientation_cost if cost is None else cost)
