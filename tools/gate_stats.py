@@ -18,7 +18,6 @@ from collections import Counter
 
 import nextage_qp as nq
 from nextage_qp.ik import solve as solve_module
-from nextage_qp.ik.model import set_object_poses
 from nextage_qp.sweep.run import plan
 from nextage_qp.sweep.spec import SweepSpec
 
@@ -26,9 +25,7 @@ from nextage_qp.sweep.spec import SweepSpec
 def examine(ik, targets, q0, kwargs, counts: Counter) -> None:
     """Count, per start of one solve, (first start?, relaxed reached, relaxed clear, collision-aware reached)."""
     accept = kwargs["accept"]
-    if kwargs.get("object_poses"):
-        set_object_poses(ik.model, ik.configuration.data, kwargs["object_poses"], ik._mocap)
-    ik.collision.allow(ik._allowed(kwargs.get("allow", frozenset())))
+    ik._prepare(kwargs.get("object_poses"), kwargs.get("allow", frozenset()))
     frames = [ik.frame(t.frame) for t in targets]
     starts = ik.starts(frames, q0)
     cap = kwargs.get("max_iters") or ik.config.max_iters
@@ -36,14 +33,10 @@ def examine(ik, targets, q0, kwargs, counts: Counter) -> None:
     for k, q in enumerate(starts):
         _, _, pos, rot, _, _ = ik._descend(targets, frames, q, cap, ())
         aware = pos <= accept[0] and rot <= accept[1]
-        collision, ik.collision = ik.collision, None
-        try:
-            _, q_relaxed, pos, rot, _, _ = ik._descend(targets, frames, q, cap, ())
-        finally:
-            ik.collision = collision
+        _, q_relaxed, pos, rot, _, _ = ik._relaxed_descent(targets, frames, q, cap, ())
         relaxed = pos <= margin * accept[0] and rot <= margin * accept[1]
         ik.configuration.update(q_relaxed)
-        clear = collision.clear(ik.configuration.data)
+        clear = ik.collision.clear(ik.configuration.data)
         counts[(k == 0, relaxed, clear, aware)] += 1
 
 

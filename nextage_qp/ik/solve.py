@@ -107,10 +107,7 @@ class OfflineSolver:
         """
         start = time.perf_counter()
         cfg = self.config
-        if self.collision is not None:
-            self.collision.allow(self._allowed(allow))
-        if object_poses:
-            set_object_poses(self.model, self.configuration.data, object_poses, self._mocap)
+        self._prepare(object_poses, allow)
         key = None
         if self.memo is not None and not extra_tasks:  # a mink task's inputs are not all visible: not remembered
             data = self.configuration.data
@@ -122,24 +119,23 @@ class OfflineSolver:
                 self.configuration.update(self._full(found.q))
                 return found._replace(time_s=time.perf_counter() - start)
         frames = [self.frame(t.frame) for t in targets]
-        total, best = 0, None
         starts = self.starts(frames, q0)
         cap = max_iters or cfg.max_iters
+        search = _Search(good_enough)
         if self.collision is not None and accept is not None:
-            best, total = self._gated_search(targets, frames, starts, cap, extra_tasks, good_enough, accept)
+            self._gated_search(search, targets, frames, starts, cap, extra_tasks, accept)
         else:
             for q in starts:
-                outcome = self._descend(targets, frames, q, cap, extra_tasks)
-                total += outcome[4]
-                if best is None or outcome[0] < best[0]:
-                    best = (outcome[0], outcome[1], outcome[2], outcome[3], outcome[5])
-                if outcome[5] == "converged" or _within(best, good_enough):
+                if search.keep(self._descend(targets, frames, q, cap, extra_tasks)):
                     break
-        assert best is not None
-        _, q_best, pos_err, rot_err, status = best
+        if search.best is None:  # no start came near (the gate): the first start itself, as no descent improved on it
+            self.configuration.update(starts[0])
+            pos_err, rot_err = worst_errors(targets, [f.pose(self.configuration.data) for f in frames])
+            search.best = (pos_err / cfg.pos_tol + rot_err / cfg.rot_tol, starts[0].copy(), pos_err, rot_err, "stalled")
+        _, q_best, pos_err, rot_err, status = search.best
         self.configuration.update(q_best)
-        result = IKResult(q_best[self.nb :] if self.nb else q_best, status == "converged", pos_err, rot_err, total,
-                          status, time.perf_counter() - start)
+        result = IKResult(q_best[self.nb :] if self.nb else q_best, status == "converged", pos_err, rot_err,
+                          search.iters, status, time.perf_counter() - start)
         if key is not None and self.memo is not None:
             self.memo.put(key, result)
         return result
@@ -155,53 +151,54 @@ class OfflineSolver:
         return Starts(self._full(np.array(q0, dtype=float)), moving, self.box.lower[self.nb :],
                        self.box.upper[self.nb :], self.config.restarts + 1, self.config.seed)
 
+    def _prepare(self, object_poses: ObjectPoses | None, allow: frozenset[str]) -> None:
+        """Set a solve's allowed collision groups and object poses."""
+        if self.collision is not None:
+            self.collision.allow(self._allowed(allow))
+        if object_poses:
+            set_object_poses(self.model, self.configuration.data, object_poses, self._mocap)
+
     def _gated_search(
         self,
+        search: _Search,
         targets: Sequence[FrameTarget],
         frames: Sequence[Frame],
         starts: Starts,
         cap: int,
         extra_tasks: Sequence[mink.Task],
-        good_enough: tuple[float, float] | None,
         accept: tuple[float, float],
-    ) -> tuple[tuple[float, np.ndarray, float, float, str], int]:
-        """The relaxation gate's search (see :meth:`solve`): (best as (score, q, pos err, rot err, status), iters)."""
+    ) -> None:
+        """The relaxation gate's search (see :meth:`solve`), its outcomes kept in ``search``."""
         collision = self.collision
         assert collision is not None
         within = (RELAXED_MARGIN * accept[0], RELAXED_MARGIN * accept[1])
-        best, total = None, 0
-
-        def keep(outcome: tuple[float, np.ndarray, float, float, int, str]) -> bool:
-            """Keep ``outcome`` if it is the best so far; True when the search is done."""
-            nonlocal best, total
-            total += outcome[4]
-            if best is None or outcome[0] < best[0]:
-                best = (outcome[0], outcome[1], outcome[2], outcome[3], outcome[5])
-            return outcome[5] == "converged" or _within(best, good_enough)
-
         for k, q in enumerate(starts):
-            self.collision = None
-            try:
-                relaxed = self._descend(targets, frames, q, cap, extra_tasks)
-            finally:
-                self.collision = collision
-            total += relaxed[4]
+            relaxed = self._relaxed_descent(targets, frames, q, cap, extra_tasks)
+            search.iters += relaxed[4]
             if relaxed[2] > within[0] or relaxed[3] > within[1]:
                 continue  # out of reach from this start even through collisions
-            self.configuration.update(relaxed[1])
-            clear = collision.clear(self.configuration.data)
             # The first start's answer comes from the collision-aware descent when it reaches (its path keeps clear
             # too). A restart's relaxed answer through a collision is never one, and its start is given up (see solve).
-            if k == 0 and keep(self._descend(targets, frames, q, cap, extra_tasks)):
+            if k == 0 and search.keep(self._descend(targets, frames, q, cap, extra_tasks)):
                 break
-            if clear and keep((*relaxed[:4], 0, relaxed[5])):
+            self.configuration.update(relaxed[1])
+            if collision.clear(self.configuration.data) and search.keep((*relaxed[:4], 0, relaxed[5])):
                 break
-        if best is None:  # no start came near: the first start itself, as no descent improved on it
-            self.configuration.update(starts[0])
-            pos_err, rot_err = worst_errors(targets, [f.pose(self.configuration.data) for f in frames])
-            best = (pos_err / self.config.pos_tol + rot_err / self.config.rot_tol, starts[0].copy(), pos_err,
-                    rot_err, "stalled")
-        return best, total
+
+    def _relaxed_descent(
+        self,
+        targets: Sequence[FrameTarget],
+        frames: Sequence[Frame],
+        q0: np.ndarray,
+        cap: int,
+        extra_tasks: Sequence[mink.Task],
+    ) -> tuple[float, np.ndarray, float, float, int, str]:
+        """:meth:`_descend` without collision rows (and without the collision-safe step)."""
+        collision, self.collision = self.collision, None
+        try:
+            return self._descend(targets, frames, q0, cap, extra_tasks)
+        finally:
+            self.collision = collision
 
     def _descend(
         self,
@@ -249,6 +246,23 @@ class OfflineSolver:
         return advance(self.collision, self.configuration, q, dq, self.box.lower, self.box.upper)
 
 
-def _within(best: tuple[float, np.ndarray, float, float, str] | None, errors: tuple[float, float] | None) -> bool:
-    """Whether ``best`` (score, q, position error, orientation error, status) is within ``errors``."""
-    return best is not None and errors is not None and best[2] <= errors[0] and best[3] <= errors[1]
+class _Search:
+    """The best outcome of a solve's descents so far, and the iterations they took.
+
+    Args:
+        good_enough: Position [m] and orientation [rad] errors at which the search is done (or None).
+    """
+
+    def __init__(self, good_enough: tuple[float, float] | None) -> None:
+        self.good_enough = good_enough
+        self.best: tuple[float, np.ndarray, float, float, str] | None = None
+        """(score, q, position error, orientation error, status) of the best outcome."""
+        self.iters = 0
+
+    def keep(self, outcome: tuple[float, np.ndarray, float, float, int, str]) -> bool:
+        """Count a descent's ``outcome`` (score, q, errors, iterations, status); True when the search is done."""
+        self.iters += outcome[4]
+        if self.best is None or outcome[0] < self.best[0]:
+            self.best = (outcome[0], outcome[1], outcome[2], outcome[3], outcome[5])
+        best, errors = self.best, self.good_enough
+        return outcome[5] == "converged" or (errors is not None and best[2] <= errors[0] and best[3] <= errors[1])
