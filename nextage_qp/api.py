@@ -159,7 +159,7 @@ def run_sweep(path: str | Path, episodes: int, *, seed: int = 0, workers: int | 
         episodes: How many episodes (indices 0 to ``episodes`` - 1).
         seed: The sweep's seed: the same seed gives the same scenes.
         workers: Processes (default: one per core).
-        out: Folder the episode records are kept in (default: ``runs/sweeps/NAME-seedS``).
+        out: Folder the episode records and ``summary.json`` are kept in (default: ``runs/sweeps/NAME-seedS``).
         overrides: ``KEY=VALUE`` overrides of the base config.
 
     Returns:
@@ -172,11 +172,11 @@ def run_sweep(path: str | Path, episodes: int, *, seed: int = 0, workers: int | 
     from nextage_qp.sweep.run import plan
     from nextage_qp.sweep.run import run_sweep as run
     from nextage_qp.sweep.spec import SweepSpec
-    from nextage_qp.sweep.store import SweepStore
-    from nextage_qp.sweep.summary import summarize
+    from nextage_qp.sweep.store import SweepStore, default_folder
+    from nextage_qp.sweep.summary import write_summary
 
     spec = SweepSpec(path, list(overrides))
-    folder = Path(out) if out is not None else Path("runs") / "sweeps" / f"{spec.name}-seed{seed}"
+    folder = Path(out) if out is not None else default_folder(spec, seed)
     store = SweepStore(folder, spec, seed, resume=False)
     tasks = plan(spec, seed, range(episodes))
     start = time.monotonic()
@@ -184,9 +184,7 @@ def run_sweep(path: str | Path, episodes: int, *, seed: int = 0, workers: int | 
         done = run(tasks, store=store, workers=max(1, min(workers or os.cpu_count() or 1, len(tasks))))
     finally:
         store.close()
-    summary = summarize(spec, seed, done, session_episodes=len(done), session_wall_s=time.monotonic() - start)
-    summary["out"] = str(folder)
-    return summary
+    return write_summary(folder, spec, seed, done, session_episodes=len(done), session_wall_s=time.monotonic() - start)
 
 
 def load_robot(ref: str | Path | None = None, *, scene: str | Path = "scene") -> Robot:

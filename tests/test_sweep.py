@@ -16,7 +16,7 @@ from nextage_qp.sweep.keys import yaml_scalar
 from nextage_qp.sweep.run import plan, replay_commands, run_sweep
 from nextage_qp.sweep.spec import SweepSpec
 from nextage_qp.sweep.store import SweepStore
-from nextage_qp.sweep.summary import by_target_clearance, estimation, summarize, wilson
+from nextage_qp.sweep.summary import by_target_clearance, estimation, summarize, wilson, write_summary
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "tests" / "data" / "quick_push.yaml"
@@ -348,3 +348,13 @@ def test_a_drawn_choice_is_named_by_what_is_not_drawn():
     assert choice_label({"shape": "box", "size": [0.02, 0.04, 0.035]}) == "shape=box"
     assert choice_label("kalman") == "kalman" and choice_label(0.5) == "0.5"
     assert choice_label([0.1, 0.2]) == "[...]"
+
+
+def test_summary_is_written_beside_the_records(tmp_path):
+    """The CLI and the Python API keep the same summary.json in the records' folder."""
+    spec = SweepSpec(QUICK)
+    episodes = [Episode(t.index, t.seed, t.params, list(t.overrides), "error", reason="boom")
+                for t in plan(spec, 0, range(3))]
+    summary = write_summary(tmp_path, spec, 0, episodes, session_episodes=3, session_wall_s=1.0)
+    assert summary["out"] == str(tmp_path) and summary["counts"]["error"] == 3
+    assert json.loads((tmp_path / "summary.json").read_text()) == json.loads(json.dumps(summary))

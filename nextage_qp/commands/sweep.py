@@ -30,8 +30,8 @@ from nextage_qp.json_out import dumps
 from nextage_qp.sweep.episode import Episode
 from nextage_qp.sweep.run import plan, run_sweep
 from nextage_qp.sweep.spec import SweepSpec
-from nextage_qp.sweep.store import SweepStore
-from nextage_qp.sweep.summary import BINS, summarize
+from nextage_qp.sweep.store import SweepStore, default_folder
+from nextage_qp.sweep.summary import BINS, write_summary
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -125,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
     elif args.only is not None:
         out = Path(tempfile.mkdtemp(prefix=f"nextage-sweep-{spec.name}-"))
     else:
-        out = Path("runs") / "sweeps" / f"{spec.name}-seed{args.seed}"
+        out = default_folder(spec, args.seed)
     store = SweepStore(out, spec, args.seed, resume=args.resume)
     tasks = plan(spec, args.seed, indices)
     already = [store.done[t.index] for t in tasks if t.index in store.done]
@@ -142,9 +142,8 @@ def run(args: argparse.Namespace) -> int:
         return 130
     store.close()
     wall = time.monotonic() - t0
-    summary = summarize(spec, args.seed, episodes, session_episodes=len(episodes) - len(already), session_wall_s=wall)
-    summary["out"] = str(out)
-    (out / "summary.json").write_text(dumps(summary) + "\n")
+    summary = write_summary(out, spec, args.seed, episodes, session_episodes=len(episodes) - len(already),
+                            session_wall_s=wall)
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(dumps(summary) + "\n")

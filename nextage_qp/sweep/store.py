@@ -27,6 +27,11 @@ def fingerprint(spec: SweepSpec) -> str:
     return digest.hexdigest()
 
 
+def default_folder(spec: SweepSpec, seed: int) -> Path:
+    """Where a sweep keeps its records unless told otherwise: ``runs/sweeps/NAME-seedS``."""
+    return Path("runs") / "sweeps" / f"{spec.name}-seed{seed}"
+
+
 class SweepStore:
     """The output directory of one sweep (file + seed).
 

@@ -10,10 +10,12 @@ from __future__ import annotations
 import math
 from collections import Counter
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from nextage_qp.json_out import dumps
 from nextage_qp.sweep.episode import STATUSES, Episode
 from nextage_qp.sweep.nested import choice_label
 from nextage_qp.sweep.run import replay_commands
@@ -173,6 +175,15 @@ def mobile_base(episodes: Sequence[Episode]) -> dict[str, Any] | None:
         "max_lateral_speed_m_s": max(r["base"]["max_lateral_speed_m_s"] for r in rows),
         "episodes_sliding": sum(r["base"]["sliding_ticks"] > 0 for r in rows),
     }
+
+
+def write_summary(out: Path, spec: SweepSpec, seed: int, episodes: Sequence[Episode], *, session_episodes: int,
+                  session_wall_s: float) -> dict[str, Any]:
+    """:func:`summarize`, with the records' folder as ``out``, also written to ``out/summary.json``."""
+    summary = summarize(spec, seed, episodes, session_episodes=session_episodes, session_wall_s=session_wall_s)
+    summary["out"] = str(out)
+    (out / "summary.json").write_text(dumps(summary) + "\n")
+    return summary
 
 
 def summarize(spec: SweepSpec, seed: int, episodes: Sequence[Episode], *, session_episodes: int,
