@@ -33,7 +33,7 @@ def examine(ik, targets, q0, kwargs, counts: Counter) -> None:
     for k, q in enumerate(starts):
         _, _, pos, rot, _, _ = ik._descend(targets, frames, q, cap, ())
         aware = pos <= accept[0] and rot <= accept[1]
-        _, q_relaxed, pos, rot, _, _ = ik._relaxed_descent(targets, frames, q, cap, ())
+        _, q_relaxed, pos, rot, _, _ = ik._descend(targets, frames, q, cap, (), relaxed=True)
         relaxed = pos <= margin * accept[0] and rot <= margin * accept[1]
         ik.configuration.update(q_relaxed)
         clear = ik.collision.clear(ik.configuration.data)

@@ -173,7 +173,7 @@ class OfflineSolver:
         assert collision is not None
         within = (RELAXED_MARGIN * accept[0], RELAXED_MARGIN * accept[1])
         for k, q in enumerate(starts):
-            relaxed = self._relaxed_descent(targets, frames, q, cap, extra_tasks)
+            relaxed = self._descend(targets, frames, q, cap, extra_tasks, relaxed=True)
             search.iters += relaxed[4]
             if relaxed[2] > within[0] or relaxed[3] > within[1]:
                 continue  # out of reach from this start even through collisions
@@ -185,21 +185,6 @@ class OfflineSolver:
             if collision.clear(self.configuration.data) and search.keep((*relaxed[:4], 0, relaxed[5])):
                 break
 
-    def _relaxed_descent(
-        self,
-        targets: Sequence[FrameTarget],
-        frames: Sequence[Frame],
-        q0: np.ndarray,
-        cap: int,
-        extra_tasks: Sequence[mink.Task],
-    ) -> tuple[float, np.ndarray, float, float, int, str]:
-        """:meth:`_descend` without collision rows (and without the collision-safe step)."""
-        collision, self.collision = self.collision, None
-        try:
-            return self._descend(targets, frames, q0, cap, extra_tasks)
-        finally:
-            self.collision = collision
-
     def _descend(
         self,
         targets: Sequence[FrameTarget],
@@ -207,8 +192,19 @@ class OfflineSolver:
         q0: np.ndarray,
         cap: int,
         extra_tasks: Sequence[mink.Task],
+        *,
+        relaxed: bool = False,
     ) -> tuple[float, np.ndarray, float, float, int, str]:
-        """One descent from ``q0``: (score, best q, position error, orientation error, iterations, status)."""
+        """One descent from ``q0``: (score, best q, position error, orientation error, iterations, status).
+
+        ``relaxed``: without collision rows (and without the collision-safe step).
+        """
+        if relaxed and self.collision is not None:
+            collision, self.collision = self.collision, None
+            try:
+                return self._descend(targets, frames, q0, cap, extra_tasks)
+            finally:
+                self.collision = collision
         cfg, q = self.config, q0.copy()
         self.configuration.update(q)
         best = (np.inf, q.copy(), np.inf, np.inf)
