@@ -445,3 +445,25 @@ def test_axis_targets_are_set_again_whenever_they_change(robot: Robot) -> None:
         np.testing.assert_array_equal(axis_task.target_dir, direction)
         np.testing.assert_array_equal(axis_task.axis, [1.0, 0.0, 0.0])
         assert axis_task.cost[0] == (ik.config.orientation_cost if cost is None else cost)
+
+
+def test_objective_of_a_frame_and_its_axis_target_equals_minks(robot: Robot, kin: Kinematics) -> None:
+    """A position target with a tool axis (a frame task, then an axis task on the same frame) is mink's (H, c)."""
+    import mink
+
+    from nextage_qp.ik.objective import Objective
+
+    ik = QPIK(robot, IKConfig(lm_damping=0.3))
+    objective = Objective(ik.model)
+    rng, home = np.random.default_rng(5), robot.keyframe_q("home")
+    for _ in range(20):
+        q = np.clip(home + rng.normal(0.0, 0.4, robot.nq), robot.lower, robot.upper)
+        ik.configuration.update(q)
+        targets = [FrameTarget(f, pos=kin.fk(f, home).pos + rng.normal(0, 0.05, 3), axis=rng.normal(size=3),
+                               direction=rng.normal(size=3)) for f in ("left_wrist", "right_wrist")]
+        tasks = ik.tasks.frames(targets, ik.configuration.data)
+        assert [type(t) for t in tasks] == [mink.FrameTask, mink.AxisAlignTask] * 2
+        H, c = objective.build(ik.configuration, [*tasks, ik.posture], 1e-6)
+        ref = mink.build_ik(ik.configuration, [*tasks, ik.posture], 0.004, damping=1e-6, limits=[])
+        assert H == pytest.approx(ref.P, rel=1e-10, abs=1e-12)
+        assert c == pytest.approx(ref.q, rel=1e-10, abs=1e-12)

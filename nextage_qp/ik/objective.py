@@ -104,6 +104,7 @@ class Objective:
             self._alloc(m)
         error, cost, scale = self._error[:m], self._cost[:m], self._scale[:m]
         lm = np.empty(m)
+        last = None  # the frame whose local Jacobian self._local holds (a frame task's, for its axis task next)
         for k, task in enumerate(tasks):
             rows = self._slots[k]
             if isinstance(task, mink.FrameTask):
@@ -115,15 +116,17 @@ class Objective:
                 goal = target.wxyz_xyz
                 error[k] = _native.se3_rminus(goal, pose)
                 local = f.local_jacobian(model, data, scratch, xmat, self._local)
+                last = f
                 np.matmul(_native.se3_jlog(_native.se3_inverse_multiply(goal, pose)), local, out=rows)
                 np.negative(rows, out=rows)  # J = -J_log(T*^-1 T) B_J
             elif isinstance(task, mink.AxisAlignTask):  # rows 0-2: -[d]x J_w with d = R^T t; rows 3-5 zero
                 if task.target_dir is None:
                     raise mink.TargetNotSet(type(task).__name__)
                 f = self._frame(task.frame_name, task.frame_type)
-                _, xmat = f.pose(data)
+                xmat = getattr(data, f.mat_attr)[f.id]
                 d = xmat.reshape(3, 3).T @ task.target_dir
-                local = f.local_jacobian(model, data, scratch, xmat, self._local)
+                local = self._local if last is f else f.local_jacobian(model, data, scratch, xmat, self._local)
+                last = f
                 skew = np.array([[0.0, -d[2], d[1]], [d[2], 0.0, -d[0]], [-d[1], d[0], 0.0]])
                 np.matmul(skew, local[3:], out=rows[:3])
                 np.negative(rows[:3], out=rows[:3])
@@ -133,6 +136,7 @@ class Objective:
                 continue
             else:
                 assert isinstance(task, mink.RelativeFrameTask)
+                last = None
                 target = task.transform_target_to_root
                 if target is None:
                     raise mink.TargetNotSet(type(task).__name__)
