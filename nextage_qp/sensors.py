@@ -41,8 +41,7 @@ class WrenchSensor:
         self.body = int(model.site_bodyid[self.site])
         self.mass = float(model.body_mass[self.body])
         self.force_adr, self.torque_adr = int(model.sensor_adr[force_sensor]), int(model.sensor_adr[torque_sensor])
-        self._force = slice(self.force_adr, self.force_adr + 3)
-        self._torque = slice(self.torque_adr, self.torque_adr + 3)
+        self._readings = np.r_[self.force_adr : self.force_adr + 3, self.torque_adr : self.torque_adr + 3]
         self.gravity = np.array(model.opt.gravity)
         self._weight = self.mass * self.gravity
         w = self._weight
@@ -50,13 +49,13 @@ class WrenchSensor:
 
     def read(self, data: mujoco.MjData) -> Wrench:
         """The contact wrench now, in the world frame."""
-        rot, sensed = data.site_xmat[self.site].reshape(3, 3), data.sensordata
-        force = rot @ sensed[self._force]
-        force += self._weight
-        np.negative(force, out=force)
+        # Both readings rotated to the world in one product: rows (force, torque) of sensed @ R^T.
+        world = data.sensordata.take(self._readings).reshape(2, 3) @ data.site_xmat[self.site].reshape(3, 3).T
+        force = np.negative(world[0])
+        force -= self._weight
         # -(lever x weight) = weight x lever
         torque = self._weight_cross @ (data.xipos[self.body] - data.site_xpos[self.site])
-        torque -= rot @ sensed[self._torque]
+        torque -= world[1]
         return Wrench(force, torque)
 
     @staticmethod

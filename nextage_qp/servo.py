@@ -189,9 +189,26 @@ class Servo:
 
 
 def _same(a: object, b: object) -> bool:
+    """Equal values; arrays as :func:`numpy.array_equal` (same shape and elements), compared without its overhead."""
+    if a is b:
+        return True
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
-        return a is not None and b is not None and np.array_equal(a, b)  # type: ignore[arg-type]
+        if a is None or b is None:
+            return False
+        x, y = np.asarray(a), np.asarray(b)
+        return x.shape == y.shape and bool((x == y).all())
     return a == b
+
+
+_FIELDS: dict[type, tuple[str, ...]] = {}
+"""The field names of each target class (``dataclasses.fields`` builds its tuple on every call)."""
+
+
+def _field_names(cls: type) -> tuple[str, ...]:
+    names = _FIELDS.get(cls)
+    if names is None:
+        names = _FIELDS[cls] = tuple(f.name for f in fields(cls))
+    return names
 
 
 def same_command(a: Command, b: Command) -> bool:
@@ -201,6 +218,6 @@ def same_command(a: Command, b: Command) -> bool:
     pairs: list[tuple[FrameTarget | RelativeTarget, FrameTarget | RelativeTarget]] = [
         *zip(a.targets, b.targets, strict=True), *zip(a.relative, b.relative, strict=True)]
     for x, y in pairs:
-        if type(x) is not type(y) or not all(_same(getattr(x, f.name), getattr(y, f.name)) for f in fields(x)):
+        if type(x) is not type(y) or not all(_same(getattr(x, f), getattr(y, f)) for f in _field_names(type(x))):
             return False
     return a.allow == b.allow and _same(a.posture, b.posture) and a.joints == b.joints

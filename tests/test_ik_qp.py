@@ -467,3 +467,24 @@ def test_objective_of_a_frame_and_its_axis_target_equals_minks(robot: Robot, kin
         ref = mink.build_ik(ik.configuration, [*tasks, ik.posture], 0.004, damping=1e-6, limits=[])
         assert H == pytest.approx(ref.P, rel=1e-10, abs=1e-12)
         assert c == pytest.approx(ref.q, rel=1e-10, abs=1e-12)
+
+
+def test_a_descent_within_good_enough_ends_at_its_first_step_without_progress(robot: Robot) -> None:
+    # With LM damping and a posture cost a descent creeps to a plateau above pos_tol (here ~1.4 mm) and stalls
+    # there after stall_iters steps without 1 % progress. A caller content with millimetres (good_enough) gets its
+    # answer back at the first such step once the errors are within good_enough.
+    ik = QPIK(robot, IKConfig(restarts=0, lm_damping=0.1, posture_cost=0.01))
+    home = robot.keyframe_q("home")
+    target = [FrameTarget("left_wrist", pos=np.array([0.55, 0.35, 0.95]), rot=np.eye(3))]
+    full = ik.solve(target, home)
+    assert full.status == "stalled" and full.pos_err_m > ik.config.pos_tol  # a plateau above the tolerance
+    enough = (2.0 * full.pos_err_m, 2.0 * full.rot_err_rad + 1e-3)
+    short = ik.solve(target, home, good_enough=enough)
+    assert short.status == "stalled" and short.iters < full.iters - ik.config.stall_iters // 2
+    assert short.pos_err_m <= enough[0] and short.rot_err_rad <= enough[1]
+    # a target it reaches is unchanged: the descent converges before good_enough matters
+    reached = [FrameTarget("left_wrist", pos=np.array([0.4, 0.2, 1.0]))]
+    plain = QPIK(robot, IKConfig(restarts=0))
+    a, b = plain.solve(reached, home), plain.solve(reached, home, good_enough=(1e-3, 1e-2))
+    assert a.converged and b.converged
+    np.testing.assert_array_equal(a.q, b.q)

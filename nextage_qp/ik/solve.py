@@ -98,7 +98,8 @@ class OfflineSolver:
             object_poses: Object name -> (pos, quat wxyz) for collision avoidance.
             allow: Collision groups whose pairs are not avoided (e.g. an object the frames hold).
             good_enough: Position [m] and orientation [rad] errors at which a stalled descent is kept without
-                restarts (a caller that accepts millimetres need not pay for restarts chasing microns).
+                restarts, and at which a descent ends at its first step without 1 % progress (a caller that accepts
+                millimetres need not pay for restarts or steps chasing microns).
             accept: Position [m] and orientation [rad] errors the caller accepts as reached; turns on the
                 relaxation gate (above).
 
@@ -126,7 +127,7 @@ class OfflineSolver:
             self._gated_search(search, targets, frames, starts, cap, extra_tasks, accept)
         else:
             for q in starts:
-                if search.keep(self._descend(targets, frames, q, cap, extra_tasks)):
+                if search.keep(self._descend(targets, frames, q, cap, extra_tasks, enough=good_enough)):
                     break
         if search.best is None:  # no start came near (the gate): the first start itself, as no descent improved on it
             self.configuration.update(starts[0])
@@ -171,15 +172,15 @@ class OfflineSolver:
         """The relaxation gate's search (see :meth:`solve`), its outcomes kept in ``search``."""
         collision = self.collision
         assert collision is not None
-        within = (RELAXED_MARGIN * accept[0], RELAXED_MARGIN * accept[1])
+        within, enough = (RELAXED_MARGIN * accept[0], RELAXED_MARGIN * accept[1]), search.good_enough
         for k, q in enumerate(starts):
-            relaxed = self._descend(targets, frames, q, cap, extra_tasks, relaxed=True)
+            relaxed = self._descend(targets, frames, q, cap, extra_tasks, relaxed=True, enough=enough)
             search.iters += relaxed[4]
             if relaxed[2] > within[0] or relaxed[3] > within[1]:
                 continue  # out of reach from this start even through collisions
             # The first start's answer comes from the collision-aware descent when it reaches (its path keeps clear
             # too). A restart's relaxed answer through a collision is never one, and its start is given up (see solve).
-            if k == 0 and search.keep(self._descend(targets, frames, q, cap, extra_tasks)):
+            if k == 0 and search.keep(self._descend(targets, frames, q, cap, extra_tasks, enough=enough)):
                 break
             self.configuration.update(relaxed[1])
             if collision.clear(self.configuration.data) and search.keep((*relaxed[:4], 0, relaxed[5])):
@@ -194,32 +195,37 @@ class OfflineSolver:
         extra_tasks: Sequence[mink.Task],
         *,
         relaxed: bool = False,
+        enough: tuple[float, float] | None = None,
     ) -> tuple[float, np.ndarray, float, float, int, str]:
         """One descent from ``q0``: (score, best q, position error, orientation error, iterations, status).
 
-        ``relaxed``: without collision rows (and without the collision-safe step).
+        ``relaxed``: without collision rows (and without the collision-safe step). ``enough``: the position [m] and
+        orientation [rad] errors the caller is content with (``solve``'s ``good_enough``): once the best errors are
+        within them, the descent stalls at its first step without 1 % progress (not ``config.stall_iters``).
         """
         if relaxed and self.collision is not None:
             collision, self.collision = self.collision, None
             try:
-                return self._descend(targets, frames, q0, cap, extra_tasks)
+                return self._descend(targets, frames, q0, cap, extra_tasks, enough=enough)
             finally:
                 self.collision = collision
         cfg, q = self.config, q0.copy()
         self.configuration.update(q)
         best = (np.inf, q.copy(), np.inf, np.inf)
-        since_best, iters = 0, 0
+        since_best, iters, window = 0, 0, cfg.stall_iters
         while True:
             pos_err, rot_err = worst_errors(targets, [f.pose(self.configuration.data) for f in frames])
             score = pos_err / cfg.pos_tol + rot_err / cfg.rot_tol
             if score < best[0]:
                 since_best = 0 if score < 0.99 * best[0] else since_best
                 best = (score, q.copy(), pos_err, rot_err)
+                if enough is not None and pos_err <= enough[0] and rot_err <= enough[1]:
+                    window = 1
             if pos_err <= cfg.pos_tol and rot_err <= cfg.rot_tol:
                 return (*best, iters, "converged")
             if iters >= cap:
                 return (*best, iters, "max_iters")
-            if since_best >= cfg.stall_iters:
+            if since_best >= window:
                 return (*best, iters, "stalled")
             dq = self._step(targets, cfg.dt, extra_tasks) * cfg.dt
             q_prev, q = q, self._advance(q, dq)
@@ -228,7 +234,7 @@ class OfflineSolver:
                 # Every halving of the step ran into a collision pair: the next steps would start from the same q
                 # and be the same, with no progress, until the cap or the stall test ends the descent. End it now
                 # with the same outcome and iteration count.
-                ahead = min(cap - iters, cfg.stall_iters - since_best)
+                ahead = min(cap - iters, window - since_best)
                 if ahead > 0:
                     iters, since_best = iters + ahead, since_best + ahead
                 return (*best, iters, "max_iters" if iters >= cap else "stalled")
