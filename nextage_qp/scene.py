@@ -72,12 +72,15 @@ class SceneOverrides:
         masses: Body name -> new mass [kg]; the inertia is scaled by the same factor.
         friction_scale: Body name -> factor on the sliding friction of every contact the body takes part in.
         objects: Object name -> declaration (:class:`~nextage_qp.scene_objects.ObjectDecl`): added or reshaped.
+        speckle: Every surface that is not the robot's gets a random-dot texture (what stereo block matching needs:
+            :func:`nextage_qp.vision.texture.speckle`); the physics is unchanged.
     """
 
     poses: Mapping[str, BodyPose] = field(default_factory=dict)
     masses: Mapping[str, float] = field(default_factory=dict)
     friction_scale: Mapping[str, float] = field(default_factory=dict)
     objects: Mapping[str, Any] = field(default_factory=dict)
+    speckle: bool = False
 
 
 def _yaw_quat(yaw: float) -> np.ndarray:

@@ -51,8 +51,9 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
     """
     scene = cfg.scene
     poses = {name: BodyPose(pos=p.pos, yaw=p.yaw) for name, p in scene.poses.items()}
+    stereo = cfg.perception.source == "camera" and cfg.perception.depth == "stereo"
     overrides = SceneOverrides(poses=poses, masses=dict(scene.masses), friction_scale=dict(scene.friction_scale),
-                               objects=dict(scene.objects))
+                               objects=dict(scene.objects), speckle=stereo)
     try:
         description = load_robot(cfg.robot)
     except ConfigError as exc:

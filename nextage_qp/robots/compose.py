@@ -128,6 +128,10 @@ def compose(desc: RobotDescription, scene: str | Path, overrides: SceneOverrides
     apply_overrides(parent, overrides, str(scene))
     if overrides.objects:
         rest_on_table(parent, overrides.objects, markers)
+    if overrides.speckle:
+        from nextage_qp.vision.texture import speckle
+
+        speckle(parent, robot_bodies)
     return parent
 
 

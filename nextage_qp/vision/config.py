@@ -5,7 +5,7 @@
     perception:
       source: camera         # truth | simulated (faults.object_pose's model) | camera (rendered images)
       camera: head_rgbd      # a camera of the robot file
-      depth: rendered        # rendered (an RGB-D sensor); stereo block matching is not built yet
+      depth: rendered        # rendered (an RGB-D sensor) | stereo (block matching on the two RGB cameras below)
       stereo: [head_left, head_right]
       look_at: true          # the head keeps the task's object and target in view (a low-weight IK task)
       dump: runs/frame       # write one frame's RGB, depth, clusters and fitted pose as PNGs
@@ -29,10 +29,11 @@ class PerceptionConfig(BaseModel):
         default=None, description="truth; simulated: faults.object_pose's noise, latency and dropouts; camera: poses "
         "estimated from the robot camera's images. Default: simulated with faults.object_pose, else truth.")
     camera: str = Field(default="head_rgbd", min_length=1, description="The robot file's camera that gives depth.")
-    depth: Literal["rendered"] = Field(
-        default="rendered", description="rendered: the camera's depth with its noise model (stereo block matching on "
-        "two RGB cameras is not built yet: refused).")
-    stereo: tuple[str, str] = Field(default=("head_left", "head_right"), description="Left and right RGB cameras.")
+    depth: Literal["rendered", "stereo"] = Field(
+        default="rendered", description="rendered: the camera's depth with its noise model; stereo: block matching on "
+        "the two RGB cameras of `stereo` (nextage_qp.vision.stereo; the world's surfaces get a random-dot texture).")
+    stereo: tuple[str, str] = Field(default=("head_left", "head_right"),
+                                    description="Left and right RGB cameras of a rectified pair (depth: stereo).")
     look_at: bool = Field(default=True, description="The head keeps the object and target in view (camera only).")
     look_cost: float = Field(default=0.05, ge=0, le=10.0, description="Weight of the look-at task.")
     noise_pos_m: float = Field(default=0.002, gt=0, le=0.1, description="Position noise the filter assumes [m].")

@@ -21,6 +21,7 @@ import numpy as np
 from scipy import ndimage
 
 from nextage_qp.geometry import rot_z, wrap
+from nextage_qp.vision.fit import _residuals, fit, table_plane
 from nextage_qp.vision.shapes import ShapeModel
 
 GAP = 0.01
@@ -38,9 +39,18 @@ PARTLY = 0.3
 FREE_OFFSET = 0.01
 """Table points seen are moved this far towards the camera to make the free-space points [m]."""
 MAX_POINTS = 400
-"""Points used per fit (a random subset of more)."""
-HUBER = 0.003
-"""Residual [m] beyond which a point's weight falls off (robust fit)."""
+"""Points used per fit of a tracked object, from its predicted pose (a random subset of more)."""
+SEED_POINTS = 1200
+"""Points used per fit of an object not tracked yet, from each of its yaw seeds: with few, noise (stereo) can make a
+wrong seed's local minimum fit a little better."""
+SINK = 0.01
+"""How far [m] a fitted shape may reach below the table plane (its points' noise); deeper, it is no object."""
+THROUGH = 0.03
+"""Depth [m] beyond a fitted surface at which the camera sees through where the shape would be."""
+MAX_THROUGH = 0.6
+"""Largest share of a fitted shape's camera-facing surface seen through (silhouette pixels, noise)."""
+INLIER = 0.005
+"""A point this near a fitted surface [m] is explained by it (choosing among candidate clusters)."""
 
 
 @dataclass(frozen=True)
@@ -82,65 +92,6 @@ def project(points: np.ndarray, K: np.ndarray, pos: np.ndarray, rot: np.ndarray)
         cols = K[0, 0] * c[:, 0] / z + K[0, 2] - 0.5
         rows = -K[1, 1] * c[:, 1] / z + K[1, 2] - 0.5
     return np.rint(rows).astype(int), np.rint(cols).astype(int), z
-
-
-def table_plane(points: np.ndarray, rng: np.random.Generator, iters: int = 80, tol: float = 0.005,
-                max_tilt: float = 0.2) -> tuple[np.ndarray, float] | None:
-    """The largest near-horizontal plane (unit normal n with n_z > 0, offset d: n . p = d) by RANSAC, or None."""
-    if len(points) < 3:
-        return None
-    a, b, c = (points[rng.integers(0, len(points), iters)] for _ in range(3))  # every hypothesis at once
-    n = np.cross(b - a, c - a)
-    norm = np.linalg.norm(n, axis=1)
-    ok = norm > 1e-9
-    n = n[ok] / norm[ok, None]
-    n *= np.where(n[:, 2] >= 0, 1.0, -1.0)[:, None]
-    keep = np.arccos(np.minimum(1.0, n[:, 2])) <= max_tilt
-    n, a = n[keep], a[ok][keep]
-    if not len(n):
-        return None
-    counts = (np.abs(points @ n.T - np.einsum("ij,ij->i", n, a)) < tol).sum(axis=0)
-    k = int(np.argmax(counts))
-    best = (n[k], float(n[k] @ a[k]))
-    inliers = points[np.abs(points @ best[0] - best[1]) < tol]  # least squares on the inliers
-    centre = inliers.mean(axis=0)
-    n = np.linalg.svd(inliers - centre)[2][2]
-    n = n if n[2] > 0 else -n
-    return n, float(n @ centre)
-
-
-def _residuals(shape: ShapeModel, points: np.ndarray, x: np.ndarray) -> np.ndarray:
-    local = (points - x[:3]) @ rot_z(x[3])
-    return shape.sdf(local)
-
-
-def _both(shape: ShapeModel, points: np.ndarray, free: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Surface residuals of ``points``, then how deep the shape reaches into ``free`` space (seen through)."""
-    return np.concatenate([_residuals(shape, points, x), np.minimum(_residuals(shape, free, x), 0.0)])
-
-
-def fit(shape: ShapeModel, points: np.ndarray, x0: np.ndarray, free: np.ndarray | None = None,
-        iters: int = 12) -> tuple[np.ndarray, float]:
-    """Pose (x, y, z, yaw) of ``shape`` fitting ``points`` from ``x0`` (robust Gauss-Newton), and its RMS [m].
-
-    ``free``: points the camera saw through (just in front of the table it saw), which the shape may not contain:
-    they pin a partial view (the hand covering part of the object) along the directions its own points leave free.
-    """
-    x = np.asarray(x0, dtype=float).copy()
-    free = np.zeros((0, 3)) if free is None else free
-    steps = np.array([1e-4, 1e-4, 1e-4, 1e-3])
-    for _ in range(iters):
-        r = _both(shape, points, free, x)
-        J = np.stack([(_both(shape, points, free, x + e) - r) / h
-                      for e, h in zip(np.diag(steps), steps, strict=True)], axis=1)
-        w = np.minimum(1.0, HUBER / np.maximum(np.abs(r), 1e-12))
-        H = J.T @ (J * w[:, None]) + 1e-6 * np.eye(4)
-        dx = -np.linalg.solve(H, J.T @ (w * r))
-        x += dx
-        if np.abs(dx[:3]).max() < 1e-5 and abs(dx[3]) < 1e-4:
-            break
-    r = _residuals(shape, points, x)
-    return x, float(np.sqrt(np.mean(r * r)))
 
 
 class Estimator:
@@ -189,6 +140,30 @@ class Estimator:
             out.append(backproject(f.depth, f.K, f.cam_pos, f.cam_rot, r, c))
         return out
 
+    def _table_z(self, xy: np.ndarray) -> float:
+        """Height [m] of the table plane under the point ``xy``."""
+        assert self.plane is not None
+        n, d = self.plane
+        return float((d - n[:2] @ xy) / n[2])
+
+    def seen_through(self, f: Frame, shape: ShapeModel, x: np.ndarray) -> float:
+        """Share of the shape's camera-facing surface at pose ``x`` (x, y, z, yaw) behind which the frame has depth.
+
+        A shape where the image shows something farther away (by more than ``THROUGH`` [m]) cannot be there; nearer
+        (the robot in front) or no depth say nothing.
+        """
+        rot = rot_z(x[3]).T
+        pts = shape.samples @ rot + x[:3]
+        pts = pts[np.einsum("ij,ij->i", shape.normals @ rot, pts - f.cam_pos) < 0]  # faces the camera
+        rows, cols, z = project(pts, f.K, f.cam_pos, f.cam_rot)
+        h, w = f.depth.shape
+        inside = (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        if not inside.any():
+            return 1.0
+        with np.errstate(invalid="ignore"):
+            beyond = f.depth[rows[inside], cols[inside]] > z[inside] + THROUGH
+        return float(beyond.mean())
+
     def occlusion(self, f: Frame, shape: ShapeModel, prior: np.ndarray) -> float | None:
         """Share of the shape's surface facing the camera at ``prior`` that the robot covers (None: out of view).
 
@@ -229,24 +204,36 @@ class Estimator:
                 seeds = list(np.arange(6) * (shape.symmetry or 2 * np.pi) / 6)
                 candidates = [(c, seeds, None) for c in clusters]
             best: Detection = Detection(None, "missing", occluded=share)
+            best_explained = 0.0
             for pts, yaws, pr in candidates:
                 if len(pts) < MIN_PIXELS:
                     continue
-                if len(pts) > MAX_POINTS:
-                    pts = pts[self.rng.permutation(len(pts))[:MAX_POINTS]]
                 centre = pts.mean(axis=0)
                 z0 = (self.plane[1] - self.plane[0][:2] @ centre[:2]) / self.plane[0][2] - shape.bottom \
                     if self.plane is not None and pr is None else (pr[2] if pr is not None else centre[2])
                 starts = [np.array([*(pr[:2] if pr is not None else centre[:2]), z0, y]) for y in yaws]
                 free = self.free[np.linalg.norm(self.free[:, :2] - starts[0][:2], axis=1) < shape.radius + 0.03]
                 free = free[:200]
-                for x0 in starts:
-                    x, rms = fit(shape, pts, x0, free)
-                    if best.pose is None or rms < best.rms:
-                        yaw = x[3]
-                        if shape.symmetry and pr is not None:  # the equivalent yaw nearest the prediction
-                            yaw = pr[5] + wrap(yaw - pr[5], shape.symmetry)
-                        best = Detection(np.array([x[0], x[1], x[2], 0.0, 0.0, yaw]), "ok", rms, len(pts), share)
+                support = len(pts)  # the cluster's points before subsampling
+                limit = MAX_POINTS if pr is not None else SEED_POINTS
+                if len(pts) > limit:
+                    pts = pts[self.rng.permutation(len(pts))[:limit]]
+                x, rms = min((fit(shape, pts, x0, free) for x0 in starts), key=lambda fitted: fitted[1])
+                if self.plane is not None and x[2] + shape.bottom < self._table_z(x[:2]) - SINK:
+                    continue  # no object is inside the table: a patch of noise fitted by a sunken shape
+                if self.seen_through(f, shape, x) > MAX_THROUGH:
+                    continue  # the camera sees beyond where the shape would be: it is not there
+                # Across clusters, the fit that explains the most points (a cluster's share within INLIER of the
+                # surface, times its size), then the smaller RMS: a small patch of noise (stereo on a plain surface)
+                # can fit one face of a shape closely.
+                explained = support * float(np.mean(np.abs(_residuals(shape, pts, x)) < INLIER))
+                if best.pose is None or (rms <= MAX_RMS, explained, -rms) > (best.rms <= MAX_RMS, best_explained,
+                                                                             -best.rms):
+                    yaw = x[3]
+                    if shape.symmetry and pr is not None:  # the equivalent yaw nearest the prediction
+                        yaw = pr[5] + wrap(yaw - pr[5], shape.symmetry)
+                    best = Detection(np.array([x[0], x[1], x[2], 0.0, 0.0, yaw]), "ok", rms, len(pts), share)
+                    best_explained = explained
             if best.pose is not None and best.rms > MAX_RMS:
                 best = Detection(None, "bad_fit", best.rms, best.points, share)
             out[name] = best

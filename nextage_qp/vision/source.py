@@ -1,5 +1,8 @@
 """``perception.source: camera``: object measurements from the robot camera's depth frames.
 
+The depth is the camera's own (``perception.depth: rendered``, an RGB-D sensor) or block matching on two RGB
+cameras (``stereo``, :mod:`nextage_qp.vision.stereo`), in the left camera's view.
+
 :class:`CameraMeasurer` renders a frame of the world (:class:`~nextage_qp.vision.render.RobotCamera`), computes
 the camera's pose from the *measured* joints, and hands images, intrinsics and pose to the
 :class:`~nextage_qp.vision.estimate.Estimator`; the poses it returns go through the same latency queue and
@@ -22,6 +25,7 @@ from nextage_qp.vision.config import PerceptionConfig
 from nextage_qp.vision.estimate import PARTLY, Estimator, Frame
 from nextage_qp.vision.render import RobotCamera, render_problem
 from nextage_qp.vision.shapes import ShapeModel
+from nextage_qp.vision.stereo import StereoMatcher, check_pair
 
 STATUSES = ("ok", "out_of_view", "occluded", "missing", "bad_fit")
 
@@ -41,15 +45,22 @@ class CameraMeasurer:
     def __init__(self, cfg: PerceptionConfig, robot: Any, data: mujoco.MjData, joints: Callable[[float], np.ndarray],
                  seed: int, source: str = "<config>") -> None:
         cams = dict(robot.description.cameras) if robot.description is not None else {}
-        if cfg.camera not in cams:
-            raise ConfigError(f"{source}: perception.camera: {cfg.camera!r} is not a camera of robot "
-                              f"{robot.name!r}; valid: {', '.join(sorted(cams)) or '(the robot file has none)'}")
+        stereo = cfg.depth == "stereo"
+        for key, name in ((("stereo", n) for n in cfg.stereo) if stereo else [("camera", cfg.camera)]):
+            if name not in cams:
+                raise ConfigError(f"{source}: perception.{key}: {name!r} is not a camera of robot {robot.name!r}; "
+                                  f"valid: {', '.join(sorted(cams)) or '(the robot file has none)'}")
         problem = render_problem()
         if problem is not None:
             raise ConfigError(f"{source}: perception.source: camera: {problem}")
-        self.cfg, self.spec, self.data, self.joints = cfg, cams[cfg.camera], data, joints
+        name = cfg.stereo[0] if stereo else cfg.camera  # the camera whose view the depth is in
+        self.cfg, self.spec, self.data, self.joints = cfg, cams[name], data, joints
         model = robot.model
-        self.camera = RobotCamera(model, cfg.camera, self.spec, robot, seed)
+        self.camera = RobotCamera(model, name, self.spec, robot, seed)
+        self.right: RobotCamera | None = None
+        self.matcher: StereoMatcher | None = None
+        if stereo:
+            self.right, self.matcher = stereo_pair(model, robot, cams, cfg.stereo, self.camera, seed, source)
         self.symmetry = {n: robot.yaw_symmetry(n) for n in robot.object_names}
         shapes = {n: ShapeModel.of_body(model, n, self.symmetry[n]) for n in robot.object_names}
         self.estimator = Estimator(shapes, seed)
@@ -71,7 +82,10 @@ class CameraMeasurer:
     def __call__(self, t: float, priors: Mapping[str, np.ndarray | None]) -> dict[str, np.ndarray | None]:
         """Measured pose vectors (x, y, z, roll, pitch, yaw) at ``t`` [s], None where the object was not seen."""
         t0 = time.perf_counter()
-        depth = self.camera.depth(self.data)
+        if self.matcher is not None and self.right is not None:
+            depth = self.matcher.depth(self.camera.rgb(self.data), self.right.rgb(self.data))
+        else:
+            depth = self.camera.depth(self.data)
         pos, rot = self.camera.pose(self.joints(t))
         expected = self.camera.expected()
         t1 = time.perf_counter()
@@ -117,8 +131,34 @@ class CameraMeasurer:
             seen = c["ok"] + c["missing"] + c["bad_fit"]
             objects[name] = {**c, "detected_of_unoccluded": c["ok"] / seen if seen else None}
         med = {f"{k}_ms_median": float(np.median(v)) if v else None for k, v in self.ms.items()}
-        return {"camera": self.cfg.camera, "frames": len(self.ms["render"]), **med, "objects": objects}
+        return {"camera": self.camera.name, "depth": self.cfg.depth, "frames": len(self.ms["render"]), **med,
+                "objects": objects}
 
     def close(self) -> None:
-        """Free the renderer."""
+        """Free the renderers."""
         self.camera.close()
+        if self.right is not None:
+            self.right.close()
+
+
+def stereo_pair(model: mujoco.MjModel, robot: Any, cams: Mapping[str, Any], names: tuple[str, str],
+                left: RobotCamera, seed: int, source: str) -> tuple[RobotCamera, StereoMatcher]:
+    """The right camera of a stereo pair and the matcher, after checking the pair is rectified as mounted.
+
+    Raises:
+        ConfigError: The cameras are on different bodies, or not a rectified pair (:func:`check_pair`).
+    """
+    specs = [cams[n] for n in names]
+    if specs[0].body != specs[1].body:
+        raise ConfigError(f"{source}: perception.stereo: {names[0]!r} and {names[1]!r} must be on one body, got "
+                          f"{specs[0].body!r} and {specs[1].body!r}")
+    rots = []
+    for spec in specs:
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, np.array(spec.quat()))
+        rots.append(rot.reshape(3, 3))
+    try:
+        baseline = check_pair(specs[0], specs[1], rots[0], rots[1], np.subtract(specs[1].pos, specs[0].pos), names)
+    except ConfigError as exc:
+        raise ConfigError(f"{source}: {exc}") from None
+    return RobotCamera(model, names[1], specs[1], robot, seed), StereoMatcher(left.K, baseline)

@@ -1,0 +1,73 @@
+"""Fitting the known shapes to depth points: the table plane by RANSAC, an object's pose by robust Gauss-Newton.
+
+Arrays only (no simulator): :mod:`nextage_qp.vision.estimate` calls these on the points of one depth frame.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from nextage_qp.geometry import rot_z
+from nextage_qp.vision.shapes import ShapeModel
+
+HUBER = 0.003
+"""Residual [m] beyond which a point's weight falls off (robust fit)."""
+
+
+def table_plane(points: np.ndarray, rng: np.random.Generator, iters: int = 80, tol: float = 0.005,
+                max_tilt: float = 0.2) -> tuple[np.ndarray, float] | None:
+    """The largest near-horizontal plane (unit normal n with n_z > 0, offset d: n . p = d) by RANSAC, or None."""
+    if len(points) < 3:
+        return None
+    a, b, c = (points[rng.integers(0, len(points), iters)] for _ in range(3))  # every hypothesis at once
+    n = np.cross(b - a, c - a)
+    norm = np.linalg.norm(n, axis=1)
+    ok = norm > 1e-9
+    n = n[ok] / norm[ok, None]
+    n *= np.where(n[:, 2] >= 0, 1.0, -1.0)[:, None]
+    keep = np.arccos(np.minimum(1.0, n[:, 2])) <= max_tilt
+    n, a = n[keep], a[ok][keep]
+    if not len(n):
+        return None
+    counts = (np.abs(points @ n.T - np.einsum("ij,ij->i", n, a)) < tol).sum(axis=0)
+    k = int(np.argmax(counts))
+    best = (n[k], float(n[k] @ a[k]))
+    inliers = points[np.abs(points @ best[0] - best[1]) < tol]  # least squares on the inliers
+    centre = inliers.mean(axis=0)
+    n = np.linalg.svd(inliers - centre)[2][2]
+    n = n if n[2] > 0 else -n
+    return n, float(n @ centre)
+
+
+def _residuals(shape: ShapeModel, points: np.ndarray, x: np.ndarray) -> np.ndarray:
+    local = (points - x[:3]) @ rot_z(x[3])
+    return shape.sdf(local)
+
+
+def _both(shape: ShapeModel, points: np.ndarray, free: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Surface residuals of ``points``, then how deep the shape reaches into ``free`` space (seen through)."""
+    return np.concatenate([_residuals(shape, points, x), np.minimum(_residuals(shape, free, x), 0.0)])
+
+
+def fit(shape: ShapeModel, points: np.ndarray, x0: np.ndarray, free: np.ndarray | None = None,
+        iters: int = 12) -> tuple[np.ndarray, float]:
+    """Pose (x, y, z, yaw) of ``shape`` fitting ``points`` from ``x0`` (robust Gauss-Newton), and its RMS [m].
+
+    ``free``: points the camera saw through (just in front of the table it saw), which the shape may not contain:
+    they pin a partial view (the hand covering part of the object) along the directions its own points leave free.
+    """
+    x = np.asarray(x0, dtype=float).copy()
+    free = np.zeros((0, 3)) if free is None else free
+    steps = np.array([1e-4, 1e-4, 1e-4, 1e-3])
+    for _ in range(iters):
+        r = _both(shape, points, free, x)
+        J = np.stack([(_both(shape, points, free, x + e) - r) / h
+                      for e, h in zip(np.diag(steps), steps, strict=True)], axis=1)
+        w = np.minimum(1.0, HUBER / np.maximum(np.abs(r), 1e-12))
+        H = J.T @ (J * w[:, None]) + 1e-6 * np.eye(4)
+        dx = -np.linalg.solve(H, J.T @ (w * r))
+        x += dx
+        if np.abs(dx[:3]).max() < 1e-5 and abs(dx[3]) < 1e-4:
+            break
+    r = _residuals(shape, points, x)
+    return x, float(np.sqrt(np.mean(r * r)))
