@@ -70,3 +70,25 @@ def test_video_without_a_gl_backend_is_one_error_before_the_run(tmp_path, monkey
     monkeypatch.setenv("MUJOCO_GL", "no_such_backend")
     with pytest.raises(ConfigError, match="--video"):
         VideoRecorder(runner, tmp_path / "v.mp4")
+
+
+@pytest.mark.skipif(__import__("nextage_qp.vision.render", fromlist=["render_problem"]).render_problem() is not None,
+                    reason="offscreen rendering unavailable")
+def test_video_of_a_camera_run_shows_the_head_view_with_the_fitted_pose(tmp_path):
+    import imageio.v3 as iio
+
+    from nextage_qp.vision.draw import COLOURS
+    from nextage_qp.viz.video import VideoRecorder
+
+    runner = Runner(load_config("push_cube", ["perception.source=camera"]), "push_cube")
+    measurer = runner.sensors.measurer
+    pos, rot = measurer.camera.pose(runner.robot.get_q(runner.sim.data))
+    ahead = pos - 0.8 * rot[:, 2]  # 0.8 m along the camera's axis (it looks along its -z)
+    measurer.poses = {"cube": np.array([*ahead, 0.0, 0.0, 0.0])}  # as if the camera had fitted the cube there
+    video = VideoRecorder(runner, tmp_path / "v.mp4", fps=25, size=(240, 320))
+    video.on_tick(runner, None)
+    assert video.close() == 1
+    frame = next(iter(iio.imiter(tmp_path / "v.mp4"))).astype(int)
+    corner, rest = frame[:120, 160:], frame[120:, :160]
+    near = lambda img: (np.abs(img - np.array(COLOURS[0])).sum(axis=2) < 90).sum()  # noqa: E731 (codec blur)
+    assert near(corner) >= 5 and near(rest) == 0  # the pose is drawn in the corner's head view only

@@ -37,7 +37,12 @@ def render_problem() -> str | None:
     return None
 
 
-def _option() -> mujoco.MjvOption:
+FAST_CAMERA_FLAGS = (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION, mujoco.mjtRndFlag.mjRND_SKYBOX)
+"""Rendering a robot camera turns these off (software rendering)."""
+
+
+def shown_option() -> mujoco.MjvOption:
+    """What a robot camera sees: the :data:`SHOWN_GROUPS` of geoms, no sites."""
     opt = mujoco.MjvOption()
     opt.geomgroup[:] = 0
     for g in SHOWN_GROUPS:
@@ -62,7 +67,7 @@ class RobotCamera:
         self.cam_id = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, name))
         self.K = spec.intrinsics
         self.renderer = mujoco.Renderer(model, spec.height, spec.width)
-        self.option = _option()
+        self.option = shown_option()
         self.rng = np.random.default_rng(seed)
         self.kin = mujoco.MjData(model)  # the robot's own model at its measured joints, objects away
         for obj in robot.object_names:
@@ -72,8 +77,7 @@ class RobotCamera:
     def _render(self, data: mujoco.MjData, depth: bool) -> np.ndarray:
         r = self.renderer
         r.update_scene(data, camera=self.cam_id, scene_option=self.option)
-        flags = mujoco.mjtRndFlag
-        for flag in (flags.mjRND_SHADOW, flags.mjRND_REFLECTION, flags.mjRND_SKYBOX):
+        for flag in FAST_CAMERA_FLAGS:
             r.scene.flags[flag] = 0
         if depth:
             r.enable_depth_rendering()

@@ -68,6 +68,8 @@ class CameraMeasurer:
         self.ms: dict[str, list[float]] = {"render": [], "estimate": []}
         self.dumped = cfg.dump is None
         self.last: tuple[float, np.ndarray] | None = None
+        self.poses: dict[str, np.ndarray | None] = {}
+        """Each object's pose vector fitted in the latest frame (None: not seen in it); for videos."""
 
     @property
     def rate_hz(self) -> float:
@@ -100,7 +102,8 @@ class CameraMeasurer:
         if not self.dumped and t + 1e-9 >= self.cfg.dump_at_s:
             self.dumped = True
             self.dump(Path(str(self.cfg.dump)), frame, detections)
-        return {name: det.pose for name, det in detections.items()}
+        self.poses = {name: det.pose for name, det in detections.items()}
+        return dict(self.poses)
 
     def dump(self, folder: Path, frame: Frame, detections: Mapping[str, Any]) -> None:
         """Write the frame's RGB, depth, clusters and fitted poses (drawn over the RGB) as PNGs into ``folder``."""

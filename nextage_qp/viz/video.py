@@ -1,11 +1,17 @@
-"""A run's video, rendered headless and encoded in a process of its own (``run --video``)."""
+"""A run's video, rendered headless and encoded in a process of its own (``run --video``).
+
+A run whose object poses come from a robot camera (``perception.source: camera``) shows that camera's view in the
+top right corner, with each object's latest fitted pose drawn over it (:class:`HeadView`).
+"""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import mujoco
+import numpy as np
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.mobile.build import BASE_BODY
@@ -19,19 +25,63 @@ FOLLOW = "follow:"
 """Prefix of a camera name that follows a body: ``follow:BODY``."""
 
 
+@dataclass(frozen=True)
+class HeadView:
+    """A robot camera's view for a video's corner: its name, image size, intrinsics and the objects' shape models."""
+
+    camera: str
+    width: int
+    height: int
+    K: Any
+    shapes: dict[str, Any]
+
+    @staticmethod
+    def of(measurer: Any) -> HeadView:
+        """The view of a :class:`~nextage_qp.vision.source.CameraMeasurer`'s camera."""
+        cam = measurer.camera
+        return HeadView(cam.name, cam.spec.width, cam.spec.height, cam.K, dict(measurer.estimator.shapes))
+
+    def view(self, renderer: mujoco.Renderer, data: mujoco.MjData, poses: dict[str, Any]) -> Any:
+        """The camera's image of ``data`` (as the robot's camera renders it) with ``poses`` drawn over it."""
+        from nextage_qp.vision.draw import draw_poses
+        from nextage_qp.vision.estimate import Frame
+        from nextage_qp.vision.render import FAST_CAMERA_FLAGS, shown_option
+
+        cam = mujoco.mj_name2id(renderer.model, mujoco.mjtObj.mjOBJ_CAMERA, self.camera)
+        renderer.update_scene(data, camera=cam, scene_option=shown_option())
+        for flag in FAST_CAMERA_FLAGS:
+            renderer.scene.flags[flag] = 0
+        none = np.empty((0, 0))  # the drawing needs the camera only, no depth
+        frame = Frame(none, none, self.K, data.cam_xpos[cam].copy(), data.cam_xmat[cam].reshape(3, 3).copy())
+        return draw_poses(renderer.render(), frame, self.shapes, poses)
+
+    @staticmethod
+    def paste(image: Any, corner: Any) -> Any:
+        """``image`` with ``corner`` (at most half its width, scaled down by whole steps) in its top right corner."""
+        step = 1
+        while corner.shape[1] // step > image.shape[1] // 2 or corner.shape[0] // step > image.shape[0] // 2:
+            step += 1
+        small = corner[::step, ::step]
+        out = image.copy()
+        out[: small.shape[0], out.shape[1] - small.shape[1] :] = small
+        return out
+
+
 def video_process(path: str, fps: int, size: tuple[int, int], camera: str, frames: Any, status: Any) -> None:
     """Render the states received on ``frames`` and encode them into ``path`` (``None`` ends the video).
 
-    The first item on ``frames`` is the pickled model; each later item is ``(qpos, mocap_pos, mocap_quat,
-    markers)``. Reports ``("ready", None)`` once the GL context and the file are open, then ``("done", n_frames)``,
-    or ``("error", message)`` at any point.
+    The first item on ``frames`` is the pickled ``(model, inset)``, ``inset`` None or a robot camera's
+    :class:`HeadView`; each later item is ``(qpos, mocap_pos, mocap_quat, markers, poses)``, ``poses`` the camera's
+    latest fitted pose per object. Reports ``("ready", None)`` once the GL context and the file are open, then
+    ``("done", n_frames)``, or ``("error", message)`` at any point.
     """
     import pickle
 
-    model = pickle.loads(frames.get())
+    model, inset = pickle.loads(frames.get())
     model.vis.quality.offsamples = 0  # multisampling doubles a software-GL frame's cost
     try:
         renderer = mujoco.Renderer(model, *size)
+        head = None if inset is None else mujoco.Renderer(model, inset.height, inset.width)
     except Exception as exc:  # no GL context: name the fix
         status.send(("error", f"--video: cannot open an offscreen GL context ({exc}); set MUJOCO_GL=egl"))
         return
@@ -51,7 +101,7 @@ def video_process(path: str, fps: int, size: tuple[int, int], camera: str, frame
         view.distance, view.elevation, view.azimuth = 3.5, -30.0, 150.0
     try:
         while (state := frames.get()) is not None:
-            data.qpos[:], data.mocap_pos[:], data.mocap_quat[:], points = state
+            data.qpos[:], data.mocap_pos[:], data.mocap_quat[:], points, poses = state
             mujoco.mj_kinematics(model, data)
             mujoco.mj_comPos(model, data)  # a tracking camera follows the body's subtree centre of mass
             mujoco.mj_camlight(model, data)
@@ -59,7 +109,10 @@ def video_process(path: str, fps: int, size: tuple[int, int], camera: str, frame
             for flag in FAST_FLAGS:
                 renderer.scene.flags[flag] = False
             draw_markers(renderer.scene, points)
-            writer.append_data(renderer.render())
+            image = renderer.render()
+            if head is not None and inset is not None:
+                image = inset.paste(image, inset.view(head, data, poses))
+            writer.append_data(image)
             count += 1
         writer.close()
         status.send(("done", count))
@@ -92,7 +145,10 @@ class VideoRecorder:
         self.process = ctx.Process(target=video_process, daemon=True, name="nextage-qp-video",
                                    args=(str(path), fps, size, camera, self.frames, child))
         self.process.start()
-        self.frames.put(pickle.dumps(runner.robot.model))  # through the queue's feeder thread: never blocks here
+        measurer = getattr(runner.sensors, "measurer", None) if runner.sensors is not None else None
+        self.measurer = measurer
+        inset = None if measurer is None else HeadView.of(measurer)
+        self.frames.put(pickle.dumps((runner.robot.model, inset)))  # the queue's feeder thread: never blocks here
         kind, message = self._wait(120.0)
         if kind != "ready":
             self.frames.cancel_join_thread()  # the model may still sit in the pipe: do not wait at exit
@@ -121,7 +177,9 @@ class VideoRecorder:
             return
         self.next_t += self.period
         d = runner.sim.data
-        self.frames.put((d.qpos.copy(), d.mocap_pos.copy(), d.mocap_quat.copy(), marker_points(runner, self.starts)))
+        poses = dict(self.measurer.poses) if self.measurer is not None else {}
+        self.frames.put((d.qpos.copy(), d.mocap_pos.copy(), d.mocap_quat.copy(), marker_points(runner, self.starts),
+                         poses))
 
     def close(self) -> int:
         """Finish the file; returns the number of frames written, raises OSError if the video could not be made."""
