@@ -182,3 +182,21 @@ def test_camera_on_a_missing_body(tmp_path: Path) -> None:
     path.write_text(text.replace("../configs/gains", "gains"))
     with pytest.raises(ConfigError, match=r"cameras.head_rgbd.body: 'HEAD_LINK' is not a body of the model"):
         robot_spec(load_robot(path))
+
+
+@needs_gl
+def test_an_object_not_tracked_yet_is_looked_for_resting_on_the_table() -> None:
+    robot, data, _, shape = aimed_frame("box", 0.4, 0.2)
+    cube = robot.object_qpos_slice("cube")
+    data.qpos[cube.start + 2] += 0.1  # the box floats 10 cm above the table
+    mujoco.mj_forward(robot.model, data)
+    cam = RobotCamera(robot.model, "head_rgbd", robot.description.cameras["head_rgbd"], robot, seed=0)
+    q = robot.get_q(data)
+    pos, rot = cam.pose(q)
+    frame = Frame(cam.depth(data), cam.expected(), cam.K, pos, rot)
+    cam.close()
+    truth = data.xpos[robot.model.body("cube").id]
+    first = Estimator({"cube": shape}).estimate(frame, {"cube": None})["cube"]
+    assert first.status == "missing"  # a floating fit is taken for noise before the object is tracked
+    tracked = Estimator({"cube": shape}).estimate(frame, {"cube": np.array([*truth, 0.0, 0.0, 0.2])})["cube"]
+    assert tracked.status == "ok" and np.linalg.norm(tracked.pose[:3] - truth) < 0.003  # a tracked one anywhere

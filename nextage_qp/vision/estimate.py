@@ -45,6 +45,9 @@ SEED_POINTS = 1200
 wrong seed's local minimum fit a little better."""
 SINK = 0.01
 """How far [m] a fitted shape may reach below the table plane (its points' noise); deeper, it is no object."""
+REST = 0.02
+"""How far [m] above the table plane the bottom of an object not tracked yet may be: objects are first seen resting
+(a floating fit is noise, e.g. stereo on the robot's own plain links)."""
 THROUGH = 0.03
 """Depth [m] beyond a fitted surface at which the camera sees through where the shape would be."""
 MAX_THROUGH = 0.6
@@ -219,8 +222,9 @@ class Estimator:
                 if len(pts) > limit:
                     pts = pts[self.rng.permutation(len(pts))[:limit]]
                 x, rms = min((fit(shape, pts, x0, free) for x0 in starts), key=lambda fitted: fitted[1])
-                if self.plane is not None and x[2] + shape.bottom < self._table_z(x[:2]) - SINK:
-                    continue  # no object is inside the table: a patch of noise fitted by a sunken shape
+                if self.plane is not None and (x[2] + shape.bottom < self._table_z(x[:2]) - SINK or (
+                        pr is None and x[2] + shape.bottom > self._table_z(x[:2]) + REST)):
+                    continue  # no object is inside the table, and one not tracked yet rests on it
                 if self.seen_through(f, shape, x) > MAX_THROUGH:
                     continue  # the camera sees beyond where the shape would be: it is not there
                 # Across clusters, the fit that explains the most points (a cluster's share within INLIER of the
