@@ -5,10 +5,9 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
-import mujoco
 import numpy as np
 import pytest
-from test_vision import PROBLEM, PUSH, SHAPES, look_at_cube
+from test_vision import PROBLEM, PUSH, SHAPES, aimed_scene
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.geometry import wrap
@@ -24,21 +23,6 @@ needs_stereo = pytest.mark.skipif(PROBLEM is not None or not CV2,
 STEREO = ["perception.source=camera", "perception.depth=stereo"]
 
 
-def stereo_scene(shape: str, x: float, yaw: float):
-    """The push scene with ``shape`` at ``x`` [m] ahead, yawed, the head turned at it; a stereo config's world."""
-    cfg = load_config(PUSH, [f"scene.objects.cube={SHAPES[shape]}", f"scene.poses.cube.pos=[{x},0.05,0.91]",
-                             f"scene.poses.cube.yaw={yaw}", *STEREO])
-    robot = build_robot(cfg, str(PUSH))
-    data = mujoco.MjData(robot.model)
-    q = robot.keyframe_q("home")
-    robot.set_q(data, q)
-    mujoco.mj_forward(robot.model, data)
-    q = look_at_cube(robot, q, data)
-    robot.set_q(data, q)
-    mujoco.mj_forward(robot.model, data)
-    return cfg, robot, data, q
-
-
 @needs_stereo
 @pytest.mark.parametrize("shape", list(SHAPES))
 @pytest.mark.parametrize("x", [0.3, 0.6])
@@ -46,7 +30,7 @@ def test_static_accuracy_stereo(shape: str, x: float) -> None:
     from nextage_qp.vision.source import CameraMeasurer
 
     yaw = 0.3 if x < 0.5 else -0.4
-    cfg, robot, data, q = stereo_scene(shape, x, yaw)
+    cfg, robot, data, q = aimed_scene(shape, x, yaw, tuple(STEREO))
     camera = CameraMeasurer(cfg.perception, robot, data, lambda t: q, seed=0)
     try:
         pose = camera(0.0, {"cube": None})["cube"]

@@ -51,11 +51,11 @@ def look_at_cube(robot, q: np.ndarray, data: mujoco.MjData) -> np.ndarray:
     return q
 
 
-def aimed_frame(shape: str, x: float, yaw: float, noise: DepthNoise | None = None, seed: int = 0):
-    """The push scene with the cube swapped for ``shape`` at ``x`` [m] ahead, yawed, the head turned at it: the
-    robot, the world, one depth frame of the RGB-D camera, and the cube's shape model."""
+def aimed_scene(shape: str, x: float, yaw: float, sets: tuple[str, ...] = ()):
+    """The push scene with the cube swapped for ``shape`` at ``x`` [m] ahead, yawed, more ``sets``, the head turned
+    at it: the config, the robot, the world and the joints."""
     cfg = load_config(PUSH, [f"scene.objects.cube={SHAPES[shape]}", f"scene.poses.cube.pos=[{x},0.05,0.91]",
-                             f"scene.poses.cube.yaw={yaw}"])
+                             f"scene.poses.cube.yaw={yaw}", *sets])
     robot = build_robot(cfg, str(PUSH))
     data = mujoco.MjData(robot.model)
     q = robot.keyframe_q("home")
@@ -64,6 +64,12 @@ def aimed_frame(shape: str, x: float, yaw: float, noise: DepthNoise | None = Non
     q = look_at_cube(robot, q, data)
     robot.set_q(data, q)
     mujoco.mj_forward(robot.model, data)
+    return cfg, robot, data, q
+
+
+def aimed_frame(shape: str, x: float, yaw: float, noise: DepthNoise | None = None, seed: int = 0):
+    """:func:`aimed_scene`'s robot and world, one depth frame of its RGB-D camera, and the cube's shape model."""
+    _, robot, data, q = aimed_scene(shape, x, yaw)
     spec = robot.description.cameras["head_rgbd"]
     if noise is not None:
         spec = spec.model_copy(update={"depth_noise": noise})

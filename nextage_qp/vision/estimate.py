@@ -149,18 +149,23 @@ class Estimator:
         n, d = self.plane
         return float((d - n[:2] @ xy) / n[2])
 
+    @staticmethod
+    def _facing(f: Frame, shape: ShapeModel, pos: np.ndarray, yaw: float) -> tuple[np.ndarray, ...]:
+        """Pixel rows, cols, depth of the shape's camera-facing samples at ``pos``, ``yaw``, and which are in view."""
+        rot = rot_z(yaw).T
+        pts = shape.samples @ rot + pos
+        pts = pts[np.einsum("ij,ij->i", shape.normals @ rot, pts - f.cam_pos) < 0]  # faces the camera
+        rows, cols, z = project(pts, f.K, f.cam_pos, f.cam_rot)
+        h, w = f.depth.shape
+        return rows, cols, z, (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+
     def seen_through(self, f: Frame, shape: ShapeModel, x: np.ndarray) -> float:
         """Share of the shape's camera-facing surface at pose ``x`` (x, y, z, yaw) behind which the frame has depth.
 
         A shape where the image shows something farther away (by more than ``THROUGH`` [m]) cannot be there; nearer
         (the robot in front) or no depth say nothing.
         """
-        rot = rot_z(x[3]).T
-        pts = shape.samples @ rot + x[:3]
-        pts = pts[np.einsum("ij,ij->i", shape.normals @ rot, pts - f.cam_pos) < 0]  # faces the camera
-        rows, cols, z = project(pts, f.K, f.cam_pos, f.cam_rot)
-        h, w = f.depth.shape
-        inside = (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        rows, cols, z, inside = self._facing(f, shape, x[:3], x[3])
         if not inside.any():
             return 1.0
         with np.errstate(invalid="ignore"):
@@ -172,12 +177,7 @@ class Estimator:
 
         From the model alone: the expected depth (robot and static scene) in front of the shape's samples.
         """
-        rot = rot_z(prior[5]).T
-        pts = shape.samples @ rot + prior[:3]
-        pts = pts[np.einsum("ij,ij->i", shape.normals @ rot, pts - f.cam_pos) < 0]  # faces the camera
-        rows, cols, z = project(pts, f.K, f.cam_pos, f.cam_rot)
-        h, w = f.depth.shape
-        inside = (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        rows, cols, z, inside = self._facing(f, shape, prior[:3], prior[5])
         if inside.mean() < 0.5:
             return None
         with np.errstate(invalid="ignore"):
