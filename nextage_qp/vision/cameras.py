@@ -73,14 +73,17 @@ class CameraFile(BaseModel):
         f = self.width / 2.0 / math.tan(math.radians(self.fovx) / 2.0)
         return np.array([[f, 0.0, self.width / 2.0], [0.0, f, self.height / 2.0], [0.0, 0.0, 1.0]])
 
-    def quat(self) -> list[float]:
-        """The camera's orientation in its body (w, x, y, z), MuJoCo's convention (looks along -z, +y up)."""
+    def rot(self) -> np.ndarray:
+        """The camera's rotation in its body (columns: its x right, y up, z backwards; it looks along -z)."""
         cp, sp, cy, sy = math.cos(self.pitch), math.sin(self.pitch), math.cos(self.yaw), math.sin(self.yaw)
         forward = np.array([cy * cp, sy * cp, -sp])
         up = np.array([cy * sp, sy * sp, cp])
-        rot = np.column_stack([np.cross(up, -forward), up, -forward])  # columns: camera x, y, z in the body
+        return np.column_stack([np.cross(up, -forward), up, -forward])
+
+    def quat(self) -> list[float]:
+        """The camera's orientation in its body (w, x, y, z), MuJoCo's convention: :meth:`rot` as a quaternion."""
         q = np.zeros(4)
-        mujoco.mju_mat2Quat(q, rot.reshape(9))
+        mujoco.mju_mat2Quat(q, self.rot().reshape(9))
         return q.tolist()
 
 

@@ -21,7 +21,7 @@ import numpy as np
 from scipy import ndimage
 
 from nextage_qp.geometry import rot_z, wrap
-from nextage_qp.vision.fit import _residuals, fit, table_plane
+from nextage_qp.vision.fit import fit, residuals, table_plane
 from nextage_qp.vision.shapes import ShapeModel
 
 GAP = 0.01
@@ -212,8 +212,8 @@ class Estimator:
                 if len(pts) < MIN_PIXELS:
                     continue
                 centre = pts.mean(axis=0)
-                z0 = (self.plane[1] - self.plane[0][:2] @ centre[:2]) / self.plane[0][2] - shape.bottom \
-                    if self.plane is not None and pr is None else (pr[2] if pr is not None else centre[2])
+                z0 = self._table_z(centre[:2]) - shape.bottom if self.plane is not None and pr is None else (
+                    pr[2] if pr is not None else centre[2])
                 starts = [np.array([*(pr[:2] if pr is not None else centre[:2]), z0, y]) for y in yaws]
                 free = self.free[np.linalg.norm(self.free[:, :2] - starts[0][:2], axis=1) < shape.radius + 0.03]
                 free = free[:200]
@@ -222,15 +222,15 @@ class Estimator:
                 if len(pts) > limit:
                     pts = pts[self.rng.permutation(len(pts))[:limit]]
                 x, rms = min((fit(shape, pts, x0, free) for x0 in starts), key=lambda fitted: fitted[1])
-                if self.plane is not None and (x[2] + shape.bottom < self._table_z(x[:2]) - SINK or (
-                        pr is None and x[2] + shape.bottom > self._table_z(x[:2]) + REST)):
+                above = x[2] + shape.bottom - self._table_z(x[:2]) if self.plane is not None else 0.0  # its bottom
+                if above < -SINK or (pr is None and above > REST):
                     continue  # no object is inside the table, and one not tracked yet rests on it
                 if self.seen_through(f, shape, x) > MAX_THROUGH:
                     continue  # the camera sees beyond where the shape would be: it is not there
                 # Across clusters, the fit that explains the most points (a cluster's share within INLIER of the
                 # surface, times its size), then the smaller RMS: a small patch of noise (stereo on a plain surface)
                 # can fit one face of a shape closely.
-                explained = support * float(np.mean(np.abs(_residuals(shape, pts, x)) < INLIER))
+                explained = support * float(np.mean(np.abs(residuals(shape, pts, x)) < INLIER))
                 if best.pose is None or (rms <= MAX_RMS, explained, -rms) > (best.rms <= MAX_RMS, best_explained,
                                                                              -best.rms):
                     yaw = x[3]
@@ -242,6 +242,6 @@ class Estimator:
                 best = Detection(None, "bad_fit", best.rms, best.points, share)
             out[name] = best
             if best.pose is not None and prior is None:  # its cluster is taken (tracked objects came first)
-                clusters = [c for c in clusters if np.median(np.abs(_residuals(shape, c, best.pose[[0, 1, 2, 5]])))
+                clusters = [c for c in clusters if np.median(np.abs(residuals(shape, c, best.pose[[0, 1, 2, 5]])))
                             > 0.01]
         return out

@@ -39,14 +39,15 @@ def table_plane(points: np.ndarray, rng: np.random.Generator, iters: int = 80, t
     return n, float(n @ centre)
 
 
-def _residuals(shape: ShapeModel, points: np.ndarray, x: np.ndarray) -> np.ndarray:
+def residuals(shape: ShapeModel, points: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Signed distances [m] of ``points`` to ``shape`` at pose ``x`` (x, y, z, yaw): > 0 outside."""
     local = (points - x[:3]) @ rot_z(x[3])
     return shape.sdf(local)
 
 
 def _both(shape: ShapeModel, points: np.ndarray, free: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Surface residuals of ``points``, then how deep the shape reaches into ``free`` space (seen through)."""
-    return np.concatenate([_residuals(shape, points, x), np.minimum(_residuals(shape, free, x), 0.0)])
+    return np.concatenate([residuals(shape, points, x), np.minimum(residuals(shape, free, x), 0.0)])
 
 
 def fit(shape: ShapeModel, points: np.ndarray, x0: np.ndarray, free: np.ndarray | None = None,
@@ -69,5 +70,5 @@ def fit(shape: ShapeModel, points: np.ndarray, x0: np.ndarray, free: np.ndarray 
         x += dx
         if np.abs(dx[:3]).max() < 1e-5 and abs(dx[3]) < 1e-4:
             break
-    r = _residuals(shape, points, x)
+    r = residuals(shape, points, x)
     return x, float(np.sqrt(np.mean(r * r)))

@@ -51,6 +51,14 @@ def shown_option() -> mujoco.MjvOption:
     return opt
 
 
+def render_camera(renderer: mujoco.Renderer, data: mujoco.MjData, cam_id: int, option: mujoco.MjvOption) -> np.ndarray:
+    """The image of ``data`` a robot camera takes (``option``: :func:`shown_option`; the renderer's depth mode kept)."""
+    renderer.update_scene(data, camera=cam_id, scene_option=option)
+    for flag in FAST_CAMERA_FLAGS:
+        renderer.scene.flags[flag] = 0
+    return renderer.render()
+
+
 class RobotCamera:
     """Renders one camera of the robot (see the module docstring).
 
@@ -75,15 +83,11 @@ class RobotCamera:
             self.kin.qpos[s.start + 2] = AWAY
 
     def _render(self, data: mujoco.MjData, depth: bool) -> np.ndarray:
-        r = self.renderer
-        r.update_scene(data, camera=self.cam_id, scene_option=self.option)
-        for flag in FAST_CAMERA_FLAGS:
-            r.scene.flags[flag] = 0
         if depth:
-            r.enable_depth_rendering()
+            self.renderer.enable_depth_rendering()
         else:
-            r.disable_depth_rendering()
-        out = r.render()
+            self.renderer.disable_depth_rendering()
+        out = render_camera(self.renderer, data, self.cam_id, self.option)
         if depth:
             out = np.where(out < MAX_RANGE, out, np.nan).astype(np.float32)
         return out

@@ -155,13 +155,9 @@ def stereo_pair(model: mujoco.MjModel, robot: Any, cams: Mapping[str, Any], name
     if specs[0].body != specs[1].body:
         raise ConfigError(f"{source}: perception.stereo: {names[0]!r} and {names[1]!r} must be on one body, got "
                           f"{specs[0].body!r} and {specs[1].body!r}")
-    rots = []
-    for spec in specs:
-        rot = np.zeros(9)
-        mujoco.mju_quat2Mat(rot, np.array(spec.quat()))
-        rots.append(rot.reshape(3, 3))
     try:
-        baseline = check_pair(specs[0], specs[1], rots[0], rots[1], np.subtract(specs[1].pos, specs[0].pos), names)
+        baseline = check_pair(specs[0], specs[1], specs[0].rot(), specs[1].rot(),
+                              np.subtract(specs[1].pos, specs[0].pos), names)
     except ConfigError as exc:
         raise ConfigError(f"{source}: {exc}") from None
     return RobotCamera(model, names[1], specs[1], robot, seed), StereoMatcher(left.K, baseline)

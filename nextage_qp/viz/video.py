@@ -45,15 +45,13 @@ class HeadView:
         """The camera's image of ``data`` (as the robot's camera renders it) with ``poses`` drawn over it."""
         from nextage_qp.vision.draw import draw_poses
         from nextage_qp.vision.estimate import Frame
-        from nextage_qp.vision.render import FAST_CAMERA_FLAGS, shown_option
+        from nextage_qp.vision.render import render_camera, shown_option
 
         cam = mujoco.mj_name2id(renderer.model, mujoco.mjtObj.mjOBJ_CAMERA, self.camera)
-        renderer.update_scene(data, camera=cam, scene_option=shown_option())
-        for flag in FAST_CAMERA_FLAGS:
-            renderer.scene.flags[flag] = 0
+        image = render_camera(renderer, data, cam, shown_option())
         none = np.empty((0, 0))  # the drawing needs the camera only, no depth
         frame = Frame(none, none, self.K, data.cam_xpos[cam].copy(), data.cam_xmat[cam].reshape(3, 3).copy())
-        return draw_poses(renderer.render(), frame, self.shapes, poses)
+        return draw_poses(image, frame, self.shapes, poses)
 
     @staticmethod
     def paste(image: Any, corner: Any) -> Any:
@@ -145,9 +143,8 @@ class VideoRecorder:
         self.process = ctx.Process(target=video_process, daemon=True, name="nextage-qp-video",
                                    args=(str(path), fps, size, camera, self.frames, child))
         self.process.start()
-        measurer = getattr(runner.sensors, "measurer", None) if runner.sensors is not None else None
-        self.measurer = measurer
-        inset = None if measurer is None else HeadView.of(measurer)
+        self.measurer = getattr(runner.sensors, "measurer", None)  # a robot camera's (perception.source: camera)
+        inset = None if self.measurer is None else HeadView.of(self.measurer)
         self.frames.put(pickle.dumps((runner.robot.model, inset)))  # the queue's feeder thread: never blocks here
         kind, message = self._wait(120.0)
         if kind != "ready":
