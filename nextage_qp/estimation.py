@@ -22,7 +22,8 @@ and tilt rest): every measurement re-weights the models of each axis by their li
 
 The state lives at the time the last measurement *describes* (arrival less latency): a measurement is applied
 at its own time stamp and :meth:`PoseKalman.estimate` predicts from there to now, which compensates the latency
-and bridges dropouts. A measurement whose normalised innovation :math:`\sum_i \nu_i^2 / S_i` under the mixture
+and bridges dropouts (for at most ``COAST_S``: an object unseen for longer has stopped). A measurement whose
+normalised innovation :math:`\sum_i \nu_i^2 / S_i` under the mixture
 the models predict (weighted by their probabilities) exceeds the gate (the 99.9 % point of :math:`\chi^2_6`) is
 rejected as an outlier; after ``reset_after`` rejections in a row the object has really moved, and the filter
 restarts at the last of them, manoeuvring, with the velocity the last two show.
@@ -45,6 +46,9 @@ MANOEUVRE_GAIN = 3e6
 """Process noise of the manoeuvring model relative to the moving one."""
 STAY = 0.99
 """Probability that an axis keeps its model (resting, moving or manoeuvring) from one measurement to the next."""
+COAST_S = 1.0
+"""Longest time [s] past its last measurement that :meth:`PoseKalman.estimate` predicts motion: an object unseen for
+longer has stopped where the prediction put it, rather than flying on at a speed a bad measurement gave it."""
 
 
 def rpy_of(rot: np.ndarray) -> np.ndarray:
@@ -192,9 +196,10 @@ class PoseKalman:
         for m in self.models:
             m.p[:, 0, 0] = np.maximum(variance, 1e-12)
 
-    def variance(self) -> np.ndarray:
-        """Mode-weighted position/angle variance per axis (6,) at the last measurement."""
-        return np.asarray(sum(w * m.p[:, 0, 0] for w, m in zip(self.mode, self.models, strict=True)))
+    def variance(self, t: float | None = None) -> np.ndarray:
+        """Mode-weighted position/angle variance per axis (6,) at the last measurement, or predicted to ``t`` [s]."""
+        dt = 0.0 if t is None or self.t is None else max(t - self.t, 0.0)
+        return np.asarray(sum(w * m.predicted(dt)[1][:, 0, 0] for w, m in zip(self.mode, self.models, strict=True)))
 
     def update(self, t: float, z: np.ndarray) -> bool:
         """Apply a measurement ``z`` (x, y, z, roll, pitch, yaw) describing time ``t`` [s]; False if gated out."""
@@ -248,10 +253,10 @@ class PoseKalman:
         return prior
 
     def estimate(self, t: float) -> np.ndarray:
-        """Pose (x, y, z, roll, pitch, yaw) predicted to ``t`` [s] (the filter's state is left as it is)."""
+        """Pose (x, y, z, roll, pitch, yaw) predicted to ``t`` [s], at most ``COAST_S`` past the last measurement."""
         if self.t is None:
             raise RuntimeError("no measurement yet")
-        dt = max(t - self.t, 0.0)
+        dt = min(max(t - self.t, 0.0), COAST_S)
         return sum(w * m.predicted(dt)[0][:, 0] for w, m in zip(self.mode, self.models, strict=True))
 
 

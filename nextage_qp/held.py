@@ -36,7 +36,10 @@ class HeldEstimate:
         kalman: A fresh filter for the relative pose (same noise model as the world filter).
     """
 
-    def __init__(self, t: float, carrier: Pose, world: np.ndarray, variance: np.ndarray, kalman: PoseKalman) -> None:
+    def __init__(self, t: float, carrier: Pose, world: np.ndarray, variance: np.ndarray, kalman: PoseKalman, *,
+                 extrapolate: bool = True) -> None:
+        self.extrapolate = extrapolate
+        """Predict the relative pose past its last measurement (a clamp); False: hold it there (a push's contact)."""
         self.offset = carrier.rot.T @ vector_pose(world).rot
         self.history: deque[tuple[float, Pose]] = deque([(t, carrier)])
         self.kalman = kalman
@@ -67,9 +70,10 @@ class HeldEstimate:
 
     def estimate(self, t: float) -> np.ndarray:
         """World pose (x, y, z, roll, pitch, yaw) at ``t`` [s]: the latest carrier pose with the relative estimate."""
-        f, r = self._frame(self.history[-1][1]), vector_pose(self.kalman.estimate(t))
+        at = t if self.extrapolate or self.kalman.t is None else min(t, self.kalman.t)
+        f, r = self._frame(self.history[-1][1]), vector_pose(self.kalman.estimate(at))
         return pose_vector(Pose(f.pos + f.rot @ r.pos, f.rot @ r.rot))
 
-    def variance(self) -> np.ndarray:
-        """Position and angle variance per axis (6,) of the relative estimate (for the world filter's restart)."""
-        return self.kalman.variance()
+    def variance(self, t: float | None = None) -> np.ndarray:
+        """Variance per axis (6,) of the relative estimate at its last measurement, or predicted to ``t`` [s]."""
+        return self.kalman.variance(t)

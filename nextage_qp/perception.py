@@ -35,6 +35,7 @@ class _Track:
         self.taken = self.dropped = 0
         self.errors = EstimateErrors()
         self.carried: HeldEstimate | None = None  # while the robot holds the object
+        self.seen: float | None = None  # the time the latest delivered measurement describes [s]
         self.carried_counts = [0, 0]  # gated measurements and restarts of finished holds
 
 
@@ -70,7 +71,7 @@ class FaultySensors:
         self._next_sample = 0.0
         self._joint_cache: tuple[float, np.ndarray, np.ndarray] | None = None
         self._frozen: Wrench | None = None
-        self._carrier: tuple[str, Callable[[], Pose]] | None = None
+        self._carrier: tuple[str, Callable[[], Pose], bool] | None = None
         self.history: dict[str, list[tuple[float, np.ndarray, np.ndarray | None]]] = {}
         """Per object: (t, estimate vector, raw measurement delivered this tick or None), for logs and plots."""
 
@@ -91,13 +92,14 @@ class FaultySensors:
             self._tracks[name] = _Track(self._kalman() if self.estimation.object_filter == "kalman" else None)
         return self._tracks[name]
 
-    def carry(self, name: str | None, carrier: Callable[[], Pose] | None = None) -> None:
+    def carry(self, name: str | None, carrier: Callable[[], Pose] | None = None, *, extrapolate: bool = True) -> None:
         """The object the robot now holds and the pose of what holds it (None: nothing held).
 
         A held object is estimated relative to its carrier (:class:`~nextage_qp.held.HeldEstimate`); when the
-        hold ends the world filter restarts from that estimate.
+        hold ends the world filter restarts from that estimate. ``extrapolate``: the relative pose is predicted past
+        its last measurement (a clamp), or held there (a pushed object, which moves only where the contact takes it).
         """
-        self._carrier = (name, carrier) if name is not None and carrier is not None else None
+        self._carrier = (name, carrier, extrapolate) if name is not None and carrier is not None else None
 
     def _hold(self, t: float, name: str, tr: _Track) -> None:
         """Start, keep or end the held estimate of ``name`` at ``t`` [s] (with the Kalman filter only)."""
@@ -106,11 +108,12 @@ class FaultySensors:
         if k is None:
             return
         if carrier is not None and held is None and k.initialised:
-            tr.carried = HeldEstimate(t, carrier(), k.estimate(t), k.variance(), self._kalman())
+            tr.carried = HeldEstimate(t, carrier(), k.estimate(t), k.variance(), self._kalman(),
+                                      extrapolate=self._carrier[2] if self._carrier is not None else True)
         elif carrier is not None and held is not None:
             held.observe(t, carrier())
         elif carrier is None and held is not None:
-            k.start(t, held.estimate(t), held.variance())
+            k.start(t, held.estimate(t), held.variance(t))  # as uncertain as the time unseen makes it
             tr.carried_counts[0] += held.kalman.rejected
             tr.carried_counts[1] += held.kalman.resets
             tr.carried = None
@@ -182,7 +185,7 @@ class FaultySensors:
             delivered = None
             while tr.pending and tr.pending[0][0] <= t + 1e-9:
                 _, stamp, z = tr.pending.popleft()
-                tr.raw = delivered = z
+                tr.raw, tr.seen, delivered = z, stamp, z
                 if tr.carried is not None:
                     tr.carried.update(stamp, z)
                 elif tr.kalman is not None:
@@ -197,6 +200,13 @@ class FaultySensors:
             self.history.setdefault(name, []).append((t, est.copy(), delivered))
             out[name] = vector_pose(est)
         return out
+
+    def seen_at(self, name: str) -> float | None:
+        """Time [s] the latest measurement of ``name`` describes: -inf before it, None when poses are the truth."""
+        if self.faults.object_pose is None and self.measurer is None:
+            return None
+        tr = self._tracks.get(name)
+        return -np.inf if tr is None or tr.seen is None else tr.seen
 
     def found(self, names: Sequence[str]) -> bool:
         """True once every object of ``names`` has a pose estimate."""

@@ -133,6 +133,9 @@ class Sensors(Protocol):
     def wrenches(self, t: float, true: Mapping[str, Wrench]) -> Mapping[str, Wrench]:
         """Measured contact wrenches at time ``t`` [s] (every control tick)."""
 
+    def seen_at(self, name: str) -> float | None:
+        """Time [s] the latest measurement of an object's pose describes; None when the poses are the truth."""
+
 
 class PerfectSensors:
     """Sensors that report the simulator's state exactly."""
@@ -147,3 +150,6 @@ class PerfectSensors:
 
     def wrenches(self, t: float, true: Mapping[str, Wrench]) -> Mapping[str, Wrench]:  # noqa: D102
         return true
+
+    def seen_at(self, name: str) -> float | None:  # noqa: D102
+        return None

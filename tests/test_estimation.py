@@ -191,3 +191,37 @@ def test_faulty_sensors_hand_a_held_object_over_without_a_jump():
     held = slice(round(1.5 / dt), round(3.0 / dt))  # carried, after the first half second of the hold
     err = np.linalg.norm(np.array(ests[held]) - np.array(truth[held]), axis=1)
     assert np.sqrt(np.mean(err**2)) < 0.5 * SIGMA_POS * np.sqrt(3)
+
+
+def test_a_long_gap_coasts_at_most_coast_s_and_its_variance_grows():
+    """An object unseen for longer than COAST_S stops where the prediction put it (a bad measurement's speed does not
+    fly it off the table), and the filter's variance grows over the gap."""
+    from nextage_qp.estimation import COAST_S
+
+    kf = PoseKalman(SIGMA_POS, SIGMA_ROT)
+    v = np.array([0.1, 0.0, 0.0])
+    for i in range(round(2 * RATE)):  # moving at 0.1 m/s, then no measurement after 2 s
+        t = i / RATE
+        kf.update(t, np.r_[v * t, 0.0, 0.0, 0.0])
+    last = kf.t
+    assert last is not None
+    np.testing.assert_allclose(kf.estimate(last + 0.5)[0], 0.1 * (last + 0.5), atol=0.003)  # bridged at its speed
+    stop = kf.estimate(last + COAST_S)
+    np.testing.assert_array_equal(kf.estimate(last + 5.0), stop)  # and no further
+    assert np.all(kf.variance(last + 3.0) > kf.variance())
+
+
+def test_a_pushed_object_held_without_extrapolation_stays_where_the_tool_holds_it():
+    from nextage_qp.geometry import Pose
+    from nextage_qp.held import HeldEstimate
+
+    carrier = Pose(np.array([0.4, 0.0, 0.95]), np.eye(3))
+    world = np.array([0.45, 0.0, 0.91, 0.0, 0.0, 0.0])
+    held = HeldEstimate(0.0, carrier, world, np.full(6, SIGMA_POS**2), PoseKalman(SIGMA_POS, SIGMA_ROT),
+                        extrapolate=False)
+    for k, t in enumerate((0.05, 0.10)):  # two measurements that drift 1 cm/s relative to the tool
+        held.update(t, world + np.r_[0.0, 0.0005 * (k + 1), 0.0, 0.0, 0.0, 0.0])
+    at_last = held.estimate(0.10)
+    moved = Pose(carrier.pos + np.array([0.2, 0.0, 0.0]), carrier.rot)  # then the tool pushes on, unseen, 20 cm
+    held.observe(3.0, moved)
+    np.testing.assert_allclose(held.estimate(3.0)[:3], at_last[:3] + np.array([0.2, 0.0, 0.0]), atol=1e-12)

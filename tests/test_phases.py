@@ -53,6 +53,7 @@ class ScriptedView:
     rest: float = 0.91
     table: float = 0.875
     obstacle: float = 0.875
+    unseen: float = 0.0
 
     def body_pose(self, name):
         return self.bodies[name]
@@ -105,6 +106,9 @@ class ScriptedView:
 
     def yaw_symmetry(self, obj):
         return self.symmetry
+
+    def unseen_s(self, obj):
+        return self.unseen
 
     def act(self, cmd):
         """An ideal robot: the frames (commanded and real) take the planned joints' or the targets' poses."""
@@ -231,6 +235,53 @@ def test_push_fails_with_the_error_when_no_attempt_is_left():
     phase.start(view)
     with pytest.raises(PhaseError, match=r"cube is still 7\.\d mm from cube_target after 1 approaches"):
         run_until_done(phase, view, each=knocked_aside_after_the_first_push(view, phase))
+
+
+class HiddenCubeView(ScriptedView):
+    """A camera that loses the cube while the tool is within ``blind`` [m] of it (the hand in front): the phase then
+    gets the last pose seen, and :meth:`unseen_s` grows; the wrist feels 2 N while the tool pushes the cube."""
+
+    blind: float = 0.06
+    seen: Pose | None = None
+    seen_t: float = 0.0
+
+    def body_pose(self, name):
+        if name != "cube":
+            return self.bodies[name]
+        tool, cube = self.frames["left_tool"].pos, self.bodies["cube"].pos
+        if self.seen is None or np.linalg.norm((tool - cube)[:2]) > self.blind:
+            self.seen, self.seen_t = self.bodies["cube"], self.t
+        return self.seen
+
+    def unseen_s(self, obj):
+        return self.t - self.seen_t if obj == "cube" else 0.0
+
+
+def test_push_hidden_by_the_hand_goes_by_the_contact_then_backs_off_to_judge():
+    """Hidden from the camera, the push takes the cube's face to be on the tool while the wrist feels it, and judges
+    only once it has backed off and sees the cube: no approach is wasted on the stale pose."""
+    view = HiddenCubeView(bodies={"cube": pose(0.33, 0.0, 0.91), "cube_target": pose(0.70, 0.0, 0.91)},
+                          commanded={"left_tool": pose(0.5, 0.23, 1.03)}, frames={"left_tool": pose(0.5, 0.23, 1.03)})
+    phase = make("push", frame="left_tool", object="cube", target="cube_target")
+    phase.start(view)
+    push, felt, hidden = pushed_along_the_tool_face(view), [], []
+
+    def each(cmd):
+        before = view.bodies["cube"].pos.copy()
+        push(cmd)
+        moving = np.linalg.norm(view.bodies["cube"].pos - before) > 0
+        view.forces["left_tool"] = -2.0 * view.frames["left_tool"].rot[:, 0] if moving else np.zeros(3)
+        felt.append(phase.carrier(view))
+        hidden.append(view.unseen_s("cube"))
+
+    cmd = run_until_done(phase, view, each=each)
+    assert cmd.done and max(hidden) > 5.0  # pushed blind for seconds
+    assert ("cube", "left_tool") in felt  # the estimate was carried by the tool while the wrist felt the push
+    cube = view.bodies["cube"].pos
+    assert np.linalg.norm(cube[:2] - [0.70, 0.0]) <= 0.002 and phase.info["object_error_xy_m"] <= 0.002
+    # the first push stops `standoff` short; judged from a fresh view (no nudge: the tool has backed off), one more
+    # approach finishes it
+    assert phase.info["attempts"] == 2 and phase.info["nudges"] == 0
 
 
 def grasp_view():

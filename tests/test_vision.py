@@ -206,3 +206,29 @@ def test_an_object_not_tracked_yet_is_looked_for_resting_on_the_table() -> None:
     assert first.status == "missing"  # a floating fit is taken for noise before the object is tracked
     tracked = Estimator({"cube": shape}).estimate(frame, {"cube": np.array([*truth, 0.0, 0.0, 0.2])})["cube"]
     assert tracked.status == "ok" and np.linalg.norm(tracked.pose[:3] - truth) < 0.003  # a tracked one anywhere
+
+
+def test_a_partial_view_that_leaves_the_box_free_to_slide_is_not_a_measurement() -> None:
+    """Only the top and one side seen (the rest hidden): the fit can slide along that side; planar_std says so."""
+    from nextage_qp.vision.fit import planar_std
+    from nextage_qp.vision.shapes import Part
+
+    box = ShapeModel([Part("box", np.array([0.035, 0.035, 0.035]), np.zeros(3), np.eye(3))], np.pi / 2)
+    rng = np.random.default_rng(0)
+    top = np.column_stack([rng.uniform(-0.035, 0.035, (300, 2)), np.full(300, 0.035)])
+    side = np.column_stack([np.full(300, -0.035), rng.uniform(-0.035, 0.035, (300, 2))])
+    front = np.column_stack([rng.uniform(-0.035, 0.035, 300), np.full(300, -0.035), rng.uniform(-0.035, 0.035, 300)])
+    x, rms = np.zeros(4), 0.002
+    whole = planar_std(box, np.vstack([top, side, front]), x, rms)
+    strip = planar_std(box, np.vstack([top[np.abs(top[:, 1]) < 0.02], side]), x, rms)  # no y edge of the top in view
+    assert whole < estimate_module.MAX_STD < strip
+
+
+@needs_gl
+@pytest.mark.slow
+def test_the_default_push_from_the_head_camera_reaches_its_target() -> None:
+    """The hand hides the cube from the head for much of the push: the contact carries it (push docs)."""
+    result = Runner(load_config(PUSH, ["perception.source=camera"]), PUSH).run()
+    frames = result["estimation"]["camera"]["objects"]["cube"]
+    assert result["success"], result["error"]
+    assert frames["occluded"] > 0.3 * (frames["occluded"] + frames["ok"])  # much of the push blind

@@ -141,10 +141,12 @@ class Runner:
         objects = {name: (pose.pos, pose.quat) for name, pose in self.sim.measured.objects.items()}
         if self.servo.look is not None:
             self.servo.look.point = self._look_point()
-        if self.sensors is not None:  # a held object is estimated relative to the first pad
+        if self.sensors is not None:  # a held object is estimated relative to the first pad, a pushed one the tool
             grip = self.view.grip
-            carrier = partial(self.view.frame_pose, grip.frames[0]) if grip is not None else None
-            self.sensors.carry(grip.object if grip is not None else None, carrier)
+            carried = (grip.object, grip.frames[0]) if grip is not None else (
+                self.current.carrier(self.view) if self.current is not None else None)
+            carrier = partial(self.view.frame_pose, carried[1]) if carried is not None else None
+            self.sensors.carry(carried[0] if carried is not None else None, carrier, extrapolate=grip is not None)
         self.servo.step(command, objects)
         self.sim.tick()
         if self.view.grip is not None:

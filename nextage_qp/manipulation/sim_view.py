@@ -58,6 +58,10 @@ class SimView:
         d = self._sim.data
         return self._believed(Pose(d.xpos[bid].copy(), d.xmat[bid].reshape(3, 3).copy()))
 
+    def unseen_s(self, obj: str) -> float:  # noqa: D102
+        seen = self._sim.sensors.seen_at(obj)
+        return 0.0 if seen is None else self._sim.time - seen
+
     def frame_pose(self, name: str) -> Pose:  # noqa: D102
         if not self._sim.sensors.joints_exact:  # noisy encoders: the frame where the measured joints put it
             return self.pose_at(name, self._sim.measured.q)

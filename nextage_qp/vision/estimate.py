@@ -9,7 +9,8 @@ scene, no free objects). It never reads simulator state: it gets arrays only, an
 
 Each object gets a :class:`Detection`: a pose, or the reason there is none (``out_of_view``, ``occluded``: the
 model predicts the robot covers too much of it, ``missing``: no points where it should be, ``bad_fit``: its points do
-not fit its shape, e.g. a hand in front of it). Those are dropouts for the filter, not measurements.
+not fit its shape, or leave it free to slide, e.g. a hand in front of it). Those are dropouts for the filter, not
+measurements.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import numpy as np
 from scipy import ndimage
 
 from nextage_qp.geometry import rot_z, wrap
-from nextage_qp.vision.fit import fit, residuals, table_plane
+from nextage_qp.vision.fit import fit, planar_std, residuals, table_plane
 from nextage_qp.vision.shapes import ShapeModel
 
 GAP = 0.01
@@ -32,6 +33,9 @@ MIN_PIXELS = 30
 """Smallest cluster (and fewest points of a fit) [px]."""
 MAX_RMS = 0.004
 """Largest RMS distance [m] of an object's points to its fitted shape (beyond: a bad fit)."""
+MAX_STD = 0.0025
+"""Largest standard deviation [m] of a fit's horizontal position (:func:`~nextage_qp.vision.fit.planar_std`) that
+counts as a measurement: a partial view that leaves the object free to slide along a face is a bad fit."""
 MAX_OCCLUDED = 0.7
 """Largest share of an object's predicted surface the robot may cover before the view is a dropout."""
 PARTLY = 0.3
@@ -207,7 +211,7 @@ class Estimator:
                 seeds = list(np.arange(6) * (shape.symmetry or 2 * np.pi) / 6)
                 candidates = [(c, seeds, None) for c in clusters]
             best: Detection = Detection(None, "missing", occluded=share)
-            best_explained = 0.0
+            best_explained, best_fit = 0.0, (np.zeros((0, 3)), np.zeros((0, 3)))
             for pts, yaws, pr in candidates:
                 if len(pts) < MIN_PIXELS:
                     continue
@@ -237,7 +241,10 @@ class Estimator:
                     if shape.symmetry and pr is not None:  # the equivalent yaw nearest the prediction
                         yaw = pr[5] + wrap(yaw - pr[5], shape.symmetry)
                     best = Detection(np.array([x[0], x[1], x[2], 0.0, 0.0, yaw]), "ok", rms, len(pts), share)
-                    best_explained = explained
+                    best_explained, best_fit = explained, (pts, free)
+            if best.pose is not None and best.rms <= MAX_RMS and planar_std(
+                    shape, best_fit[0], best.pose[[0, 1, 2, 5]], best.rms, best_fit[1]) > MAX_STD:
+                best = Detection(None, "bad_fit", best.rms, best.points, share)
             if best.pose is not None and best.rms > MAX_RMS:
                 best = Detection(None, "bad_fit", best.rms, best.points, share)
             out[name] = best

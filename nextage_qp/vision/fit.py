@@ -59,12 +59,8 @@ def fit(shape: ShapeModel, points: np.ndarray, x0: np.ndarray, free: np.ndarray 
     """
     x = np.asarray(x0, dtype=float).copy()
     free = np.zeros((0, 3)) if free is None else free
-    steps = np.array([1e-4, 1e-4, 1e-4, 1e-3])
     for _ in range(iters):
-        r = _both(shape, points, free, x)
-        J = np.stack([(_both(shape, points, free, x + e) - r) / h
-                      for e, h in zip(np.diag(steps), steps, strict=True)], axis=1)
-        w = np.minimum(1.0, HUBER / np.maximum(np.abs(r), 1e-12))
+        r, J, w = _linearised(shape, points, free, x)
         H = J.T @ (J * w[:, None]) + 1e-6 * np.eye(4)
         dx = -np.linalg.solve(H, J.T @ (w * r))
         x += dx
@@ -72,3 +68,32 @@ def fit(shape: ShapeModel, points: np.ndarray, x0: np.ndarray, free: np.ndarray 
             break
     r = residuals(shape, points, x)
     return x, float(np.sqrt(np.mean(r * r)))
+
+
+_STEPS = np.array([1e-4, 1e-4, 1e-4, 1e-3])
+"""Finite-difference steps of x, y, z [m] and yaw [rad]."""
+
+
+def _linearised(shape: ShapeModel, points: np.ndarray, free: np.ndarray,
+                x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Residuals at ``x``, their Jacobian over (x, y, z, yaw) and the robust (Huber) weights."""
+    r = _both(shape, points, free, x)
+    J = np.stack([(_both(shape, points, free, x + e) - r) / h for e, h in zip(np.diag(_STEPS), _STEPS, strict=True)],
+                 axis=1)
+    return r, J, np.minimum(1.0, HUBER / np.maximum(np.abs(r), 1e-12))
+
+
+def planar_std(shape: ShapeModel, points: np.ndarray, x: np.ndarray, rms: float,
+               free: np.ndarray | None = None, floor: float = 0.001) -> float:
+    """Largest standard deviation [m] of a fit's horizontal position in any direction, from its residuals' spread.
+
+    The fit's covariance, ``max(rms, floor)^2 (J^T W J)^-1``: large along a direction that the points seen (and the
+    free space) leave unconstrained, e.g. a box seen only on faces parallel to it, the rest hidden by a hand.
+    """
+    _, J, w = _linearised(shape, points, np.zeros((0, 3)) if free is None else free, x)
+    with np.errstate(all="ignore"):
+        try:
+            cov = max(rms, floor) ** 2 * np.linalg.inv(J.T @ (J * w[:, None]) + 1e-12 * np.eye(4))
+        except np.linalg.LinAlgError:
+            return float("inf")
+    return float(np.sqrt(max(np.linalg.eigvalsh(cov[:2, :2]).max(), 0.0)))

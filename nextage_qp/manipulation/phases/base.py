@@ -89,6 +89,14 @@ class Phase(ABC):
         """The clamp in force after this phase's start or latest update (default: unchanged)."""
         return current
 
+    def carrier(self, view: View) -> tuple[str, str] | None:
+        """The object this phase moves with one of the robot's frames without clamping it, and that frame.
+
+        E.g. a push in contact that the camera cannot see: the object's pose estimate then follows the frame. None
+        (the default) when there is none. Asked once per control tick, after the phase's update.
+        """
+        return None
+
     def held(self, view: View, obj: str, relative_cost: float) -> Clamp:
         """The clamp on ``obj`` that an earlier grasp left, driven with ``relative_cost``; fails without one."""
         grip = view.grip

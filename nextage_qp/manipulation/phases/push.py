@@ -13,6 +13,11 @@ A small state machine, every step driven by the live object pose:
   is done; short on the same line, the push resumes (up to ``nudges``); otherwise the tool retreats and approaches
   again along the error (within ``correction_fan``), up to ``attempts`` approaches. When nothing is left to try,
   an error within ``accept`` ends the phase, a larger one fails it.
+
+While the wrist feels the push, the object's estimate moves with the tool (:meth:`Push.carrier`). A robot camera's
+view may be hidden by the hand (``View.unseen_s``): with no measurement younger than ``HIDDEN_S``, the object's
+position along the push is where the contact puts it (its face on the tool), and a hold the camera cannot see backs
+off first and judges once the object is in sight (waiting at most ``LOOK_S``).
 """
 
 from __future__ import annotations
@@ -27,9 +32,11 @@ from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.contact import PushContact
 from nextage_qp.manipulation.context import Setpoint, View
 from nextage_qp.manipulation.phases.base import Phase
+from nextage_qp.manipulation.phases.push_judge import finish, hold, retreat, start_retreat
 from nextage_qp.manipulation.phases.push_spec import (
     GAP_TIME,
     HEIGHT_GAIN,
+    HIDDEN_S,
     LOST_GAP,
     MAX_BIAS,
     MAX_HEIGHT_BIAS,
@@ -49,6 +56,10 @@ class Push(Phase):
     """See the module docstring."""
 
     spec: PushSpec
+    route: list[np.ndarray]  # the retreat (push_judge): its waypoints, the next one's index, whether it ends the phase
+    leg: int
+    final: bool
+    back_at: float  # when the retreat reached its last waypoint [s]
 
     def start(self, view: View) -> None:  # noqa: D102
         pos, rot = view.commanded_pose(self.spec.frame)
@@ -56,7 +67,7 @@ class Push(Phase):
         self.tool_yaw = yaw_of(rot)
         self.approaches, self.recoveries, self.full, self.contact = 0, 0, False, PushContact(self.spec.frame)
         self.info.update(attempts=0, nudges=0, contact_onsets=0, contact_losses=0)
-        self.raised = 0.0
+        self.raised, self.looking = 0.0, False
         obj, tgt, _ = self._planar(view)
         self._approach(view, unit2((tgt - obj)[:2]))
         if self.plan_failed:
@@ -64,8 +75,22 @@ class Push(Phase):
                              f"{np.degrees(max(self.spec.fan)):.0f} deg of its line to {self.spec.target} is reachable")
 
     def _planar(self, view: View) -> tuple[np.ndarray, np.ndarray, float]:
-        obj, tgt = view.body_pose(self.spec.object).pos, view.body_pose(self.spec.target).pos
+        obj, tgt = self._felt(view, view.body_pose(self.spec.object).pos), view.body_pose(self.spec.target).pos
         return obj, tgt, float(np.linalg.norm((tgt - obj)[:2]))
+
+    def _felt(self, view: View, obj: np.ndarray) -> np.ndarray:
+        """The object's position: ``obj`` as estimated, or where the contact puts it.
+
+        While the wrist feels the push (or the tool rests against the object after it) and no camera has measured it
+        for ``HIDDEN_S``, its face is on the tool along the push.
+        """
+        c = self.spec
+        hidden = self.contact.in_contact and view.unseen_s(c.object) > HIDDEN_S
+        if getattr(self, "stage", None) not in ("push", "hold") or not hidden:
+            return obj
+        d = np.array([*self.d, 0.0])
+        tool = view.frame_pose(c.frame).pos
+        return obj + (float((tool - obj) @ d) + view.extent(c.object, d)) * d
 
     def _approach(self, view: View, d_goal: np.ndarray, full: bool = False) -> None:
         """Plan the next approach: the direction closest to ``d_goal`` with a route the arm can reach.
@@ -111,7 +136,18 @@ class Push(Phase):
         self.tool_yaw += clamp(float(np.angle(np.exp(1j * (self.goal_yaw - self.tool_yaw)))), -step, step)
 
     def update(self, view: View) -> Command:  # noqa: D102
-        return getattr(self, f"_{self.stage}")(view)  # _transit, _push, _hold or _retreat
+        if self.stage in ("hold", "retreat"):  # what follows a push: nextage_qp.manipulation.phases.push_judge
+            return hold(self, view) if self.stage == "hold" else retreat(self, view)
+        return self._transit(view) if self.stage == "transit" else self._push(view)
+
+    def carrier(self, view: View) -> tuple[str, str] | None:
+        """The object and the tool while the wrist feels the push: the object's estimate follows the tool.
+
+        Measurements then correct its pose relative to the tool, and a hand that hides it from the camera leaves it
+        where the tool takes it.
+        """
+        felt = self.contact.in_contact if self.contact.available else self.touched  # the wrist's sensor, else geometry
+        return (self.spec.object, self.spec.frame) if self.stage in ("push", "hold") and felt else None
 
     def _transit(self, view: View) -> Command:
         """Lift straight up, then move through the planned joints of the route (the wrist turns once lifted)."""
@@ -124,7 +160,7 @@ class Push(Phase):
             self.sp.jump(pos)
             self.tool_yaw = yaw_of(rot)
             self._approach(view, unit2((tgt - obj)[:2]), full=True)
-            return self._command(allow=False) if not self.plan_failed else self._finish(dist)
+            return self._command(allow=False) if not self.plan_failed else finish(self, dist)
         if self.lifting:
             self.lifting = not self.sp.advance(self.lift, c.speed, view.dt)
             return self._command(allow=False)
@@ -158,7 +194,7 @@ class Push(Phase):
     def _push(self, view: View) -> Command:
         c = self.spec
         obj_pose = view.body_pose(c.object)
-        obj, tgt = obj_pose.pos, view.body_pose(c.target).pos
+        obj, tgt = self._felt(view, obj_pose.pos), view.body_pose(c.target).pos
         dist = float(np.linalg.norm((tgt - obj)[:2]))
         self._track(view, obj[:2])
         if dist > c.freeze and self.touched:  # turn only once in contact: the approach side was chosen to reach
@@ -184,9 +220,10 @@ class Push(Phase):
         if gap > c.approach + LOST_GAP or abs(lateral) > half + LOST_GAP:  # knocked away from the tool's line
             self._knocked_away()
             self.next_d, self.full = unit2((tgt - obj)[:2]), True
-            return self._start_retreat(final=False) if self.approaches < c.attempts else self._finish(dist)
+            return start_retreat(self, final=False) if self.approaches < c.attempts else finish(self, dist)
         wanted = clamp(c.push_speed * (remaining + gap) / c.slow_down, c.creep_speed, c.push_speed)
-        self.touched = self.touched or gap < 1e-3 or self.contact.update(view, d)  # geometry or the wrist's sensor
+        felt = self.contact.update(view, d)  # read every tick: _felt needs the contact's state
+        self.touched = self.touched or gap < 1e-3 or felt  # geometry or the wrist's sensor
         self.info.update(contact_onsets=self.contact.onsets, contact_losses=self.contact.losses)
         if not self.touched:
             wanted = min(wanted, max(c.creep_speed, gap / GAP_TIME))  # touch the object slowly
@@ -207,57 +244,3 @@ class Push(Phase):
         self.z_bias = clamp(self.z_bias - HEIGHT_GAIN * rise * view.dt, -MAX_HEIGHT_BIAS, MAX_HEIGHT_BIAS)
         self.sp.pos = np.array([*(obj[:2] + along * d + lateral * n), self.push_z + self.z_bias])
         return self._command(allow=True)
-
-    def _hold(self, view: View) -> Command:
-        c = self.spec
-        if view.t - self.hold_from < c.settle:
-            return self._command(allow=True)
-        obj, tgt, err = self._planar(view)
-        self.info["object_error_xy_m"] = err
-        e = (tgt - obj)[:2]
-        if err <= c.tolerance:
-            return self._start_retreat(final=True)
-        short = float(e @ self.d) > 0 and abs(float(e @ np.array([-self.d[1], self.d[0]]))) <= c.tolerance
-        if short and self.nudges < c.nudges:
-            self.nudges += 1
-            self.info["nudges"] += 1
-            self._begin_push(touched=True)
-            return self._command(allow=True)
-        if self.approaches < c.attempts:
-            self.next_d = unit2(e)
-            return self._start_retreat(final=False)
-        return self._finish(err)
-
-    def _finish(self, err: float) -> Command:
-        """Nothing left to try: accept the error within ``accept`` (retreat and end) or fail."""
-        c = self.spec
-        if err <= c.accept:
-            return self._start_retreat(final=True)
-        raise PhaseError(f"phase {self.name!r} (push): {c.object} is still {err * 1e3:.1f} mm from {c.target} "
-                         f"after {self.approaches} approaches (tolerance {c.tolerance * 1e3:g} mm, accepted "
-                         f"{c.accept * 1e3:g} mm)")
-
-    def _start_retreat(self, final: bool) -> Command:
-        c = self.spec
-        back = self.sp.pos - np.array([*self.d, 0.0]) * c.approach
-        self.route = [back, back + np.array([0.0, 0.0, c.clearance])]
-        self.stage, self.leg, self.final = "retreat", 0, final
-        return self._command(allow=True)
-
-    def _retreat(self, view: View) -> Command:
-        if self.leg < len(self.route) and self.sp.advance(self.route[self.leg], self.spec.speed, view.dt):
-            self.leg += 1
-        if self.leg < len(self.route):
-            return self._command(allow=self.leg == 0)
-        if self.final:
-            return self._command(allow=False, done=view.settled())
-        self._approach(view, self.next_d, full=self.full)
-        if self.plan_failed and not self.full:  # no reachable side within the correction fan: try the whole fan
-            self.approaches -= 1
-            self._approach(view, self.next_d, full=True)
-        self.full = False
-        if self.plan_failed:  # no reachable side to correct from
-            self.info["unreachable_corrections"] = self.info.get("unreachable_corrections", 0) + 1
-            _, _, err = self._planar(view)
-            return self._finish(err)
-        return self._command(allow=False)

@@ -25,6 +25,11 @@ MAX_HEIGHT_BIAS = 0.01
 """Largest correction of the commanded tool height while pushing [m]."""
 GAP_TIME = 0.5
 """Before contact the tool closes the gap to the object in about this time [s] (slowly at the touch)."""
+HIDDEN_S = 0.2
+"""While the wrist feels the push, an object no camera has measured for this long [s] is taken to be where the
+contact puts it: its face on the tool along the push."""
+LOOK_S = 2.0
+"""After backing off from a push the camera could not see, wait at most this long [s] for a view before judging it."""
 LOST_GAP = 0.03
 """An object this far [m] beyond the approach gap, or off the tool face, was knocked away: approach it again."""
 

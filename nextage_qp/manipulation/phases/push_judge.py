@@ -1,0 +1,100 @@
+"""What follows a push (:mod:`~nextage_qp.manipulation.phases.push`): the hold, the judgement and the retreat.
+
+After the push stops, the object comes to rest against the tool and the push is judged: within ``tolerance`` the
+tool retreats and the phase is done; short on the same line it pushes again (``nudges``); otherwise it retreats and
+approaches again along the error, up to ``attempts`` approaches, and with nothing left to try an error within
+``accept`` ends the phase, a larger one fails it. A push the camera could not see (the hand hid the object) is judged
+after backing off, once the object is in sight again (waiting at most ``LOOK_S``).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from nextage_qp.errors import PhaseError
+from nextage_qp.geometry import unit2
+from nextage_qp.manipulation.context import View
+from nextage_qp.manipulation.phases.push_spec import HIDDEN_S, LOOK_S
+from nextage_qp.servo import Command
+
+if TYPE_CHECKING:
+    from nextage_qp.manipulation.phases.push import Push
+
+
+def hold(p: Push, view: View) -> Command:
+    """Let the object come to rest against the tool, then judge the push (see the module doc)."""
+    c = p.spec
+    if view.t - p.hold_from < c.settle:
+        return p._command(allow=True)
+    if view.unseen_s(c.object) > HIDDEN_S:  # the hand hides it from the camera: back off and look, then judge
+        p.looking = True
+        return start_retreat(p, final=False)
+    obj, tgt, err = p._planar(view)
+    p.info["object_error_xy_m"] = err
+    e = (tgt - obj)[:2]
+    if err <= c.tolerance:
+        return start_retreat(p, final=True)
+    short = float(e @ p.d) > 0 and abs(float(e @ np.array([-p.d[1], p.d[0]]))) <= c.tolerance
+    if short and p.nudges < c.nudges:
+        p.nudges += 1
+        p.info["nudges"] += 1
+        p._begin_push(touched=True)
+        return p._command(allow=True)
+    if p.approaches < c.attempts:
+        p.next_d = unit2(e)
+        return start_retreat(p, final=False)
+    return finish(p, err)
+
+
+def finish(p: Push, err: float) -> Command:
+    """Nothing left to try: accept the error within ``accept`` (retreat and end) or fail."""
+    c = p.spec
+    if err <= c.accept:
+        return start_retreat(p, final=True)
+    raise PhaseError(f"phase {p.name!r} (push): {c.object} is still {err * 1e3:.1f} mm from {c.target} "
+                     f"after {p.approaches} approaches (tolerance {c.tolerance * 1e3:g} mm, accepted "
+                     f"{c.accept * 1e3:g} mm)")
+
+
+def start_retreat(p: Push, final: bool) -> Command:
+    """Back the tool off along the push, then up; ``final``: the phase ends there."""
+    c = p.spec
+    back = p.sp.pos - np.array([*p.d, 0.0]) * c.approach
+    p.route = [back, back + np.array([0.0, 0.0, c.clearance])]
+    p.stage, p.leg, p.final = "retreat", 0, final
+    return p._command(allow=True)
+
+
+def retreat(p: Push, view: View) -> Command:
+    """Follow the retreat; then judge a push the camera could not see, end the phase, or approach again."""
+    c = p.spec
+    if p.leg < len(p.route) and p.sp.advance(p.route[p.leg], c.speed, view.dt):
+        p.leg, p.back_at = p.leg + 1, view.t
+    if p.leg < len(p.route):
+        return p._command(allow=p.leg == 0)
+    if p.looking:  # backed off from a push the camera could not see: judge it once the object is in sight
+        if view.unseen_s(c.object) > HIDDEN_S and view.t - p.back_at < LOOK_S:
+            return p._command(allow=False)
+        p.looking = False
+        obj, tgt, err = p._planar(view)
+        p.info["object_error_xy_m"] = err
+        if err <= c.tolerance:
+            p.final = True
+        elif p.approaches >= c.attempts:
+            return finish(p, err)
+        else:
+            p.next_d = unit2((tgt - obj)[:2])
+    if p.final:
+        return p._command(allow=False, done=view.settled())
+    p._approach(view, p.next_d, full=p.full)
+    if p.plan_failed and not p.full:  # no reachable side within the correction fan: try the whole fan
+        p.approaches -= 1
+        p._approach(view, p.next_d, full=True)
+    p.full = False
+    if p.plan_failed:  # no reachable side to correct from
+        p.info["unreachable_corrections"] = p.info.get("unreachable_corrections", 0) + 1
+        _, _, err = p._planar(view)
+        return finish(p, err)
+    return p._command(allow=False)
