@@ -103,16 +103,15 @@ class FaultySensors:
 
     def _hold(self, t: float, name: str, tr: _Track) -> None:
         """Start, keep or end the held estimate of ``name`` at ``t`` [s] (with the Kalman filter only)."""
-        carrier = self._carrier[1] if self._carrier is not None and self._carrier[0] == name else None
+        entry = self._carrier if self._carrier is not None and self._carrier[0] == name else None
         k, held = tr.kalman, tr.carried
         if k is None:
             return
-        if carrier is not None and held is None and k.initialised:
-            tr.carried = HeldEstimate(t, carrier(), k.estimate(t), k.variance(), self._kalman(),
-                                      extrapolate=self._carrier[2] if self._carrier is not None else True)
-        elif carrier is not None and held is not None:
-            held.observe(t, carrier())
-        elif carrier is None and held is not None:
+        if entry is not None and held is None and k.initialised:
+            tr.carried = HeldEstimate(t, entry[1](), k.estimate(t), k.variance(), self._kalman(), extrapolate=entry[2])
+        elif entry is not None and held is not None:
+            held.observe(t, entry[1]())
+        elif entry is None and held is not None:
             k.start(t, held.estimate(t), held.variance(t))  # as uncertain as the time unseen makes it
             tr.carried_counts[0] += held.kalman.rejected
             tr.carried_counts[1] += held.kalman.resets

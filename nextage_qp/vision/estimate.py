@@ -242,10 +242,8 @@ class Estimator:
                         yaw = pr[5] + wrap(yaw - pr[5], shape.symmetry)
                     best = Detection(np.array([x[0], x[1], x[2], 0.0, 0.0, yaw]), "ok", rms, len(pts), share)
                     best_explained, best_fit = explained, (pts, free)
-            if best.pose is not None and best.rms <= MAX_RMS and planar_std(
-                    shape, best_fit[0], best.pose[[0, 1, 2, 5]], best.rms, best_fit[1]) > MAX_STD:
-                best = Detection(None, "bad_fit", best.rms, best.points, share)
-            if best.pose is not None and best.rms > MAX_RMS:
+            if best.pose is not None and (best.rms > MAX_RMS or planar_std(
+                    shape, best_fit[0], best.pose[[0, 1, 2, 5]], best.rms, best_fit[1]) > MAX_STD):
                 best = Detection(None, "bad_fit", best.rms, best.points, share)
             out[name] = best
             if best.pose is not None and prior is None:  # its cluster is taken (tracked objects came first)

@@ -85,9 +85,8 @@ class Push(Phase):
         for ``HIDDEN_S``, its face is on the tool along the push.
         """
         c = self.spec
-        hidden = self.contact.in_contact and view.unseen_s(c.object) > HIDDEN_S
-        if getattr(self, "stage", None) not in ("push", "hold") or not hidden:
-            return obj
+        if not (self.contact.in_contact and view.unseen_s(c.object) > HIDDEN_S) or self.stage not in ("push", "hold"):
+            return obj  # (no contact yet when start() asks, before there is a stage)
         d = np.array([*self.d, 0.0])
         tool = view.frame_pose(c.frame).pos
         return obj + (float((tool - obj) @ d) + view.extent(c.object, d)) * d
