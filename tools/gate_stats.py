@@ -76,7 +76,8 @@ def main() -> None:
     line("relaxed descent reached, through a collision (random restart)",
          lambda first, r, c, a: not first and r and not c)
     line("relaxed descent reached, clear of every pair (random restart)", lambda first, r, c, a: not first and r and c)
-    line("relaxed descent reached (first start)", lambda first, r, c, a: first and r)
+    line("relaxed descent reached, through a collision (first start)", lambda first, r, c, a: first and r and not c)
+    line("relaxed descent reached, clear of every pair (first start)", lambda first, r, c, a: first and r and c)
 
 
 if __name__ == "__main__":
