@@ -34,7 +34,7 @@ def table_plane(points: np.ndarray, rng: np.random.Generator, iters: int = 80, t
     best = (n[k], float(n[k] @ a[k]))
     inliers = points[np.abs(points @ best[0] - best[1]) < tol]  # least squares on the inliers
     centre = inliers.mean(axis=0)
-    n = np.linalg.svd(inliers - centre)[2][2]
+    n = np.linalg.svd(inliers - centre, full_matrices=False)[2][2]  # (the full U would be N x N)
     n = n if n[2] > 0 else -n
     return n, float(n @ centre)
 
