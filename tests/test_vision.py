@@ -21,6 +21,7 @@ from nextage_qp.manipulation.runner import Runner, build_robot
 from nextage_qp.vision import estimate as estimate_module
 from nextage_qp.vision.cameras import DepthNoise
 from nextage_qp.vision.estimate import Estimator, Frame
+from nextage_qp.vision.fit import table_plane
 from nextage_qp.vision.render import RobotCamera, render_problem
 from nextage_qp.vision.shapes import ShapeModel
 
@@ -206,6 +207,20 @@ def test_an_object_not_tracked_yet_is_looked_for_resting_on_the_table() -> None:
     assert first.status == "missing"  # a floating fit is taken for noise before the object is tracked
     tracked = Estimator({"cube": shape}).estimate(frame, {"cube": np.array([*truth, 0.0, 0.0, 0.2])})["cube"]
     assert tracked.status == "ok" and np.linalg.norm(tracked.pose[:3] - truth) < 0.003  # a tracked one anywhere
+
+
+def test_the_table_plane_is_found_among_clutter_with_its_tilt_and_height() -> None:
+    """RANSAC then least squares: a slightly tilted, noisy plane under a box-shaped clutter of points."""
+    rng = np.random.default_rng(3)
+    normal = np.array([0.02, -0.03, 1.0]) / np.linalg.norm([0.02, -0.03, 1.0])
+    xy = rng.uniform(-0.4, 0.4, (2000, 2))
+    z = (0.9 - normal[:2] @ xy.T) / normal[2] + rng.normal(0.0, 0.001, len(xy))
+    clutter = rng.uniform([-0.1, -0.1, 0.92], [0.1, 0.1, 1.0], (600, 3))
+    found = table_plane(np.vstack([np.column_stack([xy, z]), clutter]), rng)
+    assert found is not None
+    n, d = found
+    assert np.degrees(np.arccos(min(1.0, float(n @ normal)))) < 0.2 and abs(d - 0.9) < 0.001
+    assert table_plane(clutter[:2], rng) is None  # fewer than three points: no plane
 
 
 def test_a_partial_view_that_leaves_the_box_free_to_slide_is_not_a_measurement() -> None:
