@@ -284,6 +284,30 @@ def test_push_hidden_by_the_hand_goes_by_the_contact_then_backs_off_to_judge():
     assert phase.info["attempts"] == 2 and phase.info["nudges"] == 0
 
 
+def test_a_new_push_does_not_go_by_the_last_push_s_contact():
+    """A re-approach starts its push with no contact felt: the stale one would put the hidden cube's face on the
+    tool, still an approach gap behind it, and the tool would take the cube for touched."""
+    view = HiddenCubeView(bodies={"cube": pose(0.33, 0.0, 0.91), "cube_target": pose(0.70, 0.0, 0.91)},
+                          commanded={"left_tool": pose(0.5, 0.23, 1.03)}, frames={"left_tool": pose(0.5, 0.23, 1.03)})
+    phase = make("push", frame="left_tool", object="cube", target="cube_target")
+    phase.start(view)
+    push, stage, starts = pushed_along_the_tool_face(view), ["transit"], []
+
+    def each(cmd):
+        before = view.bodies["cube"].pos.copy()
+        push(cmd)
+        moving = np.linalg.norm(view.bodies["cube"].pos - before) > 0
+        view.forces["left_tool"] = -2.0 * view.frames["left_tool"].rot[:, 0] if moving else np.zeros(3)
+        if stage[0] == "transit" and phase.stage == "push":  # a push begins: what its first tick will go by
+            seen = view.body_pose("cube").pos
+            starts.append((phase.contact.in_contact, np.linalg.norm(phase._felt(view, seen) - seen)))
+        stage[0] = phase.stage
+
+    run_until_done(phase, view, each=each)
+    assert len(starts) == 2  # the first push and the re-approach (the case: the first one's contact went before)
+    assert all(not felt and moved == 0.0 for felt, moved in starts)
+
+
 def grasp_view():
     pads = {"left_pad": pose(0.5, 0.25, 1.05), "right_pad": pose(0.5, -0.25, 1.05)}
     return ScriptedView(bodies={"dumbbell": pose(0.5, 0.0, 1.015)}, commanded=dict(pads), frames=dict(pads))

@@ -30,6 +30,10 @@ class PushContact:
         self.onsets = self.losses = 0
         self._last_t: float | None = None
 
+    def restart(self) -> None:
+        """Forget the last push's contact (a new push starts from none, before its first reading)."""
+        self.force, self.in_contact = 0.0, False
+
     def update(self, view: View, direction: np.ndarray) -> bool:
         """Read the sensor for one tick of a push along ``direction`` (planar unit vector); True in contact.
 
@@ -43,7 +47,7 @@ class PushContact:
             self.available = False
             return False
         if self._last_t is None or view.t - self._last_t > 1.5 * view.dt:  # a new push: start from no contact
-            self.force, self.in_contact = 0.0, False
+            self.restart()
         self._last_t = view.t
         push = -float(wrench.force[:2] @ direction)  # the object pushes back on the tool
         self.force += min(1.0, view.dt / WINDOW) * (push - self.force)

@@ -180,6 +180,7 @@ class Push(Phase):
 
     def _begin_push(self, touched: bool) -> None:
         self.stage, self.v, self.touched, self.bias = "push", 0.0, touched, 0.0
+        self.contact.restart()  # the last push's contact is stale: _felt reads it before this push's first reading
         self.last_obj: np.ndarray | None = None
         self.obj_v = np.zeros(2)
 
