@@ -22,7 +22,8 @@ and tilt rest): every measurement re-weights the models of each axis by their li
 
 The state lives at the time the last measurement *describes* (arrival less latency): a measurement is applied
 at its own time stamp and :meth:`PoseKalman.estimate` predicts from there to now, which compensates the latency
-and bridges dropouts (for at most ``COAST_S``: an object unseen for longer has stopped). A measurement whose
+and bridges dropouts (for at most ``COAST_S`` and ``COAST_M``: an object unseen for longer, or predicted to slide
+farther than friction lets it, has stopped). A measurement whose
 normalised innovation :math:`\sum_i \nu_i^2 / S_i` under the mixture
 the models predict (weighted by their probabilities) exceeds the gate (the 99.9 % point of :math:`\chi^2_6`) is
 rejected as an outlier; after ``reset_after`` rejections in a row the object has really moved, and the filter
@@ -49,6 +50,10 @@ STAY = 0.99
 COAST_S = 1.0
 """Longest time [s] past its last measurement that :meth:`PoseKalman.estimate` predicts motion: an object unseen for
 longer has stopped where the prediction put it, rather than flying on at a speed a bad measurement gave it."""
+COAST_M = 0.05
+"""Longest distance [m] :meth:`PoseKalman.estimate` moves an object past its last measurement: more than a push moves it
+in half a second and than friction lets a free object slide (v^2 / (2 mu g): 9 mm at 0.3 m/s with mu = 0.5); a longer
+coast is a speed that wrong measurements gave the filter (the hand taken for the object as it passes over it)."""
 
 
 def rpy_of(rot: np.ndarray) -> np.ndarray:
@@ -253,11 +258,16 @@ class PoseKalman:
         return prior
 
     def estimate(self, t: float) -> np.ndarray:
-        """Pose (x, y, z, roll, pitch, yaw) predicted to ``t`` [s], at most ``COAST_S`` past the last measurement."""
+        """Pose (x, y, z, roll, pitch, yaw) predicted to ``t`` [s], within ``COAST_S`` and ``COAST_M`` of the last."""
         if self.t is None:
             raise RuntimeError("no measurement yet")
         dt = min(max(t - self.t, 0.0), COAST_S)
-        return sum(w * m.predicted(dt)[0][:, 0] for w, m in zip(self.mode, self.models, strict=True))
+        pose = sum(w * m.predicted(dt)[0][:, 0] for w, m in zip(self.mode, self.models, strict=True))
+        last = sum(w * m.x[:, 0] for w, m in zip(self.mode, self.models, strict=True))
+        shift = float(np.linalg.norm(pose[:3] - last[:3]))
+        if shift > COAST_M:
+            pose[:3] = last[:3] + (pose[:3] - last[:3]) * (COAST_M / shift)
+        return pose
 
 
 def _outer(d: np.ndarray) -> np.ndarray:

@@ -211,6 +211,22 @@ def test_a_long_gap_coasts_at_most_coast_s_and_its_variance_grows():
     assert np.all(kf.variance(last + 3.0) > kf.variance())
 
 
+def test_a_speed_that_wrong_measurements_gave_coasts_at_most_coast_m():
+    """Measurements that jump 2.5 cm a frame (the hand taken for the object) then stop: the estimate flies no further
+    than COAST_M past the last of them, however long the object stays unseen."""
+    from nextage_qp.estimation import COAST_M
+
+    kf, _ = settled(3, np.array([0.5, 0.0, 0.92, 0.0, 0.0, 0.0]))
+    t = kf.t
+    assert t is not None
+    for k in range(1, 6):
+        kf.update(t + k / RATE, np.r_[0.5 + 0.025 * k, 0.0, 0.92, 0.0, 0.0, 0.0])
+    last = kf.estimate(kf.t)
+    assert np.linalg.norm(kf.estimate(kf.t + 0.1)[:3] - last[:3]) > 0.02  # it does coast at the speed it has
+    for gap in (0.5, 1.0, 5.0):  # the speed would take it 30 cm in a second: it stops at COAST_M
+        assert np.linalg.norm(kf.estimate(kf.t + gap)[:3] - last[:3]) == pytest.approx(COAST_M, abs=1e-12)
+
+
 def test_a_pushed_object_held_without_extrapolation_stays_where_the_tool_holds_it():
     from nextage_qp.geometry import Pose
     from nextage_qp.held import HeldEstimate

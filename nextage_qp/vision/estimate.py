@@ -15,7 +15,7 @@ measurements.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -189,64 +189,93 @@ class Estimator:
         return float(covered.mean())
 
     def estimate(self, f: Frame, priors: Mapping[str, np.ndarray | None]) -> dict[str, Detection]:
-        """A :class:`Detection` per object of ``priors`` (name -> predicted pose vector, or None: not yet seen)."""
+        """A :class:`Detection` per object of ``priors`` (name -> predicted pose vector, or None: not yet seen).
+
+        A tracked object with no fitting points near its prediction (``missing``), or predicted out of view, is
+        searched for among the clusters no other object explains, as an object not seen yet is (**re-acquisition**):
+        a prediction that drifted away, e.g. coasting on a velocity that wrong measurements gave it, is found again
+        where the object rests. The filter gates such a jump, and restarts there when the next frame confirms it.
+        """
         clusters = self.segment(f)
         cloud = np.concatenate(clusters) if clusters else np.zeros((0, 3))
         out: dict[str, Detection] = {}
+        lost: list[str] = []
         for name in sorted(priors, key=lambda k: priors[k] is None):  # tracked objects first
             shape, prior = self.shapes[name], priors[name]
-            candidates: list[tuple[np.ndarray, list[float], np.ndarray | None]]  # points, yaw seeds, prior
             if prior is not None:
                 share = self.occlusion(f, shape, prior)
                 if share is None:
                     out[name] = Detection(None, "out_of_view")
+                    lost.append(name)
                     continue
                 if share > MAX_OCCLUDED:
                     out[name] = Detection(None, "occluded", occluded=share)
                     continue
                 near = cloud[np.linalg.norm(cloud - prior[:3], axis=1) < shape.radius * 1.5 + 0.03]
-                candidates = [(near, [prior[5]], prior)]
-            else:
-                share = 0.0
-                seeds = list(np.arange(6) * (shape.symmetry or 2 * np.pi) / 6)
-                candidates = [(c, seeds, None) for c in clusters]
-            best: Detection = Detection(None, "missing", occluded=share)
-            best_explained, best_fit = 0.0, (np.zeros((0, 3)), np.zeros((0, 3)))
-            for pts, yaws, pr in candidates:
-                if len(pts) < MIN_PIXELS:
-                    continue
-                centre = pts.mean(axis=0)
-                z0 = self._table_z(centre[:2]) - shape.bottom if self.plane is not None and pr is None else (
-                    pr[2] if pr is not None else centre[2])
-                starts = [np.array([*(pr[:2] if pr is not None else centre[:2]), z0, y]) for y in yaws]
-                free = self.free[np.linalg.norm(self.free[:, :2] - starts[0][:2], axis=1) < shape.radius + 0.03]
-                free = free[:200]
-                support = len(pts)  # the cluster's points before subsampling
-                limit = MAX_POINTS if pr is not None else SEED_POINTS
-                if len(pts) > limit:
-                    pts = pts[self.rng.permutation(len(pts))[:limit]]
-                x, rms = min((fit(shape, pts, x0, free) for x0 in starts), key=lambda fitted: fitted[1])
-                above = x[2] + shape.bottom - self._table_z(x[:2]) if self.plane is not None else 0.0  # its bottom
-                if above < -SINK or (pr is None and above > REST):
-                    continue  # no object is inside the table, and one not tracked yet rests on it
-                if self.seen_through(f, shape, x) > MAX_THROUGH:
-                    continue  # the camera sees beyond where the shape would be: it is not there
-                # Across clusters, the fit that explains the most points (a cluster's share within INLIER of the
-                # surface, times its size), then the smaller RMS: a small patch of noise (stereo on a plain surface)
-                # can fit one face of a shape closely.
-                explained = support * float(np.mean(np.abs(residuals(shape, pts, x)) < INLIER))
-                if best.pose is None or (rms <= MAX_RMS, explained, -rms) > (best.rms <= MAX_RMS, best_explained,
-                                                                             -best.rms):
-                    yaw = x[3]
-                    if shape.symmetry and pr is not None:  # the equivalent yaw nearest the prediction
-                        yaw = pr[5] + wrap(yaw - pr[5], shape.symmetry)
-                    best = Detection(np.array([x[0], x[1], x[2], 0.0, 0.0, yaw]), "ok", rms, len(pts), share)
-                    best_explained, best_fit = explained, (pts, free)
-            if best.pose is not None and (best.rms > MAX_RMS or planar_std(
-                    shape, best_fit[0], best.pose[[0, 1, 2, 5]], best.rms, best_fit[1]) > MAX_STD):
-                best = Detection(None, "bad_fit", best.rms, best.points, share)
-            out[name] = best
-            if best.pose is not None and prior is None:  # its cluster is taken (tracked objects came first)
-                clusters = [c for c in clusters if np.median(np.abs(residuals(shape, c, best.pose[[0, 1, 2, 5]])))
-                            > 0.01]
+                out[name] = self._search(f, shape, [(near, [prior[5]], prior)], share)
+                if out[name].status == "missing":
+                    lost.append(name)
+                continue
+            out[name] = self._search(f, shape, self._seeded(shape, clusters), 0.0)
+            if out[name].pose is not None:  # its cluster is taken (tracked objects came first)
+                clusters = self._untaken(clusters, shape, out[name])
+        for name in lost:  # after every other object has taken its points
+            for other, found in out.items():
+                if other != name and found.pose is not None:
+                    clusters = self._untaken(clusters, self.shapes[other], found)
+            again = self._search(f, self.shapes[name], self._seeded(self.shapes[name], clusters), 0.0)
+            if again.pose is not None:
+                out[name] = again
         return out
+
+    @staticmethod
+    def _seeded(shape: ShapeModel, clusters: list[np.ndarray]) -> list[tuple[np.ndarray, list[float], None]]:
+        """Candidates of an object not tracked (any longer): every cluster, from six yaw seeds."""
+        seeds = list(np.arange(6) * (shape.symmetry or 2 * np.pi) / 6)
+        return [(c, seeds, None) for c in clusters]
+
+    @staticmethod
+    def _untaken(clusters: list[np.ndarray], shape: ShapeModel, found: Detection) -> list[np.ndarray]:
+        """The clusters the object ``found`` (a pose) does not explain."""
+        assert found.pose is not None
+        return [c for c in clusters if np.median(np.abs(residuals(shape, c, found.pose[[0, 1, 2, 5]]))) > 0.01]
+
+    def _search(self, f: Frame, shape: ShapeModel,
+                candidates: Sequence[tuple[np.ndarray, list[float], np.ndarray | None]], share: float) -> Detection:
+        """The best fit of ``shape`` among candidate (points, yaw seeds, prior) triples; ``missing`` when none fits."""
+        best: Detection = Detection(None, "missing", occluded=share)
+        best_explained, best_fit = 0.0, (np.zeros((0, 3)), np.zeros((0, 3)))
+        for pts, yaws, pr in candidates:
+            if len(pts) < MIN_PIXELS:
+                continue
+            centre = pts.mean(axis=0)
+            z0 = self._table_z(centre[:2]) - shape.bottom if self.plane is not None and pr is None else (
+                pr[2] if pr is not None else centre[2])
+            starts = [np.array([*(pr[:2] if pr is not None else centre[:2]), z0, y]) for y in yaws]
+            free = self.free[np.linalg.norm(self.free[:, :2] - starts[0][:2], axis=1) < shape.radius + 0.03]
+            free = free[:200]
+            support = len(pts)  # the cluster's points before subsampling
+            limit = MAX_POINTS if pr is not None else SEED_POINTS
+            if len(pts) > limit:
+                pts = pts[self.rng.permutation(len(pts))[:limit]]
+            x, rms = min((fit(shape, pts, x0, free) for x0 in starts), key=lambda fitted: fitted[1])
+            above = x[2] + shape.bottom - self._table_z(x[:2]) if self.plane is not None else 0.0  # its bottom
+            if above < -SINK or (pr is None and above > REST):
+                continue  # no object is inside the table, and one not tracked yet rests on it
+            if self.seen_through(f, shape, x) > MAX_THROUGH:
+                continue  # the camera sees beyond where the shape would be: it is not there
+            # Across clusters, the fit that explains the most points (a cluster's share within INLIER of the
+            # surface, times its size), then the smaller RMS: a small patch of noise (stereo on a plain surface)
+            # can fit one face of a shape closely.
+            explained = support * float(np.mean(np.abs(residuals(shape, pts, x)) < INLIER))
+            if best.pose is None or (rms <= MAX_RMS, explained, -rms) > (best.rms <= MAX_RMS, best_explained,
+                                                                         -best.rms):
+                yaw = x[3]
+                if shape.symmetry and pr is not None:  # the equivalent yaw nearest the prediction
+                    yaw = pr[5] + wrap(yaw - pr[5], shape.symmetry)
+                best = Detection(np.array([x[0], x[1], x[2], 0.0, 0.0, yaw]), "ok", rms, len(pts), share)
+                best_explained, best_fit = explained, (pts, free)
+        if best.pose is not None and (best.rms > MAX_RMS or planar_std(
+                shape, best_fit[0], best.pose[[0, 1, 2, 5]], best.rms, best_fit[1]) > MAX_STD):
+            best = Detection(None, "bad_fit", best.rms, best.points, share)
+        return best
