@@ -34,8 +34,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from nextage_qp.geometry import Pose
-
 CHI2_6_999 = 22.458
 """99.9 % point of the chi-square distribution with 6 degrees of freedom (the innovation gate)."""
 
@@ -54,20 +52,6 @@ COAST_M = 0.05
 """Longest distance [m] :meth:`PoseKalman.estimate` moves an object past its last measurement: more than a push moves it
 in half a second and than friction lets a free object slide (v^2 / (2 mu g): 9 mm at 0.3 m/s with mu = 0.5); a longer
 coast is a speed that wrong measurements gave the filter (the hand taken for the object as it passes over it)."""
-
-
-def rpy_of(rot: np.ndarray) -> np.ndarray:
-    """Roll, pitch, yaw [rad] of a rotation matrix, ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
-    return np.array([np.arctan2(rot[2, 1], rot[2, 2]), np.arcsin(np.clip(-rot[2, 0], -1.0, 1.0)),
-                     np.arctan2(rot[1, 0], rot[0, 0])])
-
-
-def rot_of(rpy: np.ndarray) -> np.ndarray:
-    """Rotation matrix ``Rz(yaw) Ry(pitch) Rx(roll)`` of roll, pitch, yaw [rad]."""
-    (cr, cp, cy), (sr, sp, sy) = np.cos(rpy), np.sin(rpy)
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
@@ -262,8 +246,8 @@ class PoseKalman:
         if self.t is None:
             raise RuntimeError("no measurement yet")
         dt = min(max(t - self.t, 0.0), COAST_S)
-        pose = sum(w * m.predicted(dt)[0][:, 0] for w, m in zip(self.mode, self.models, strict=True))
-        last = sum(w * m.x[:, 0] for w, m in zip(self.mode, self.models, strict=True))
+        pose = np.asarray(sum(w * m.predicted(dt)[0][:, 0] for w, m in zip(self.mode, self.models, strict=True)))
+        last = np.asarray(sum(w * m.x[:, 0] for w, m in zip(self.mode, self.models, strict=True)))
         shift = float(np.linalg.norm(pose[:3] - last[:3]))
         if shift > COAST_M:
             pose[:3] = last[:3] + (pose[:3] - last[:3]) * (COAST_M / shift)
@@ -273,13 +257,3 @@ class PoseKalman:
 def _outer(d: np.ndarray) -> np.ndarray:
     """Per-axis outer products (6, 2, 2) of state differences (6, 2)."""
     return d[:, :, None] * d[:, None, :]
-
-
-def pose_vector(pose: Pose) -> np.ndarray:
-    """(x, y, z, roll, pitch, yaw) of a pose."""
-    return np.concatenate([pose.pos, rpy_of(pose.rot)])
-
-
-def vector_pose(v: np.ndarray) -> Pose:
-    """The pose of (x, y, z, roll, pitch, yaw)."""
-    return Pose(np.array(v[:3], dtype=float), rot_of(v[3:]))

@@ -22,6 +22,30 @@ class Pose(NamedTuple):
         return quat
 
 
+def rpy_of(rot: np.ndarray) -> np.ndarray:
+    """Roll, pitch, yaw [rad] of a rotation matrix, ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
+    return np.array([np.arctan2(rot[2, 1], rot[2, 2]), np.arcsin(np.clip(-rot[2, 0], -1.0, 1.0)),
+                     np.arctan2(rot[1, 0], rot[0, 0])])
+
+
+def rot_of(rpy: np.ndarray) -> np.ndarray:
+    """Rotation matrix ``Rz(yaw) Ry(pitch) Rx(roll)`` of roll, pitch, yaw [rad]."""
+    (cr, cp, cy), (sr, sp, sy) = np.cos(rpy), np.sin(rpy)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def pose_vector(pose: Pose) -> np.ndarray:
+    """(x, y, z, roll, pitch, yaw) of a pose."""
+    return np.concatenate([pose.pos, rpy_of(pose.rot)])
+
+
+def vector_pose(v: np.ndarray) -> Pose:
+    """The pose of (x, y, z, roll, pitch, yaw)."""
+    return Pose(np.array(v[:3], dtype=float), rot_of(v[3:]))
+
+
 def mats_to_quats(mats: np.ndarray) -> np.ndarray:
     """Unit quaternions (w, x, y, z), w >= 0, of rotation matrices ``mats`` (k, 3, 3) or (k, 9); (k, 4).
 

@@ -18,8 +18,8 @@ from collections import deque
 
 import numpy as np
 
-from nextage_qp.estimation import PoseKalman, pose_vector, vector_pose
-from nextage_qp.geometry import Pose
+from nextage_qp.estimation import PoseKalman
+from nextage_qp.geometry import Pose, pose_vector, vector_pose
 
 HISTORY_S = 1.0
 """How long the carrier's poses are kept for latency compensation [s]."""

@@ -18,9 +18,9 @@ import numpy as np
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.estimate_errors import EstimateErrors
-from nextage_qp.estimation import PoseKalman, rpy_of, vector_pose
+from nextage_qp.estimation import PoseKalman
 from nextage_qp.faults import EstimationConfig, FaultsConfig
-from nextage_qp.geometry import Pose, axis_angle, wrap, yaw_of
+from nextage_qp.geometry import Pose, axis_angle, rpy_of, vector_pose, wrap, yaw_of
 from nextage_qp.held import HeldEstimate
 from nextage_qp.sensors import Wrench
 

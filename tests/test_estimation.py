@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from nextage_qp.estimation import PoseKalman, pose_vector, rot_of, rpy_of, vector_pose
+from nextage_qp.estimation import PoseKalman
+from nextage_qp.geometry import pose_vector, rot_of, rpy_of, vector_pose
 
 SIGMA_POS, SIGMA_ROT, RATE = 0.002, 0.0175, 30.0
 

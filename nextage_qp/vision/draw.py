@@ -7,7 +7,8 @@ from collections.abc import Mapping
 import numpy as np
 
 from nextage_qp.geometry import rot_z
-from nextage_qp.vision.estimate import Frame, project
+from nextage_qp.vision.estimate import Frame
+from nextage_qp.vision.pixels import project
 from nextage_qp.vision.shapes import ShapeModel
 
 COLOURS = ((255, 60, 60), (60, 200, 255), (255, 220, 40), (180, 90, 255))

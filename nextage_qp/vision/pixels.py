@@ -1,0 +1,24 @@
+"""Pixels and world points of a pinhole depth camera (MuJoCo's convention: x right, y up, looking along -z)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def backproject(depth: np.ndarray, K: np.ndarray, pos: np.ndarray, rot: np.ndarray,
+                rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """World points (n, 3) of pixels (rows, cols) with depth (the distance along the optical axis)."""
+    z = depth[rows, cols].astype(float)
+    x = (cols + 0.5 - K[0, 2]) / K[0, 0] * z
+    y = -(rows + 0.5 - K[1, 2]) / K[1, 1] * z
+    return pos + np.stack([x, y, -z], axis=1) @ rot.T
+
+
+def project(points: np.ndarray, K: np.ndarray, pos: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Pixel rows, cols and depth of world points (depth <= 0: behind the camera)."""
+    c = (points - pos) @ rot
+    z = -c[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cols = K[0, 0] * c[:, 0] / z + K[0, 2] - 0.5
+        rows = -K[1, 1] * c[:, 1] / z + K[1, 2] - 0.5
+    return np.rint(rows).astype(int), np.rint(cols).astype(int), z
