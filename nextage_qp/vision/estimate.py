@@ -201,13 +201,15 @@ class Estimator:
             out[name] = self._search(f, shape, self._seeded(shape, clusters), 0.0)
             if out[name].pose is not None:  # its cluster is taken (tracked objects came first)
                 clusters = self._untaken(clusters, shape, out[name])
-        for name in lost:  # after every other object has taken its points
+        if lost:  # after every other object has taken its points (objects not tracked yet took theirs above)
             for other, found in out.items():
-                if other != name and found.pose is not None:
+                if found.pose is not None and priors[other] is not None:
                     clusters = self._untaken(clusters, self.shapes[other], found)
+        for name in lost:
             again = self._search(f, self.shapes[name], self._seeded(self.shapes[name], clusters), 0.0)
             if again.pose is not None:
                 out[name] = again
+                clusters = self._untaken(clusters, self.shapes[name], again)
         return out
 
     @staticmethod
