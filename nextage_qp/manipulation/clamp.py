@@ -84,7 +84,7 @@ class Clamp:
         g = self.grip
         if max(self.felt) < LOST_FRACTION * g.force:
             felt = " and ".join(f"{f:.1f} N" for f in self.felt)
-            raise PhaseError(f"the clamp lost {g.object}: the pads feel {felt} of the {g.force:g} N squeeze "
+            raise PhaseError(f"the clamp lost {g.object}: the pads feel {felt} of the {g.force:.3g} N squeeze "
                              "(slipped out of the clamp or dropped)")
 
     def pads(self, pos: np.ndarray, yaw: float) -> tuple[tuple[FrameTarget, ...], RelativeTarget]:

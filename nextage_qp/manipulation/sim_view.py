@@ -168,6 +168,12 @@ class SimView:
     def yaw_symmetry(self, obj: str) -> float:  # noqa: D102
         return self.robot.yaw_symmetry(obj)
 
+    def mass(self, obj: str) -> float:  # noqa: D102
+        bid = mujoco.mj_name2id(self.robot.model, mujoco.mjtObj.mjOBJ_BODY, obj)
+        if bid < 0:
+            raise UnknownNameError("object", obj, self.robot.object_names)
+        return float(self.robot.model.body_subtreemass[bid])
+
     def extent(self, obj: str, direction: np.ndarray) -> float:  # noqa: D102
         local = self.body_pose(obj).rot.T @ direction
         return max((_support(part, local) for part in self._parts_cached(obj)), default=0.0)

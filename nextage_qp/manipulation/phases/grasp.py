@@ -30,6 +30,7 @@ from nextage_qp.manipulation.context import ROUND_HEADINGS, Grip, View, refusal
 from nextage_qp.manipulation.phases.base import Phase
 from nextage_qp.manipulation.phases.grasp_spec import (
     APPROACH_TOL,
+    GRAVITY,
     GRIP_MARGIN,
     GRIP_STEP,
     HIGH,
@@ -55,6 +56,9 @@ class Grasp(Phase):
     def start(self, view: View) -> None:  # noqa: D102
         c = self.spec
         self.frames: tuple[str, ...] = c.frames or view.pad_frames()
+        weight = GRAVITY * view.mass(c.object) if c.force_per_weight else 0.0
+        self.force = max(c.force, c.force_per_weight * weight)  # squeeze per pad [N]
+        self.info["force_n"] = round(self.force, 2)
         obj, rot = view.body_pose(c.object)
         sym = view.yaw_symmetry(c.object) or ROUND_HEADINGS  # a round object: headings this far apart
         nearest = wrap(yaw_of(rot), sym)  # the equivalent heading nearest the robot's own comes first
@@ -229,15 +233,15 @@ class Grasp(Phase):
         forces = self.forces(view)
         self.info["squeeze_n"] = [round(f, 2) for f in forces]
         if self.stage == "close":
-            self.depth = [d if f >= c.force else d + c.close_speed * view.dt for d, f in zip(self.depth, forces,
+            self.depth = [d if f >= self.force else d + c.close_speed * view.dt for d, f in zip(self.depth, forces,
                                                                                               strict=True)]
             if max(self.depth) > c.max_squeeze:
                 raise PhaseError(f"phase {self.name!r} (grasp): the pads closed {c.max_squeeze * 1e3:g} mm inside "
-                                 f"{c.object}'s surface without feeling {c.force:g} N (felt {min(forces):.1f} N)")
-            if min(forces) >= c.force:
+                                 f"{c.object}'s surface without feeling {self.force:g} N (felt {min(forces):.1f} N)")
+            if min(forces) >= self.force:
                 self.stage, self.hold_from = "hold", view.t
         else:
-            self.depth = [d + float(np.clip(c.force_gain * (c.force - f), -0.02, 0.02)) * view.dt
+            self.depth = [d + float(np.clip(c.force_gain * (self.force - f), -0.02, 0.02)) * view.dt
                           for d, f in zip(self.depth, forces, strict=True)]
         done = self.stage == "hold" and view.t - self.hold_from >= c.hold
         targets = self._pads(view)
@@ -251,7 +255,7 @@ class Grasp(Phase):
                 rotations={t.frame: rot.T @ np.asarray(t.rot) for t in targets},
                 relative=RelativeTarget.between(self.frames[0], self.frames[1], poses, cost=1.0),
                 lateral=rot.T @ self.lateral,
-                force=c.force,
+                force=self.force,
                 force_gain=c.force_gain,
                 place_joints=self.place_q,
             )

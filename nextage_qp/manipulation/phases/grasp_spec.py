@@ -21,6 +21,8 @@ OFF_CENTRE_STEP = 0.0175
 """Spacing of the clamp points tried along the faces, from the centre out to ``off_centre`` [m]."""
 
 
+GRAVITY = 9.81
+"""Standard gravity [m/s^2], for an object's weight."""
 GRIP_STEP = 0.01
 """Step [m] by which a clamp out of reach at its default height is tried higher on the object."""
 GRIP_MARGIN = 0.015
@@ -45,6 +47,9 @@ class GraspSpec(Spec):
     clearance: float = Field(default=0.04, gt=0, le=0.3,
                              description="Pad height over the object's top before going down beside it [m].")
     force: float = Field(default=10.0, gt=0, le=100.0, description="Squeeze force per pad [N].")
+    force_per_weight: float = Field(default=0.0, ge=0, le=20.0, description=(
+        "Squeeze per pad at least this many times the object's weight (0: ``force`` alone): a heavy object held off "
+        "its centre creeps about the pads' axis under a squeeze that holds a light one."))
     force_gain: float = Field(default=0.0005, gt=0, le=0.05, description="Force loop gain [m/s per N].")
     close_speed: float = Field(default=0.02, gt=0, le=0.2, description="Closing speed [m/s].")
     max_squeeze: float = Field(default=0.02, gt=0, le=0.1,
