@@ -54,6 +54,7 @@ class ScriptedView:
     table: float = 0.875
     obstacle: float = 0.875
     unseen: float = 0.0
+    kg: float = 0.3
 
     def body_pose(self, name):
         return self.bodies[name]
@@ -106,6 +107,9 @@ class ScriptedView:
 
     def yaw_symmetry(self, obj):
         return self.symmetry
+
+    def mass(self, obj):
+        return self.kg
 
     def unseen_s(self, obj):
         return self.unseen
@@ -349,6 +353,18 @@ def test_grasp_goes_down_beside_the_object_closes_to_the_force_and_leaves_a_grip
     assert grip.object == "dumbbell" and grip.frames == ("left_pad", "right_pad") and grip.force == 10.0
     assert grip.offsets["left_pad"] == pytest.approx([0.0, 0.074, 0.105], abs=2e-4)
     assert grip.relative.frame == "left_pad" and grip.relative.root == "right_pad"
+
+
+@pytest.mark.parametrize(("kg", "expected"), [(0.3, 10.0), (0.8, 2.5 * 9.81 * 0.8)])
+def test_grasp_squeezes_at_least_force_per_weight_times_the_objects_weight(kg, expected):
+    view = grasp_view()
+    view.half, view.kg = 0.1, kg
+    phase = make_grasp(force_per_weight=2.5)  # 0.3 kg: 7.4 N, below the 10 N floor; 0.8 kg: 19.6 N
+    phase.start(view)
+    assert phase.info["force_n"] == pytest.approx(expected, abs=0.01)
+    run_until_done(phase, view, each=squeezed_by_the_pads(view))
+    assert phase.info["squeeze_n"] == pytest.approx([expected, expected], abs=0.3)
+    assert phase.grip(None).force == pytest.approx(expected)  # the clamp keeps squeezing at it, and judges a loss by it
 
 
 def test_grasp_comes_in_closer_when_the_arms_cannot_spread_and_refuses_when_they_cannot_reach():
