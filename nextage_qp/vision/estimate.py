@@ -173,10 +173,12 @@ class Estimator:
     def estimate(self, f: Frame, priors: Mapping[str, np.ndarray | None]) -> dict[str, Detection]:
         """A :class:`Detection` per object of ``priors`` (name -> predicted pose vector, or None: not yet seen).
 
-        A tracked object with no fitting points near its prediction (``missing``), or predicted out of view, is
-        searched for among the clusters no other object explains, as an object not seen yet is (**re-acquisition**):
-        a prediction that drifted away, e.g. coasting on a velocity that wrong measurements gave it, is found again
-        where the object rests. The filter gates such a jump, and restarts there when the next frame confirms it.
+        A tracked object with no points at all near its prediction, or predicted out of view, is searched for among
+        the clusters no other object explains, as an object not seen yet is (**re-acquisition**): a prediction that
+        drifted away, e.g. coasting on a velocity that wrong measurements gave it, is found again where the object
+        rests, at the equivalent yaw (modulo its symmetry) nearest the prediction. The filter gates such a jump, and
+        restarts there when the next frame confirms it. An object with points near its prediction that do not fit
+        (a partial view) is a dropout there, never a fit of another cluster.
         """
         clusters = self.segment(f)
         cloud = np.concatenate(clusters) if clusters else np.zeros((0, 3))
@@ -195,7 +197,7 @@ class Estimator:
                     continue
                 near = cloud[np.linalg.norm(cloud - prior[:3], axis=1) < shape.radius * 1.5 + 0.03]
                 out[name] = self._search(f, shape, [(near, [prior[5]], prior)], share)
-                if out[name].status == "missing":
+                if out[name].status == "missing" and len(near) < MIN_PIXELS:
                     lost.append(name)
                 continue
             out[name] = self._search(f, shape, self._seeded(shape, clusters), 0.0)
@@ -206,8 +208,11 @@ class Estimator:
                 if found.pose is not None and priors[other] is not None:
                     clusters = self._untaken(clusters, self.shapes[other], found)
         for name in lost:
-            again = self._search(f, self.shapes[name], self._seeded(self.shapes[name], clusters), 0.0)
+            shape, prior = self.shapes[name], priors[name]
+            again = self._search(f, shape, self._seeded(shape, clusters), 0.0)
             if again.pose is not None:
+                if shape.symmetry and prior is not None:  # the equivalent yaw nearest the prediction, as tracked
+                    again.pose[5] = prior[5] + wrap(again.pose[5] - prior[5], shape.symmetry)
                 out[name] = again
                 clusters = self._untaken(clusters, self.shapes[name], again)
         return out
