@@ -94,7 +94,7 @@ class Place(Phase):
         self.samples: list[tuple[np.ndarray, float]] = []
         self.corrections = 0
         self.bottom_from: float | None = None
-        self.info.update(carry_height_m=round(carry, 4), corrections=0)
+        self.info.update(stage="transit", carry_height_m=round(carry, 4), corrections=0)
 
     def _reachable_yaw(self, view: View, target_yaw: float) -> tuple[float, np.ndarray]:
         """The equivalent target yaw nearest the object's own that the clamp can reach, and its hover joints.
@@ -133,6 +133,7 @@ class Place(Phase):
                 self.leg += 1
                 if self.leg == len(self.legs):
                     self.stage, self.wait_from, self.samples = "hover", view.t, []
+                    self.info["stage"] = self.stage  # a timeout names the stage it ended in
         elif self.stage == "hover":
             self._hover(view)
         elif self.stage == "descend":
@@ -191,7 +192,7 @@ class Place(Phase):
         self.info.update(hover_error_xy_m=round(float(np.linalg.norm(err)), 5), hover_yaw_error_rad=round(yaw_err, 4))
         within = np.linalg.norm(err) <= c.tolerance and abs(yaw_err) <= c.yaw_tolerance
         if within or self.corrections >= c.corrections:
-            self.stage = "descend"
+            self.stage = self.info["stage"] = "descend"
             return
         self.corrections += 1
         self.info["corrections"] = self.corrections
