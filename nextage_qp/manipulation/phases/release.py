@@ -65,6 +65,9 @@ class Release(Phase):
         self.legs: list[tuple[list[np.ndarray], float]] = []  # the moves of the "open" stage: (goals, speed)
         self.leg = 0
         self.eased = [0.0 for _ in self.frames]
+        # The IK's posture target stays the joints the release starts from: going back to the default posture at
+        # once would swing the arms through the null space while the pads still touch the object.
+        self.posture = view.joint_positions(view.joint_names())
 
     def _open(self) -> None:
         """The open stage's moves from where the pads are now: back away along the clamp axis, then rise."""
@@ -92,7 +95,7 @@ class Release(Phase):
         touching = self.stage != "open" or self.leg == 0  # down, easing, opening: the pads may touch the object
         allow = frozenset({self.spec.object}) if touching else frozenset()
         done = self.stage == "open" and self.leg == len(self.legs) and view.settled()
-        return Command(targets, allow=allow, done=done)
+        return Command(targets, allow=allow, posture=self.posture, done=done)
 
     def _ease(self, view: View) -> bool:
         """Back off each pad that still squeezes; True once none does (or the travel allowed is used up)."""
