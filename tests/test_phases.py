@@ -526,17 +526,22 @@ def test_release_opens_lifts_and_ends_the_grip():
     view = grasp_view()
     view.grip = held_grip()
     view.commanded = {"left_pad": pose(0.5, 0.072, 1.12), "right_pad": pose(0.5, -0.072, 1.12)}
+    view.joints = {"plan": 3.0}  # the joints the release starts from
     phase = make("release", object="dumbbell", gap=0.05, lift=0.08)
     phase.start(view)
     assert phase.grip(view.grip) is None
-    last = run_until_done(phase, view)
+    view.joints = {"plan": 4.0}  # the arms move on; the posture target stays where the release began
+    postures = []
+    last = run_until_done(phase, view, each=lambda cmd: postures.append(cmd.posture))
     assert last.targets[0].pos == pytest.approx([0.5, 0.122, 1.20])
     assert last.targets[1].pos == pytest.approx([0.5, -0.122, 1.20])
+    assert postures and all(p is not None and list(p) == [3.0] for p in postures)
 
 
 def test_release_first_hands_the_weight_to_the_table():
     view = grasp_view()
     view.grip = held_grip()
+    view.joints = {"plan": 0.0}
     view.commanded = {"left_pad": pose(0.5, 0.072, 1.12), "right_pad": pose(0.5, -0.072, 1.12)}
     view.forces = {"left_pad": [0.0, 0.0, -2.0], "right_pad": [0.0, 0.0, -2.0]}  # the pads hold it up
     phase = make("release", object="dumbbell", gap=0.05, lift=0.08, unload=0.006)
