@@ -115,6 +115,13 @@ def wrap(angle: float, period: float = 2.0 * np.pi) -> float:
     return float((angle + 0.5 * period) % period - 0.5 * period)
 
 
+def nearest_equivalent(angle: float, reference: float, period: float) -> float:
+    """The angle equivalent to ``angle`` modulo ``period`` nearest ``reference`` [rad]; ``angle`` for a period of 0."""
+    if not period > 0:
+        return angle
+    return reference + wrap(angle - reference, period)
+
+
 def unit2(v: np.ndarray) -> np.ndarray:
     """Planar vector ``v`` normalised (``[1, 0]`` for a zero vector)."""
     n = float(np.linalg.norm(v))

@@ -108,8 +108,8 @@ class ScriptedView:
     def yaw_symmetry(self, obj):
         return self.symmetry
 
-    def mass(self, obj):
-        return self.kg
+    def weight(self, obj):
+        return 9.81 * self.kg
 
     def unseen_s(self, obj):
         return self.unseen

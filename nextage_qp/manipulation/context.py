@@ -155,8 +155,8 @@ class View(Protocol):
     def yaw_symmetry(self, obj: str) -> float:
         """Yaw [rad] after which an object looks the same (2 pi for none)."""
 
-    def mass(self, obj: str) -> float:
-        """An object's mass [kg] as the task declares it (its body and the bodies below it)."""
+    def weight(self, obj: str) -> float:
+        """An object's weight [N]: its mass as the task declares it (its body and those below it) times gravity."""
 
     def unseen_s(self, obj: str) -> float:
         """Time [s] since the moment the latest measurement of an object's pose describes (0: poses are the truth)."""

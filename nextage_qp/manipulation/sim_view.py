@@ -168,11 +168,12 @@ class SimView:
     def yaw_symmetry(self, obj: str) -> float:  # noqa: D102
         return self.robot.yaw_symmetry(obj)
 
-    def mass(self, obj: str) -> float:  # noqa: D102
-        bid = mujoco.mj_name2id(self.robot.model, mujoco.mjtObj.mjOBJ_BODY, obj)
+    def weight(self, obj: str) -> float:  # noqa: D102
+        model = self.robot.model
+        bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, obj)
         if bid < 0:
             raise UnknownNameError("object", obj, self.robot.object_names)
-        return float(self.robot.model.body_subtreemass[bid])
+        return float(-model.opt.gravity[2] * model.body_subtreemass[bid])
 
     def extent(self, obj: str, direction: np.ndarray) -> float:  # noqa: D102
         local = self.body_pose(obj).rot.T @ direction

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from nextage_qp.geometry import rot_z, wrap
+from nextage_qp.geometry import nearest_equivalent, rot_z
 from nextage_qp.vision.fit import fit, planar_std, residuals, table_plane
 from nextage_qp.vision.pixels import backproject, project
 from nextage_qp.vision.shapes import ShapeModel
@@ -211,10 +211,10 @@ class Estimator:
             shape, prior = self.shapes[name], priors[name]
             again = self._search(f, shape, self._seeded(shape, clusters), 0.0)
             if again.pose is not None:
-                if shape.symmetry and prior is not None:  # the equivalent yaw nearest the prediction, as tracked
-                    again.pose[5] = prior[5] + wrap(again.pose[5] - prior[5], shape.symmetry)
+                if prior is not None:  # the equivalent yaw nearest the prediction, as a tracked fit's
+                    again.pose[5] = nearest_equivalent(again.pose[5], prior[5], shape.symmetry)
                 out[name] = again
-                clusters = self._untaken(clusters, self.shapes[name], again)
+                clusters = self._untaken(clusters, shape, again)
         return out
 
     @staticmethod
@@ -259,9 +259,7 @@ class Estimator:
             explained = support * float(np.mean(np.abs(residuals(shape, pts, x)) < INLIER))
             if best.pose is None or (rms <= MAX_RMS, explained, -rms) > (best.rms <= MAX_RMS, best_explained,
                                                                          -best.rms):
-                yaw = x[3]
-                if shape.symmetry and pr is not None:  # the equivalent yaw nearest the prediction
-                    yaw = pr[5] + wrap(yaw - pr[5], shape.symmetry)
+                yaw = x[3] if pr is None else nearest_equivalent(x[3], pr[5], shape.symmetry)
                 best = Detection(np.array([x[0], x[1], x[2], 0.0, 0.0, yaw]), "ok", rms, len(pts), share)
                 best_explained, best_fit = explained, (pts, free)
         if best.pose is not None and (best.rms > MAX_RMS or planar_std(

@@ -30,7 +30,6 @@ from nextage_qp.manipulation.context import ROUND_HEADINGS, Grip, View, refusal
 from nextage_qp.manipulation.phases.base import Phase
 from nextage_qp.manipulation.phases.grasp_spec import (
     APPROACH_TOL,
-    GRAVITY,
     GRIP_MARGIN,
     GRIP_STEP,
     HIGH,
@@ -56,7 +55,7 @@ class Grasp(Phase):
     def start(self, view: View) -> None:  # noqa: D102
         c = self.spec
         self.frames: tuple[str, ...] = c.frames or view.pad_frames()
-        weight = GRAVITY * view.mass(c.object) if c.force_per_weight else 0.0
+        weight = view.weight(c.object) if c.force_per_weight else 0.0
         self.force = max(c.force, c.force_per_weight * weight)  # squeeze per pad [N]
         self.info["force_n"] = round(self.force, 2)
         obj, rot = view.body_pose(c.object)

@@ -21,8 +21,6 @@ OFF_CENTRE_STEP = 0.0175
 """Spacing of the clamp points tried along the faces, from the centre out to ``off_centre`` [m]."""
 
 
-GRAVITY = 9.81
-"""Standard gravity [m/s^2], for an object's weight."""
 GRIP_STEP = 0.01
 """Step [m] by which a clamp out of reach at its default height is tried higher on the object."""
 GRIP_MARGIN = 0.015

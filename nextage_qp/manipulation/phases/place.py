@@ -28,7 +28,7 @@ import numpy as np
 from pydantic import Field
 
 from nextage_qp.errors import PhaseError
-from nextage_qp.geometry import clamp, wrap, yaw_of
+from nextage_qp.geometry import clamp, nearest_equivalent, wrap, yaw_of
 from nextage_qp.manipulation.context import ROUND_HEADINGS, Setpoint, View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
 from nextage_qp.servo import Command
@@ -105,7 +105,7 @@ class Place(Phase):
         """
         c = self.spec
         sym = view.yaw_symmetry(c.object) or ROUND_HEADINGS  # a round object: headings this far apart
-        nearest = self.yaw + wrap(target_yaw - self.yaw, sym)
+        nearest = nearest_equivalent(target_yaw, self.yaw, sym)
         count = max(1, round(2 * np.pi / sym))
         hint = self.clamp.grip.place_joints
         for yaw in sorted((nearest + k * sym for k in range(-(count // 2), count - count // 2)),
@@ -133,7 +133,6 @@ class Place(Phase):
                 self.leg += 1
                 if self.leg == len(self.legs):
                     self.stage, self.wait_from, self.samples = "hover", view.t, []
-                    self.info["stage"] = self.stage  # a timeout names the stage it ended in
         elif self.stage == "hover":
             self._hover(view)
         elif self.stage == "descend":
@@ -146,6 +145,7 @@ class Place(Phase):
             done = down and view.settled()
             if down:
                 self.sp.jump(np.array([*self.sp.pos[:2], max(self.sp.pos[2], self.rest)]))
+        self.info["stage"] = self.stage  # a timeout names the stage it ended in
         targets, relative = self.clamp.targets(view, self.sp.pos, self.yaw)
         blend = clamp((view.t - self.t0) / BLEND, 0.0, 1.0)
         posture = self.posture_from + blend * blend * (3.0 - 2.0 * blend) * (self.posture - self.posture_from)
@@ -192,7 +192,7 @@ class Place(Phase):
         self.info.update(hover_error_xy_m=round(float(np.linalg.norm(err)), 5), hover_yaw_error_rad=round(yaw_err, 4))
         within = np.linalg.norm(err) <= c.tolerance and abs(yaw_err) <= c.yaw_tolerance
         if within or self.corrections >= c.corrections:
-            self.stage = self.info["stage"] = "descend"
+            self.stage = "descend"
             return
         self.corrections += 1
         self.info["corrections"] = self.corrections
