@@ -1,7 +1,8 @@
 """Object poses from one depth frame.
 
 The table is found by RANSAC, the points the robot's model does not explain are clustered, and each object's known
-shape is fitted to its points (Gauss-Newton on the shape's signed distance, over x, y, z and yaw).
+shape is fitted to its points (Gauss-Newton on the shape's signed distance, over x, y, z and yaw; an object the robot
+holds also over roll and pitch, as it may turn in the grip).
 
 The estimator sees what a real robot would: the depth image, the camera's intrinsics and its pose from forward
 kinematics of the measured joints, and the depth the robot's own model expects there (itself and the known static
@@ -15,19 +16,18 @@ measurements.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
 
-from nextage_qp.geometry import nearest_equivalent, rot_z
+from nextage_qp.geometry import nearest_equivalent
 from nextage_qp.vision.fit import fit, planar_std, residuals, table_plane
-from nextage_qp.vision.pixels import backproject, project
+from nextage_qp.vision.pixels import backproject
 from nextage_qp.vision.shapes import ShapeModel
+from nextage_qp.vision.visible import GAP, occlusion, seen_through
 
-GAP = 0.01
-"""A pixel nearer than the model expects by this much [m] shows something the model does not know (an object)."""
 ABOVE = 0.004
 """Points this far above the table plane or more belong to objects [m]."""
 MIN_PIXELS = 30
@@ -53,8 +53,6 @@ SINK = 0.01
 REST = 0.02
 """How far [m] above the table plane the bottom of an object not tracked yet may be: objects are first seen resting
 (a floating fit is noise, e.g. stereo on the robot's own plain links)."""
-THROUGH = 0.03
-"""Depth [m] beyond a fitted surface at which the camera sees through where the shape would be."""
 MAX_THROUGH = 0.6
 """Largest share of a fitted shape's camera-facing surface seen through (silhouette pixels, noise)."""
 INLIER = 0.005
@@ -135,43 +133,12 @@ class Estimator:
         n, d = self.plane
         return float((d - n[:2] @ xy) / n[2])
 
-    @staticmethod
-    def _facing(f: Frame, shape: ShapeModel, pos: np.ndarray, yaw: float) -> tuple[np.ndarray, ...]:
-        """Pixel rows, cols, depth of the shape's camera-facing samples at ``pos``, ``yaw``, and which are in view."""
-        rot = rot_z(yaw).T
-        pts = shape.samples @ rot + pos
-        pts = pts[np.einsum("ij,ij->i", shape.normals @ rot, pts - f.cam_pos) < 0]  # faces the camera
-        rows, cols, z = project(pts, f.K, f.cam_pos, f.cam_rot)
-        h, w = f.depth.shape
-        return rows, cols, z, (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-
-    def seen_through(self, f: Frame, shape: ShapeModel, x: np.ndarray) -> float:
-        """Share of the shape's camera-facing surface at pose ``x`` (x, y, z, yaw) behind which the frame has depth.
-
-        A shape where the image shows something farther away (by more than ``THROUGH`` [m]) cannot be there; nearer
-        (the robot in front) or no depth say nothing.
-        """
-        rows, cols, z, inside = self._facing(f, shape, x[:3], x[3])
-        if not inside.any():
-            return 1.0
-        with np.errstate(invalid="ignore"):
-            beyond = f.depth[rows[inside], cols[inside]] > z[inside] + THROUGH
-        return float(beyond.mean())
-
-    def occlusion(self, f: Frame, shape: ShapeModel, prior: np.ndarray) -> float | None:
-        """Share of the shape's surface facing the camera at ``prior`` that the robot covers (None: out of view).
-
-        From the model alone: the expected depth (robot and static scene) in front of the shape's samples.
-        """
-        rows, cols, z, inside = self._facing(f, shape, prior[:3], prior[5])
-        if inside.mean() < 0.5:
-            return None
-        with np.errstate(invalid="ignore"):
-            covered = f.expected[rows[inside], cols[inside]] < z[inside] - GAP
-        return float(covered.mean())
-
-    def estimate(self, f: Frame, priors: Mapping[str, np.ndarray | None]) -> dict[str, Detection]:
+    def estimate(self, f: Frame, priors: Mapping[str, np.ndarray | None],
+                 held: Collection[str] = ()) -> dict[str, Detection]:
         """A :class:`Detection` per object of ``priors`` (name -> predicted pose vector, or None: not yet seen).
+
+        Objects in ``held`` (the robot holds them: they may turn in its grip) are fitted over roll and pitch too;
+        every other object is fitted upright (it rests on the table).
 
         A tracked object with no points at all near its prediction, or predicted out of view, is searched for among
         the clusters no other object explains, as an object not seen yet is (**re-acquisition**): a prediction that
@@ -187,7 +154,8 @@ class Estimator:
         for name in sorted(priors, key=lambda k: priors[k] is None):  # tracked objects first
             shape, prior = self.shapes[name], priors[name]
             if prior is not None:
-                share = self.occlusion(f, shape, prior)
+                tilt = name in held
+                share = occlusion(f, shape, prior, tilt)
                 if share is None:
                     out[name] = Detection(None, "out_of_view")
                     lost.append(name)
@@ -196,7 +164,7 @@ class Estimator:
                     out[name] = Detection(None, "occluded", occluded=share)
                     continue
                 near = cloud[np.linalg.norm(cloud - prior[:3], axis=1) < shape.radius * 1.5 + 0.03]
-                out[name] = self._search(f, shape, [(near, [prior[5]], prior)], share)
+                out[name] = self._search(f, shape, [(near, [prior[5]], prior)], share, tilt)
                 if out[name].status == "missing" and len(near) < MIN_PIXELS:
                     lost.append(name)
                 continue
@@ -230,17 +198,22 @@ class Estimator:
         return [c for c in clusters if np.median(np.abs(residuals(shape, c, found.pose[[0, 1, 2, 5]]))) > 0.01]
 
     def _search(self, f: Frame, shape: ShapeModel,
-                candidates: Sequence[tuple[np.ndarray, list[float], np.ndarray | None]], share: float) -> Detection:
-        """The best fit of ``shape`` among candidate (points, yaw seeds, prior) triples; ``missing`` when none fits."""
+                candidates: Sequence[tuple[np.ndarray, list[float], np.ndarray | None]], share: float,
+                tilt: bool = False) -> Detection:
+        """The best fit of ``shape`` among candidate (points, yaw seeds, prior) triples; ``missing`` when none fits.
+
+        ``tilt``: fit roll and pitch too, from the prior's (a candidate with a prior only).
+        """
         best: Detection = Detection(None, "missing", occluded=share)
-        best_explained, best_fit = 0.0, (np.zeros((0, 3)), np.zeros((0, 3)))
+        best_explained, best_fit = 0.0, (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(4))  # points, free, pose
         for pts, yaws, pr in candidates:
             if len(pts) < MIN_PIXELS:
                 continue
             centre = pts.mean(axis=0)
             z0 = self._table_z(centre[:2]) - shape.bottom if self.plane is not None and pr is None else (
                 pr[2] if pr is not None else centre[2])
-            starts = [np.array([*(pr[:2] if pr is not None else centre[:2]), z0, y]) for y in yaws]
+            turned = (pr[3], pr[4]) if tilt and pr is not None else ()  # roll and pitch, when fitted
+            starts = [np.array([*(pr[:2] if pr is not None else centre[:2]), z0, *turned, y]) for y in yaws]
             free = self.free[np.linalg.norm(self.free[:, :2] - starts[0][:2], axis=1) < shape.radius + 0.03]
             free = free[:200]
             support = len(pts)  # the cluster's points before subsampling
@@ -251,7 +224,7 @@ class Estimator:
             above = x[2] + shape.bottom - self._table_z(x[:2]) if self.plane is not None else 0.0  # its bottom
             if above < -SINK or (pr is None and above > REST):
                 continue  # no object is inside the table, and one not tracked yet rests on it
-            if self.seen_through(f, shape, x) > MAX_THROUGH:
+            if seen_through(f, shape, x) > MAX_THROUGH:
                 continue  # the camera sees beyond where the shape would be: it is not there
             # Across clusters, the fit that explains the most points (a cluster's share within INLIER of the
             # surface, times its size), then the smaller RMS: a small patch of noise (stereo on a plain surface)
@@ -259,10 +232,11 @@ class Estimator:
             explained = support * float(np.mean(np.abs(residuals(shape, pts, x)) < INLIER))
             if best.pose is None or (rms <= MAX_RMS, explained, -rms) > (best.rms <= MAX_RMS, best_explained,
                                                                          -best.rms):
-                yaw = x[3] if pr is None else nearest_equivalent(x[3], pr[5], shape.symmetry)
-                best = Detection(np.array([x[0], x[1], x[2], 0.0, 0.0, yaw]), "ok", rms, len(pts), share)
-                best_explained, best_fit = explained, (pts, free)
+                yaw = x[-1] if pr is None else nearest_equivalent(x[-1], pr[5], shape.symmetry)
+                pose = np.array([*x[:3], *(x[3:5] if len(x) == 6 else (0.0, 0.0)), yaw])
+                best = Detection(pose, "ok", rms, len(pts), share)
+                best_explained, best_fit = explained, (pts, free, pose if len(x) == 6 else pose[[0, 1, 2, 5]])
         if best.pose is not None and (best.rms > MAX_RMS or planar_std(
-                shape, best_fit[0], best.pose[[0, 1, 2, 5]], best.rms, best_fit[1]) > MAX_STD):
+                shape, best_fit[0], best_fit[2], best.rms, best_fit[1]) > MAX_STD):
             best = Detection(None, "bad_fit", best.rms, best.points, share)
         return best

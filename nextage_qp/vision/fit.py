@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from nextage_qp.geometry import rot_z
+from nextage_qp.geometry import rot_of, rot_z
 from nextage_qp.vision.shapes import ShapeModel
 
 HUBER = 0.003
@@ -39,9 +39,14 @@ def table_plane(points: np.ndarray, rng: np.random.Generator, iters: int = 80, t
     return n, float(n @ centre)
 
 
+def pose_rot(x: np.ndarray) -> np.ndarray:
+    """The rotation of a fit's pose vector: (x, y, z, yaw), an upright object, or (x, y, z, roll, pitch, yaw)."""
+    return rot_z(x[3]) if len(x) == 4 else rot_of(x[3:6])
+
+
 def residuals(shape: ShapeModel, points: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Signed distances [m] of ``points`` to ``shape`` at pose ``x`` (x, y, z, yaw): > 0 outside."""
-    local = (points - x[:3]) @ rot_z(x[3])
+    """Signed distances [m] of ``points`` to ``shape`` at pose ``x`` (see :func:`pose_rot`): > 0 outside."""
+    local = (points - x[:3]) @ pose_rot(x)
     return shape.sdf(local)
 
 
@@ -52,33 +57,38 @@ def _both(shape: ShapeModel, points: np.ndarray, free: np.ndarray, x: np.ndarray
 
 def fit(shape: ShapeModel, points: np.ndarray, x0: np.ndarray, free: np.ndarray | None = None,
         iters: int = 12) -> tuple[np.ndarray, float]:
-    """Pose (x, y, z, yaw) of ``shape`` fitting ``points`` from ``x0`` (robust Gauss-Newton), and its RMS [m].
+    """Pose of ``shape`` fitting ``points`` from ``x0`` (robust Gauss-Newton), and its RMS [m].
+
+    The pose has the form of ``x0``: (x, y, z, yaw) for an upright object (one resting on the table), or (x, y, z,
+    roll, pitch, yaw) for one that may tilt (one the robot holds: it turns in the grip).
 
     ``free``: points the camera saw through (just in front of the table it saw), which the shape may not contain:
     they pin a partial view (the hand covering part of the object) along the directions its own points leave free.
     """
     x = np.asarray(x0, dtype=float).copy()
     free = np.zeros((0, 3)) if free is None else free
+    damping = 1e-6 * np.eye(len(x))
     for _ in range(iters):
         r, J, w = _linearised(shape, points, free, x)
-        H = J.T @ (J * w[:, None]) + 1e-6 * np.eye(4)
+        H = J.T @ (J * w[:, None]) + damping
         dx = -np.linalg.solve(H, J.T @ (w * r))
         x += dx
-        if np.abs(dx[:3]).max() < 1e-5 and abs(dx[3]) < 1e-4:
+        if np.abs(dx[:3]).max() < 1e-5 and np.abs(dx[3:]).max() < 1e-4:
             break
     r = residuals(shape, points, x)
     return x, float(np.sqrt(np.mean(r * r)))
 
 
-_STEPS = np.array([1e-4, 1e-4, 1e-4, 1e-3])
-"""Finite-difference steps of x, y, z [m] and yaw [rad]."""
+_STEPS = {4: np.array([1e-4, 1e-4, 1e-4, 1e-3]), 6: np.array([1e-4, 1e-4, 1e-4, 1e-3, 1e-3, 1e-3])}
+"""Finite-difference steps of x, y, z [m] and the angles [rad], per form of the pose vector."""
 
 
 def _linearised(shape: ShapeModel, points: np.ndarray, free: np.ndarray,
                 x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Residuals at ``x``, their Jacobian over (x, y, z, yaw) and the robust (Huber) weights."""
+    """Residuals at ``x``, their Jacobian over the pose vector's entries and the robust (Huber) weights."""
     r = _both(shape, points, free, x)
-    J = np.stack([(_both(shape, points, free, x + e) - r) / h for e, h in zip(np.diag(_STEPS), _STEPS, strict=True)],
+    steps = _STEPS[len(x)]
+    J = np.stack([(_both(shape, points, free, x + e) - r) / h for e, h in zip(np.diag(steps), steps, strict=True)],
                  axis=1)
     return r, J, np.minimum(1.0, HUBER / np.maximum(np.abs(r), 1e-12))
 
@@ -93,7 +103,7 @@ def planar_std(shape: ShapeModel, points: np.ndarray, x: np.ndarray, rms: float,
     _, J, w = _linearised(shape, points, np.zeros((0, 3)) if free is None else free, x)
     with np.errstate(all="ignore"):
         try:
-            cov = max(rms, floor) ** 2 * np.linalg.inv(J.T @ (J * w[:, None]) + 1e-12 * np.eye(4))
+            cov = max(rms, floor) ** 2 * np.linalg.inv(J.T @ (J * w[:, None]) + 1e-12 * np.eye(len(x)))
         except np.linalg.LinAlgError:
             return float("inf")
     return float(np.sqrt(max(np.linalg.eigvalsh(cov[:2, :2]).max(), 0.0)))

@@ -13,7 +13,7 @@ frames seen, detections, predicted occlusions and the time per frame spent rende
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -81,8 +81,12 @@ class CameraMeasurer:
         """Age of a measurement when it reaches the filter [s]."""
         return self.spec.latency_s
 
-    def __call__(self, t: float, priors: Mapping[str, np.ndarray | None]) -> dict[str, np.ndarray | None]:
-        """Measured pose vectors (x, y, z, roll, pitch, yaw) at ``t`` [s], None where the object was not seen."""
+    def __call__(self, t: float, priors: Mapping[str, np.ndarray | None],
+                 held: Collection[str] = ()) -> dict[str, np.ndarray | None]:
+        """Measured pose vectors (x, y, z, roll, pitch, yaw) at ``t`` [s], None where the object was not seen.
+
+        ``held``: objects the robot holds (fitted with their roll and pitch, see :meth:`Estimator.estimate`).
+        """
         t0 = time.perf_counter()
         if self.matcher is not None and self.right is not None:
             depth = self.matcher.depth(self.camera.rgb(self.data), self.right.rgb(self.data))
@@ -93,7 +97,7 @@ class CameraMeasurer:
         t1 = time.perf_counter()
         frame = Frame(depth, expected, self.camera.K, pos, rot)
         self.last = (t, depth)  # the latest depth image [m] and its time [s] (for recordings)
-        detections = self.estimator.estimate(frame, priors)
+        detections = self.estimator.estimate(frame, priors, held)
         self.ms["render"].append((t1 - t0) * 1e3)
         self.ms["estimate"].append((time.perf_counter() - t1) * 1e3)
         for name, det in detections.items():

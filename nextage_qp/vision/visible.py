@@ -1,0 +1,61 @@
+"""What a depth frame shows of a shape at a pose: the share it sees through, the share the robot covers.
+
+Arrays only, as :mod:`nextage_qp.vision.estimate`, which uses these to accept or reject a fit and to call a view
+occluded from the robot's model alone.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from nextage_qp.geometry import rot_z
+from nextage_qp.vision.fit import pose_rot
+from nextage_qp.vision.pixels import project
+from nextage_qp.vision.shapes import ShapeModel
+
+if TYPE_CHECKING:
+    from nextage_qp.vision.estimate import Frame
+
+GAP = 0.01
+"""A pixel nearer than the model expects by this much [m] shows something the model does not know (an object)."""
+THROUGH = 0.03
+"""Depth [m] beyond a fitted surface at which the camera sees through where the shape would be."""
+
+
+def facing(f: Frame, shape: ShapeModel, pos: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Pixel rows, cols, depth of the shape's camera-facing samples at ``pos``, ``rot``, and which are in view."""
+    pts = shape.samples @ rot.T + pos
+    pts = pts[np.einsum("ij,ij->i", shape.normals @ rot.T, pts - f.cam_pos) < 0]  # faces the camera
+    rows, cols, z = project(pts, f.K, f.cam_pos, f.cam_rot)
+    h, w = f.depth.shape
+    return rows, cols, z, (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+
+
+def seen_through(f: Frame, shape: ShapeModel, x: np.ndarray) -> float:
+    """Share of the shape's camera-facing surface at a fit's pose ``x`` behind which the frame has depth.
+
+    A shape where the image shows something farther away (by more than ``THROUGH`` [m]) cannot be there; nearer
+    (the robot in front) or no depth say nothing.
+    """
+    rows, cols, z, inside = facing(f, shape, x[:3], pose_rot(x))
+    if not inside.any():
+        return 1.0
+    with np.errstate(invalid="ignore"):
+        beyond = f.depth[rows[inside], cols[inside]] > z[inside] + THROUGH
+    return float(beyond.mean())
+
+
+def occlusion(f: Frame, shape: ShapeModel, prior: np.ndarray, tilt: bool = False) -> float | None:
+    """Share of the shape's surface facing the camera at ``prior`` that the robot covers (None: out of view).
+
+    From the model alone: the expected depth (robot and static scene) in front of the shape's samples. ``tilt``: at
+    the prior's roll and pitch too (else upright).
+    """
+    rows, cols, z, inside = facing(f, shape, prior[:3], pose_rot(prior) if tilt else rot_z(prior[5]))
+    if inside.mean() < 0.5:
+        return None
+    with np.errstate(invalid="ignore"):
+        covered = f.expected[rows[inside], cols[inside]] < z[inside] - GAP
+    return float(covered.mean())
