@@ -34,6 +34,7 @@ from nextage_qp.manipulation.context import Setpoint, View
 from nextage_qp.manipulation.phases.base import Phase
 from nextage_qp.manipulation.phases.push_judge import finish, hold, retreat, start_retreat
 from nextage_qp.manipulation.phases.push_spec import (
+    BLIND_S,
     GAP_TIME,
     HEIGHT_GAIN,
     HIDDEN_S,
@@ -180,6 +181,7 @@ class Push(Phase):
 
     def _begin_push(self, touched: bool) -> None:
         self.stage, self.v, self.touched, self.bias = "push", 0.0, touched, 0.0
+        self.blind_m, self.blind_stop = 0.0, False  # how far the tool pushed unseen [m]; whether it stopped to look
         self.contact.restart()  # the last push's contact is stale: _felt reads it before this push's first reading
         self.last_obj: np.ndarray | None = None
         self.obj_v = np.zeros(2)
@@ -196,6 +198,8 @@ class Push(Phase):
         obj_pose = view.body_pose(c.object)
         obj, tgt = self._felt(view, obj_pose.pos), view.body_pose(c.target).pos
         dist = float(np.linalg.norm((tgt - obj)[:2]))
+        moved = float(np.linalg.norm(obj[:2] - self.last_obj)) if self.last_obj is not None else 0.0
+        self.blind_m = self.blind_m + moved if view.unseen_s(c.object) > HIDDEN_S else 0.0  # pushed unseen [m]
         self._track(view, obj[:2])
         if dist > c.freeze and self.touched:  # turn only once in contact: the approach side was chosen to reach
             bearing = unit2((tgt - obj)[:2])
@@ -209,7 +213,10 @@ class Push(Phase):
         self._turn_tool(view)
         d, n = self.d, np.array([-self.d[1], self.d[0]])
         remaining = float((tgt - obj)[:2] @ d)
-        if remaining <= (c.standoff if self.approaches == 1 and self.nudges == 0 else 0.2 * c.tolerance):
+        stop = remaining <= (c.standoff if self.approaches == 1 and self.nudges == 0 else 0.2 * c.tolerance)
+        blind = self.blind_m > c.blind or view.unseen_s(c.object) > BLIND_S  # pushed unseen too far or long
+        self.blind_stop = not stop and self.touched and blind  # stop and look
+        if stop or self.blind_stop:
             self.sp.jump(np.array([*view.frame_pose(c.frame).pos[:2], self.sp.pos[2]]))  # stop pushing, no shove
             self.stage, self.hold_from, self.v = "hold", view.t, 0.0
             return self._command(allow=True)

@@ -4,7 +4,8 @@ After the push stops, the object comes to rest against the tool and the push is 
 tool retreats and the phase is done; short on the same line it pushes again (``nudges``); otherwise it retreats and
 approaches again along the error, up to ``attempts`` approaches, and with nothing left to try an error within
 ``accept`` ends the phase, a larger one fails it. A push the camera could not see (the hand hid the object) is judged
-after backing off, once the object is in sight again (waiting at most ``LOOK_S``).
+after backing off, once the object is in sight again (waiting at most ``LOOK_S``; still hidden, the tool first moves
+towards the robot's side, ``ASIDE``, which folds the arm out of the camera's line of sight).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import numpy as np
 from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import unit2
 from nextage_qp.manipulation.context import View
-from nextage_qp.manipulation.phases.push_spec import HIDDEN_S, LOOK_S
+from nextage_qp.manipulation.phases.push_spec import ASIDE, HIDDEN_S, LOOK_S
 from nextage_qp.servo import Command
 
 if TYPE_CHECKING:
@@ -30,7 +31,10 @@ def hold(p: Push, view: View) -> Command:
         return p._command(allow=True)
     if view.unseen_s(c.object) > HIDDEN_S:  # the hand hides it from the camera: back off and look, then judge
         p.looking = True
-        return start_retreat(p, final=False)
+        return start_retreat(p, final=False, view=view)
+    if p.blind_stop:  # stopped to look, and the camera sees it: push on, steering from what it sees
+        p._begin_push(touched=True)
+        return p._command(allow=True)
     obj, tgt, err = p._planar(view)
     p.info["object_error_xy_m"] = err
     e = (tgt - obj)[:2]
@@ -58,11 +62,17 @@ def finish(p: Push, err: float) -> Command:
                      f"{c.accept * 1e3:g} mm)")
 
 
-def start_retreat(p: Push, final: bool) -> Command:
-    """Back the tool off along the push, then up; ``final``: the phase ends there."""
+def start_retreat(p: Push, final: bool, view: View | None = None) -> Command:
+    """Back the tool off along the push, then up; ``final``: the phase ends there.
+
+    ``view`` given: the retreat is to look at the object, and the tool then moves on, level, towards the robot's
+    side (:func:`_aside`).
+    """
     c = p.spec
     back = p.sp.pos - np.array([*p.d, 0.0]) * c.approach
     p.route = [back, back + np.array([0.0, 0.0, c.clearance])]
+    if view is not None:
+        p.route.append(_aside(p.route[-1], p.spec.frame, view))
     p.stage, p.leg, p.final = "retreat", 0, final
     return p._command(allow=True)
 
@@ -82,10 +92,14 @@ def retreat(p: Push, view: View) -> Command:
         p.info["object_error_xy_m"] = err
         if err <= c.tolerance:
             p.final = True
-        elif p.approaches >= c.attempts:
+        elif p.approaches >= c.attempts and not p.blind_stop:
             return finish(p, err)
         else:
             p.next_d = unit2((tgt - obj)[:2])
+            if p.blind_stop:  # it stopped to look, not to be judged: the next approach is no new attempt
+                p.approaches -= 1
+                p.info["looks"] = p.info.get("looks", 0) + 1
+        p.blind_stop = False
     if p.final:
         return p._command(allow=False, done=view.settled())
     p._approach(view, p.next_d, full=p.full)
@@ -98,3 +112,16 @@ def retreat(p: Push, view: View) -> Command:
         _, _, err = p._planar(view)
         return finish(p, err)
     return p._command(allow=False)
+
+
+def _aside(point: np.ndarray, frame: str, view: View) -> np.ndarray:
+    """``point`` moved level by ``ASIDE`` towards where the robot's default posture holds the tool ``frame``.
+
+    The arm folds out of the camera's line of sight: backing off along the push leaves the hand over an object pushed
+    away from the robot.
+    """
+    home = view.pose_at(frame, view.default_posture()).pos
+    away = home[:2] - point[:2]
+    dist = float(np.linalg.norm(away))
+    step = away * min(ASIDE, dist) / dist if dist > 1e-9 else np.zeros(2)
+    return np.array([*(point[:2] + step), point[2]])

@@ -30,6 +30,11 @@ HIDDEN_S = 0.2
 contact puts it: its face on the tool along the push."""
 LOOK_S = 2.0
 """After backing off from a push the camera could not see, wait at most this long [s] for a view before judging it."""
+BLIND_S = 5.0
+"""A push no camera has seen for this long [s] stops to look, however far it went (``blind``: one stalled unseen)."""
+ASIDE = 0.15
+"""Looking at a push the camera could not see, the tool moves this far [m] towards the robot's side, level, after
+backing off."""
 LOST_GAP = 0.03
 """An object this far [m] beyond the approach gap, or off the tool face, was knocked away: approach it again."""
 
@@ -71,6 +76,9 @@ class PushSpec(Spec):
     standoff: float = Field(default=0.004, ge=0, le=0.05,
                             description="The first push stops this short of the target; a short push aimed from "
                                         "the side the error then points to finishes the job [m].")
+    blind: float = Field(default=0.12, gt=0, le=5.0,
+                         description="Longest push no camera sees (the hand hides the object) [m]: it then stops, "
+                                     "looks, and goes on from where the object is (not a new attempt).")
     correction_fan: float = Field(default=0.53, ge=0, le=1.6,
                                   description="Largest deviation from the error's direction for a correction [rad].")
     fan: tuple[float, ...] = Field(
