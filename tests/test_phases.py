@@ -55,6 +55,7 @@ class ScriptedView:
     obstacle: float = 0.875
     unseen: float = 0.0
     kg: float = 0.3
+    home: Pose = field(default_factory=lambda: pose(0.25, 0.25, 1.0))  # every frame in the default posture
 
     def body_pose(self, name):
         return self.bodies[name]
@@ -81,7 +82,7 @@ class ScriptedView:
         return ("plan",)
 
     def default_posture(self):
-        return np.zeros(1)
+        return np.array([-1.0])  # pose_at: the home pose
 
     def plan(self, targets, start=None, allow=frozenset(), pos_tol=None):
         if self.reach is not None and not self.reach(tuple(targets)):
@@ -90,6 +91,8 @@ class ScriptedView:
         return np.array([len(self.plans) - 1.0])
 
     def pose_at(self, frame, q):
+        if q[0] < 0:
+            return self.home
         target = next(t for t in self.plans[int(q[0])] if t.frame == frame)
         return Pose(np.asarray(target.pos, dtype=float), rot_of(target))
 
@@ -266,7 +269,7 @@ def test_push_hidden_by_the_hand_goes_by_the_contact_then_backs_off_to_judge():
     only once it has backed off and sees the cube: no approach is wasted on the stale pose."""
     view = HiddenCubeView(bodies={"cube": pose(0.33, 0.0, 0.91), "cube_target": pose(0.70, 0.0, 0.91)},
                           commanded={"left_tool": pose(0.5, 0.23, 1.03)}, frames={"left_tool": pose(0.5, 0.23, 1.03)})
-    phase = make("push", frame="left_tool", object="cube", target="cube_target")
+    phase = make("push", frame="left_tool", object="cube", target="cube_target", blind=1.0)  # no stop to look
     phase.start(view)
     push, felt, hidden = pushed_along_the_tool_face(view), [], []
 
@@ -293,7 +296,7 @@ def test_a_new_push_does_not_go_by_the_last_push_s_contact():
     tool, still an approach gap behind it, and the tool would take the cube for touched."""
     view = HiddenCubeView(bodies={"cube": pose(0.33, 0.0, 0.91), "cube_target": pose(0.70, 0.0, 0.91)},
                           commanded={"left_tool": pose(0.5, 0.23, 1.03)}, frames={"left_tool": pose(0.5, 0.23, 1.03)})
-    phase = make("push", frame="left_tool", object="cube", target="cube_target")
+    phase = make("push", frame="left_tool", object="cube", target="cube_target", blind=1.0)  # no stop to look
     phase.start(view)
     push, stage, starts = pushed_along_the_tool_face(view), ["transit"], []
 
@@ -308,8 +311,35 @@ def test_a_new_push_does_not_go_by_the_last_push_s_contact():
         stage[0] = phase.stage
 
     run_until_done(phase, view, each=each)
-    assert len(starts) == 2  # the first push and the re-approach (the case: the first one's contact went before)
+    assert len(starts) >= 2  # the first push and re-approaches (the case: the first one's contact went before)
     assert all(not felt and moved == 0.0 for felt, moved in starts)
+
+
+def test_a_push_the_hand_hides_stops_to_look_from_the_robot_s_side_without_using_up_an_attempt():
+    """Pushed unseen for ``blind`` metres, the push stops, backs off, moves the tool towards where the default posture
+    holds it (out of the camera's line of sight), and goes on from what it then sees: a look, not an attempt."""
+    view = HiddenCubeView(bodies={"cube": pose(0.33, 0.0, 0.91), "cube_target": pose(0.70, 0.0, 0.91)},
+                          commanded={"left_tool": pose(0.5, 0.23, 1.03)}, frames={"left_tool": pose(0.5, 0.23, 1.03)})
+    home = view.pose_at("left_tool", view.default_posture()).pos
+    phase = make("push", frame="left_tool", object="cube", target="cube_target", blind=0.1, attempts=2)
+    phase.start(view)
+    push, unseen_pushed, aside = pushed_along_the_tool_face(view), [0.0], []
+
+    def each(cmd):
+        before = view.bodies["cube"].pos.copy()
+        push(cmd)
+        step = float(np.linalg.norm(view.bodies["cube"].pos - before))
+        view.forces["left_tool"] = -2.0 * view.frames["left_tool"].rot[:, 0] if step > 0 else np.zeros(3)
+        unseen_pushed[0] = unseen_pushed[0] + step if view.unseen_s("cube") > 0.2 else 0.0
+        assert unseen_pushed[0] < 0.1 + 0.01  # never pushed much farther unseen than `blind`
+        if phase.stage == "retreat" and len(phase.route) == 3:  # a retreat to look: its last leg goes aside
+            aside.append(float(np.linalg.norm((phase.route[2] - phase.route[1])[:2])))
+            assert np.linalg.norm((home - phase.route[2])[:2]) < np.linalg.norm((home - phase.route[1])[:2])
+
+    cmd = run_until_done(phase, view, each=each)
+    assert cmd.done and phase.info["looks"] >= 2 and phase.info["attempts"] <= 2  # 37 cm in 10 cm looks: 2 attempts
+    assert aside and min(aside) == pytest.approx(0.15)
+    assert np.linalg.norm(view.bodies["cube"].pos[:2] - [0.70, 0.0]) <= 0.002
 
 
 def grasp_view():

@@ -121,7 +121,7 @@ def test_an_object_the_robot_holds_is_fitted_with_the_tilt_it_has_in_the_grip(sh
     mujoco.mj_forward(robot.model, data)
     frame, model = depth_frame(robot, data, q, DepthNoise(sigma_m=0.0, per_m2=0.0, edge_dropout=0.0))
     truth, z_axis = data.xpos[body].copy(), data.xmat[body].reshape(3, 3)[:, 2].copy()
-    prior = np.r_[truth + [0.003, -0.002, 0.002], 0.0, 0.0, 0.3]  # level, a few millimetres off
+    prior = np.r_[truth + np.array([0.003, -0.002, 0.002]), 0.0, 0.0, 0.3]  # level, a few millimetres off
     held = Estimator({"cube": model}, seed=1).estimate(frame, {"cube": prior}, held={"cube"})["cube"]
     upright = Estimator({"cube": model}, seed=1).estimate(frame, {"cube": prior})["cube"]
     assert held.status == "ok" and upright.status == "ok", (held, upright)
