@@ -47,6 +47,12 @@ def seen_through(f: Frame, shape: ShapeModel, x: np.ndarray) -> float:
     return float(beyond.mean())
 
 
+def in_view(f: Frame, shape: ShapeModel, x: np.ndarray) -> float:
+    """Share of the shape's camera-facing surface at a fit's pose ``x`` that falls inside the image."""
+    inside = facing(f, shape, x[:3], pose_rot(x))[3]
+    return float(inside.mean()) if inside.size else 0.0
+
+
 def occlusion(f: Frame, shape: ShapeModel, prior: np.ndarray, tilt: bool = False) -> float | None:
     """Share of the shape's surface facing the camera at ``prior`` that the robot covers (None: out of view).
 
