@@ -4,6 +4,7 @@ import ast
 from pathlib import Path
 from typing import Literal
 
+import mujoco
 import numpy as np
 import pytest
 import yaml
@@ -193,12 +194,17 @@ def test_metrics_flag_a_drop_and_success_needs_every_criterion(dock_robot):
     sim.reset(dock_robot.keyframe_q("home"))
     monitor = OutcomeMonitor(dock_robot, "dumbbell")
     monitor.attach(sim)
-    grip = held_grip_at(sim, dock_robot, "dumbbell")
+    grip = held_grip_at(sim, dock_robot, "dumbbell", shift=0.05)  # offsets 5 cm off, as from a wrong estimate
     monitor.check_hold(sim, grip)
-    assert not monitor.dropped
-    far = held_grip_at(sim, dock_robot, "dumbbell", shift=0.05)
-    monitor.check_hold(sim, far)
+    assert not monitor.dropped  # measured on the truth: the object has not moved in the pads
+    model, data = dock_robot.model, sim.data
+    adr = int(model.jnt_qposadr[model.body_jntadr[model.body("dumbbell").id]])
+    data.qpos[adr] += 0.05  # the object falls away from the pads
+    mujoco.mj_kinematics(model, data)
+    monitor.check_hold(sim, grip)
     assert monitor.dropped
+    data.qpos[adr] -= 0.05
+    mujoco.mj_kinematics(model, data)
     sim.tick()
     records = [PhaseRecord("a", "wait", "done", 0.0, 0.004, {"x": 1})]
     out = summarize(task="t", robot=dock_robot, sim=sim, monitor=monitor, records=records, obj="dumbbell",

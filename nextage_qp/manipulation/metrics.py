@@ -47,8 +47,8 @@ this speed times the control period, where that is more than :data:`CONTACT_WATC
 class OutcomeMonitor:
     """Safety metrics over a run: obstacle clearance and contacts, and whether a clamped object was dropped.
 
-    A clamped object counts as dropped when the midpoint of the clamp pads is more than ``drop_distance`` [m]
-    from where the grasp put it in the object's frame.
+    A clamped object counts as dropped when the midpoint of the clamp pads is more than ``drop_distance`` [m] from where
+    it was in the object's frame when the grip was made (true poses, not the grip's offsets from an estimate).
 
     Args:
         robot: The robot and scene.
@@ -144,19 +144,21 @@ class OutcomeMonitor:
             sim.substep_hooks.remove(self.on_substep)
 
     def check_hold(self, sim: Simulation, grip: Grip) -> None:
-        """Flag a drop when the clamped object is far from the midpoint of the clamp pads (true poses)."""
+        """Flag a drop: the object far from where it was in the pads (truth) when the grip was made."""
         if len(grip.frames) < 2:
             return
-        if self._held is None or self._held[0] is not grip:  # ids and the pads' mean offset, once per grip
-            frames = [self.robot.frame(f) for f in grip.frames[:2]]
-            self._held = (grip, frames, self.model.body(grip.object).id,
-                          np.mean([grip.offsets[p] for p in grip.frames[:2]], axis=0))
-        (_, frames, bid, offset), d, mid = self._held, sim.data, np.zeros(3)
-        for kind, fid in frames:
-            mid += 0.5 * (d.site_xpos[fid] if kind == "site" else d.xpos[fid])
+        d = sim.data
+        if self._held is None or self._held[0] is not grip:  # ids and the pads' midpoint in the object, once per grip
+            frames, bid = [self.robot.frame(f) for f in grip.frames[:2]], self.model.body(grip.object).id
+            self._held = (grip, frames, bid, d.xmat[bid].reshape(3, 3).T @ (_midpoint(d, frames) - d.xpos[bid]))
+        _, frames, bid, offset = self._held
         expected = d.xpos[bid] + d.xmat[bid].reshape(3, 3) @ offset
-        if np.linalg.norm(mid - expected) > self.drop_distance:
+        if np.linalg.norm(_midpoint(d, frames) - expected) > self.drop_distance:
             self.dropped = True
+
+
+def _midpoint(d: mujoco.MjData, frames: list[tuple[str, int]]) -> np.ndarray:  # of frames as Robot.frame names them
+    return 0.5 * np.sum([d.site_xpos[fid] if kind == "site" else d.xpos[fid] for kind, fid in frames], axis=0)
 
 
 class ObjectState(NamedTuple):
@@ -167,8 +169,7 @@ class ObjectState(NamedTuple):
         error_m, error_xy_m: 3-D and planar distance [m].
         yaw_error_rad: Yaw difference modulo the object's symmetry [rad].
         tilt_rad: Angle between the object's z axis and the vertical [rad].
-        resting: On the table (on the target, when that is an object) and at rest (speed below 1 cm/s and 0.1
-            rad/s).
+        resting: On the table (on the target, when that is an object) and at rest (below 1 cm/s and 0.1 rad/s).
     """
 
     position: np.ndarray
