@@ -46,7 +46,7 @@ CONFIG_CASES = {
     "settle negative": push("  settle: 0.5 ", "  settle: -1 "),
     "settle huge": push("  settle: 0.5 ", "  settle: 1e9 "),
     "settle string": push("  settle: 0.5 ", "  settle: soon "),
-    "timeout inf": push("    timeout: 60.0 ", "    timeout: .inf "),
+    "timeout inf": push("    timeout: 90.0 ", "    timeout: .inf "),
     "timeout huge": push("    timeout: 60.0 ", "    timeout: 1.0e12 "),
     "timeout zero": push("    timeout: 60.0 ", "    timeout: 0 "),
     "sim_dt zero": push("  sim_dt: 0.001 ", "  sim_dt: 0 "),
