@@ -159,8 +159,9 @@ class FaultySensors:
         sample = t + 1e-9 >= self._next_sample
         if sample:
             self._next_sample += 1.0 / rate
-        held = {n for n, tr in self._tracks.items() if tr.carried is not None and tr.carried.extrapolate}  # clamped
-        seen = camera(t, {n: self._prior(n, t) for n in true}, held) if camera is not None and sample else {}
+        seen = camera(t, {n: self._prior(n, t) for n in true},  # the objects clamped in the hands, fitted tilted
+                      {n for n, tr in self._tracks.items() if tr.carried is not None and tr.carried.extrapolate}
+                      ) if camera is not None and sample else {}
         out: dict[str, Pose] = {}
         for name, pose in true.items():
             tr, true_yaw = self._track(name), yaw_of(pose.rot)

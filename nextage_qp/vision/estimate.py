@@ -26,7 +26,7 @@ from nextage_qp.geometry import nearest_equivalent
 from nextage_qp.vision.fit import fit, planar_std, residuals, table_plane
 from nextage_qp.vision.pixels import backproject
 from nextage_qp.vision.shapes import ShapeModel
-from nextage_qp.vision.visible import GAP, in_view, occlusion, seen_through
+from nextage_qp.vision.visible import GAP, occlusion, seen
 
 ABOVE = 0.004
 """Points this far above the table plane or more belong to objects [m]."""
@@ -227,9 +227,10 @@ class Estimator:
             above = x[2] + shape.bottom - self._table_z(x[:2]) if self.plane is not None else 0.0  # its bottom
             if above < -SINK or (pr is None and above > REST):
                 continue  # no object is inside the table, and one not tracked yet rests on it
-            if seen_through(f, shape, x) > MAX_THROUGH:
+            through, in_view = seen(f, shape, x)
+            if through > MAX_THROUGH:
                 continue  # the camera sees beyond where the shape would be: it is not there
-            if pr is None and in_view(f, shape, x) < WHOLE:
+            if pr is None and in_view < WHOLE:
                 continue  # an object is first taken from a view of all of it (cut by the image's edge: a guess)
             # Across clusters, the fit that explains the most points (a cluster's share within INLIER of the
             # surface, times its size), then the smaller RMS: a small patch of noise (stereo on a plain surface)

@@ -33,24 +33,18 @@ def facing(f: Frame, shape: ShapeModel, pos: np.ndarray, rot: np.ndarray) -> tup
     return rows, cols, z, (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
 
 
-def seen_through(f: Frame, shape: ShapeModel, x: np.ndarray) -> float:
-    """Share of the shape's camera-facing surface at a fit's pose ``x`` behind which the frame has depth.
+def seen(f: Frame, shape: ShapeModel, x: np.ndarray) -> tuple[float, float]:
+    """Shares of the shape's camera-facing surface at a fit's pose ``x``: seen through, and inside the image.
 
-    A shape where the image shows something farther away (by more than ``THROUGH`` [m]) cannot be there; nearer
-    (the robot in front) or no depth say nothing.
+    Seen through: the frame has depth behind it. A shape where the image shows something farther away (by more than
+    ``THROUGH`` [m]) cannot be there; nearer (the robot in front) or no depth say nothing (1 with none in view).
     """
     rows, cols, z, inside = facing(f, shape, x[:3], pose_rot(x))
     if not inside.any():
-        return 1.0
+        return 1.0, 0.0
     with np.errstate(invalid="ignore"):
         beyond = f.depth[rows[inside], cols[inside]] > z[inside] + THROUGH
-    return float(beyond.mean())
-
-
-def in_view(f: Frame, shape: ShapeModel, x: np.ndarray) -> float:
-    """Share of the shape's camera-facing surface at a fit's pose ``x`` that falls inside the image."""
-    inside = facing(f, shape, x[:3], pose_rot(x))[3]
-    return float(inside.mean()) if inside.size else 0.0
+    return float(beyond.mean()), float(inside.mean())
 
 
 def occlusion(f: Frame, shape: ShapeModel, prior: np.ndarray, tilt: bool = False) -> float | None:

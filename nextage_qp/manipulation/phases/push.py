@@ -199,7 +199,8 @@ class Push(Phase):
         obj, tgt = self._felt(view, obj_pose.pos), view.body_pose(c.target).pos
         dist = float(np.linalg.norm((tgt - obj)[:2]))
         moved = float(np.linalg.norm(obj[:2] - self.last_obj)) if self.last_obj is not None else 0.0
-        self.blind_m = self.blind_m + moved if view.unseen_s(c.object) > HIDDEN_S else 0.0  # pushed unseen [m]
+        unseen = view.unseen_s(c.object)
+        self.blind_m = self.blind_m + moved if unseen > HIDDEN_S else 0.0  # pushed unseen [m]
         self._track(view, obj[:2])
         if dist > c.freeze and self.touched:  # turn only once in contact: the approach side was chosen to reach
             bearing = unit2((tgt - obj)[:2])
@@ -214,7 +215,7 @@ class Push(Phase):
         d, n = self.d, np.array([-self.d[1], self.d[0]])
         remaining = float((tgt - obj)[:2] @ d)
         stop = remaining <= (c.standoff if self.approaches == 1 and self.nudges == 0 else 0.2 * c.tolerance)
-        blind = self.blind_m > c.blind or view.unseen_s(c.object) > BLIND_S  # pushed unseen too far or long
+        blind = self.blind_m > c.blind or unseen > BLIND_S  # pushed unseen too far or long
         self.blind_stop = not stop and self.touched and blind  # stop and look
         if stop or self.blind_stop:
             self.sp.jump(np.array([*view.frame_pose(c.frame).pos[:2], self.sp.pos[2]]))  # stop pushing, no shove
