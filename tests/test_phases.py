@@ -676,3 +676,27 @@ def test_levelling_rolls_both_pads_against_the_tilt_about_the_clamp_axis():
     for _ in range(10_000):  # bounded, but far enough to follow a dumbbell creeping all through a long place phase
         clamp.level(TiltedView(0.5), yaw=0.0)
     assert clamp.roll == pytest.approx(-MAX_ROLL) and MAX_ROLL >= 0.6
+
+
+@dataclass
+class LopsidedView(ScriptedView):
+    """An object reaching ``front`` [m] along +x from its centre and ``back`` [m] every other way (a triangle's
+    vertex ahead, its face behind)."""
+
+    front: float = 0.02
+    back: float = 0.04
+
+    def extent(self, obj, direction):
+        return self.front if direction[0] > 0.5 else self.back
+
+
+def test_a_push_starts_behind_the_face_it_pushes_not_the_one_ahead():
+    from types import SimpleNamespace
+
+    from nextage_qp.manipulation.push_approach import routes
+
+    view = LopsidedView(bodies={"cube": pose(0.4, 0.0, 0.91)})
+    spec = SimpleNamespace(object="cube", approach=0.03, height=0.01, clearance=0.05)
+    route = routes(view, spec, np.array([0.3, 0.2, 1.0]), np.array([1.0, 0.0]))[1]
+    behind = route[-1]
+    assert behind[0] == pytest.approx(0.4 - view.back - spec.approach)  # off the face at -x, 4 cm from the centre

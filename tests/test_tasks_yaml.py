@@ -31,6 +31,7 @@ def assert_clean(result):
     "{shape: box, size: [0.02, 0.02, 0.035]}",             # a 4 cm square box
     "{shape: cylinder, size: [0.03, 0.035]}",              # rolls its contact point around the face
     "{shape: prism, sides: 6, size: [0.03, 0.035]}",       # hexagonal
+    "{shape: prism, sides: 3, size: [0.04, 0.03]}",        # triangular: the face pushed is not the one opposite
     "{shape: compound, parts: [{shape: box, size: [0.03, 0.03, 0.02], pos: [0, 0, -0.015]},"
     " {shape: cylinder, size: [0.02, 0.015], pos: [0, 0, 0.02]}]}",   # a box with a boss on top
 ])

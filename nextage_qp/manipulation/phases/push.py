@@ -90,7 +90,7 @@ class Push(Phase):
             return obj  # (no contact yet when start() asks, before there is a stage)
         d = np.array([*self.d, 0.0])
         tool = view.frame_pose(c.frame).pos
-        return obj + (float((tool - obj) @ d) + view.extent(c.object, d)) * d
+        return obj + (float((tool - obj) @ d) + view.extent(c.object, -d)) * d  # the face the tool is on
 
     def _approach(self, view: View, d_goal: np.ndarray, full: bool = False) -> None:
         """Plan the next approach: the direction closest to ``d_goal`` with a route the arm can reach.
@@ -221,7 +221,7 @@ class Push(Phase):
             self.sp.jump(np.array([*view.frame_pose(c.frame).pos[:2], self.sp.pos[2]]))  # stop pushing, no shove
             self.stage, self.hold_from, self.v = "hold", view.t, 0.0
             return self._command(allow=True)
-        half = view.extent(c.object, np.array([*d, 0.0]))
+        half = view.extent(c.object, np.array([-d[0], -d[1], 0.0]))  # the face pushed: behind the object (any shape)
         rel = self.sp.pos[:2] - obj[:2]
         along, lateral = float(rel @ d), float(rel @ n)
         gap = max(-half - along, 0.0)  # the setpoint's distance to the object's face before contact
