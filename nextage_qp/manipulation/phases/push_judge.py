@@ -17,7 +17,7 @@ import numpy as np
 from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import unit2
 from nextage_qp.manipulation.context import View
-from nextage_qp.manipulation.phases.push_spec import ASIDE, HIDDEN_S, LOOK_S
+from nextage_qp.manipulation.phases.push_spec import ASIDE, HIDDEN_S, LOOK_S, SEEN_S
 from nextage_qp.servo import Command
 
 if TYPE_CHECKING:
@@ -73,7 +73,7 @@ def start_retreat(p: Push, final: bool, view: View | None = None) -> Command:
     p.route = [back, back + np.array([0.0, 0.0, c.clearance])]
     if view is not None:
         p.route.append(_aside(p.route[-1], p.spec.frame, view))
-    p.stage, p.leg, p.final = "retreat", 0, final
+    p.stage, p.leg, p.final, p.seen_from = "retreat", 0, final, None
     return p._command(allow=True)
 
 
@@ -85,8 +85,15 @@ def retreat(p: Push, view: View) -> Command:
     if p.leg < len(p.route):
         return p._command(allow=p.leg == 0)
     if p.looking:  # backed off from a push the camera could not see: judge it once the object is in sight
-        if view.unseen_s(c.object) > HIDDEN_S and view.t - p.back_at < LOOK_S:
-            return p._command(allow=False)
+        waited = view.t - p.back_at
+        if view.unseen_s(c.object) > HIDDEN_S:
+            p.seen_from = None
+            if waited < LOOK_S:
+                return p._command(allow=False)
+        else:
+            p.seen_from = view.t if p.seen_from is None else p.seen_from
+            if view.t - p.seen_from < SEEN_S and waited < LOOK_S + SEEN_S:
+                return p._command(allow=False)
         p.looking = False
         obj, tgt, err = p._planar(view)
         p.info["object_error_xy_m"] = err

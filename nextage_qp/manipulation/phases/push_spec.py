@@ -30,6 +30,9 @@ HIDDEN_S = 0.2
 contact puts it: its face on the tool along the push."""
 LOOK_S = 2.0
 """After backing off from a push the camera could not see, wait at most this long [s] for a view before judging it."""
+SEEN_S = 0.4
+"""A push judged after looking is judged once the camera has seen the object this long [s]: the estimate that
+followed the hand while it hid the object takes a few frames to move to what the camera sees."""
 BLIND_S = 5.0
 """A push no camera has seen for this long [s] stops to look, however far it went (``blind``: one stalled unseen)."""
 ASIDE = 0.15
