@@ -306,3 +306,8 @@ def test_the_default_push_from_the_head_camera_reaches_its_target() -> None:
     frames = result["estimation"]["camera"]["objects"]["cube"]
     assert result["success"], result["error"]
     assert frames["occluded"] > 0.3 * (frames["occluded"] + frames["ok"])  # much of the push blind
+    # the detection rate over the frames the robot did not cover (at most PARTLY of the cube), among those in view
+    in_view = frames["ok"] + frames["missing"] + frames["bad_fit"]
+    assert 0 < frames["unoccluded_ok"] <= frames["unoccluded"] <= in_view
+    assert frames["detected_of_unoccluded"] == frames["unoccluded_ok"] / frames["unoccluded"]
+    assert frames["detected_of_in_view"] == frames["ok"] / in_view

@@ -28,6 +28,8 @@ from nextage_qp.vision.shapes import ShapeModel
 from nextage_qp.vision.stereo import StereoMatcher, check_pair
 
 STATUSES = ("ok", "out_of_view", "occluded", "missing", "bad_fit")
+IN_VIEW = ("ok", "missing", "bad_fit")
+"""The outcomes of a frame in which an object was in view and not hidden behind the robot (a detection is due)."""
 
 
 class CameraMeasurer:
@@ -64,7 +66,8 @@ class CameraMeasurer:
         self.symmetry = {n: robot.yaw_symmetry(n) for n in robot.object_names}
         shapes = {n: ShapeModel.of_body(model, n, self.symmetry[n]) for n in robot.object_names}
         self.estimator = Estimator(shapes, seed)
-        self.counts = {n: dict.fromkeys((*STATUSES, "partly_occluded"), 0) for n in robot.object_names}
+        self.counts = {n: dict.fromkeys((*STATUSES, "partly_occluded", "unoccluded", "unoccluded_ok"), 0)
+                       for n in robot.object_names}
         self.ms: dict[str, list[float]] = {"render": [], "estimate": []}
         self.dumped = cfg.dump is None
         self.last: tuple[float, np.ndarray] | None = None
@@ -103,6 +106,9 @@ class CameraMeasurer:
         for name, det in detections.items():
             self.counts[name][det.status] += 1
             self.counts[name]["partly_occluded"] += int(det.status == "ok" and det.occluded > PARTLY)
+            if det.status in IN_VIEW and det.occluded <= PARTLY:  # in view, the robot covering at most PARTLY of it
+                self.counts[name]["unoccluded"] += 1
+                self.counts[name]["unoccluded_ok"] += int(det.status == "ok")
         if not self.dumped and t + 1e-9 >= self.cfg.dump_at_s:
             self.dumped = True
             self.dump(Path(str(self.cfg.dump)), frame, detections)
@@ -130,13 +136,16 @@ class CameraMeasurer:
     def report(self) -> dict[str, Any]:
         """Frames, per object its frames by outcome, its detection rate, and the median ms per frame.
 
-        ``partly_occluded``: detected though the robot covered more than ``PARTLY`` of it; the detection rate is
-        over the frames it was in view and not occluded.
+        ``partly_occluded``: detected though the robot covered more than ``PARTLY`` of it; ``unoccluded``: frames in
+        which it was in view and the robot covered at most ``PARTLY`` of it (``unoccluded_ok``: detected in them).
+        ``detected_of_unoccluded`` is the detection rate over those; ``detected_of_in_view`` over every frame it was in
+        view and the robot covered at most ``MAX_OCCLUDED`` of it (partly occluded ones too).
         """
         objects = {}
         for name, c in self.counts.items():
-            seen = c["ok"] + c["missing"] + c["bad_fit"]
-            objects[name] = {**c, "detected_of_unoccluded": c["ok"] / seen if seen else None}
+            seen, clear = sum(c[s] for s in IN_VIEW), c["unoccluded"]
+            objects[name] = {**c, "detected_of_in_view": c["ok"] / seen if seen else None,
+                             "detected_of_unoccluded": c["unoccluded_ok"] / clear if clear else None}
         med = {f"{k}_ms_median": float(np.median(v)) if v else None for k, v in self.ms.items()}
         return {"camera": self.camera.name, "depth": self.cfg.depth, "frames": len(self.ms["render"]), **med,
                 "objects": objects}
