@@ -345,6 +345,17 @@ def test_arm_pairing_by_name_and_home_search_deterministic():
     assert not a.contacts and np.array_equal(a.qpos, b.qpos)
 
 
+def test_a_drafted_home_keeps_its_joints_off_their_limits():
+    """An elbow whose qpos0 is its limit (a straight arm, singular) is bent 10 % of its range into it."""
+    m = mujoco.MjModel.from_xml_string("""<mujoco><compiler angle="radian"/><worldbody><body name="upper"><joint name="shoulder" range="-1 1"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/><body name="fore" pos="0.3 0 0">
+      <joint name="elbow" range="-2 0"/><geom type="capsule" fromto="0.02 0 0 0.3 0 0" size="0.02"/></body></body>
+      </worldbody></mujoco>""")
+    home = find_home(m, [0, 1])
+    assert home.qpos[1] == pytest.approx(-0.2) and home.qpos[0] == 0.0  # the shoulder was inside already
+    assert "off their limits" in home.how
+
+
 # Robot-file validation: every branch is one line naming the file and the key, exit 2.
 
 VALIDATION = {

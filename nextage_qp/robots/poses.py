@@ -13,6 +13,10 @@ HOME_SAMPLES = 400
 """Random poses ``robot init`` tries, after ``qpos0`` and the range midpoints, to find a home without contacts."""
 HOME_SEED = 0
 """Seed of those samples: the same model always gets the same home."""
+HOME_MARGIN = 0.1
+"""Share of each limited joint's range a drafted home keeps off its limits: a joint at a limit can move one way only,
+and a limit is often where an arm is stretched straight (the PR2's elbows at qpos0), a singular pose that a
+differential IK cannot leave towards targets nearer the shoulder."""
 TORQUE_FACTOR = 3.0
 """A joint's default torque limit is this many times its largest static (gravity) torque over a few poses..."""
 TORQUE_FLOOR_NM = 5.0
@@ -41,18 +45,21 @@ def find_home(model: mujoco.MjModel, joints: list[int]) -> Home:
     """A pose of ``joints`` without contact between the model's bodies (world excluded), found deterministically.
 
     Tried in order: ``qpos0`` clipped to the ranges, the range midpoints, then :data:`HOME_SAMPLES` seeded random
-    poses around those two, the spread growing from 5 % to 50 % of each range. The first pose without contacts
-    wins; if none is free, the one with the fewest contact pairs (they are reported).
+    poses around those two, the spread growing from 5 % to 50 % of each range; every one kept :data:`HOME_MARGIN` of
+    each limited joint's range off its limits. The first pose without contacts wins; if none is free, the one with the
+    fewest contact pairs (they are reported).
     """
     data = mujoco.MjData(model)
     adr, lo, hi = _limits(model, joints)
+    inset = np.where(model.jnt_limited[joints].astype(bool), HOME_MARGIN * (hi - lo), 0.0)
+    lo, hi = lo + inset, hi - inset
     zero = np.clip(model.qpos0[adr], lo, hi)
     mid = (lo + hi) / 2
     rng = np.random.default_rng(HOME_SEED)
     best: Home | None = None
     for k in range(HOME_SAMPLES + 2):
         if k < 2:
-            q, how = (zero, "qpos0 clipped to the ranges") if k == 0 else (mid, "the range midpoints")
+            q, how = (zero, "qpos0 clipped to the ranges, off their limits") if k == 0 else (mid, "the range midpoints")
         else:
             spread = 0.05 + 0.45 * (k - 2) / HOME_SAMPLES
             centre = zero if k % 2 == 0 else mid
