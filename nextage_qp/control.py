@@ -147,3 +147,40 @@ class PDController:
             self.any_saturated_ticks += 1
             np.clip(u, -lim, lim, out=u)
         return u
+
+
+class ActuatorBlock:
+    """The robot's actuators as one contiguous block of the model's controls, written and read through views.
+
+    MuJoCo models list actuators in any order (the G1's legs, torso, right arm, then left arm), and a block may hold
+    actuators that are not the robot's (a gripper's between an arm's): :meth:`spread` puts a tick's controls, in joint
+    order, into the block's order (the others held at their values), and :meth:`joint_order` takes the block's
+    forces back. Where the robot's actuators are the block in joint order (every bundled robot), both are identities.
+
+    Args:
+        actuator_ids: The actuator of each robot joint, in joint order.
+        data: The simulation's data (the views are into it).
+    """
+
+    def __init__(self, actuator_ids: np.ndarray, data: mujoco.MjData) -> None:
+        ids = np.asarray(actuator_ids, dtype=int)
+        lo, hi = (int(ids.min()), int(ids.max()) + 1) if ids.size else (0, 0)
+        self.data, self.block = data, slice(lo, hi)
+        self.ctrl, self.force = data.ctrl[self.block], data.actuator_force[self.block]
+        """Views of the block's controls and actuator forces."""
+        cols = ids - lo
+        self.cols = None if np.array_equal(cols, np.arange(hi - lo)) else cols
+        """Each joint's column in the block (None: the block is in joint order)."""
+        self.width = hi - lo
+
+    def spread(self, ramp: np.ndarray) -> np.ndarray:
+        """Controls per substep (n, joints) in the block's order (n, width); actuators not the robot's held."""
+        if self.cols is None:
+            return ramp
+        block = np.repeat(self.ctrl[None, :], len(ramp), axis=0)
+        block[:, self.cols] = ramp
+        return block
+
+    def joint_order(self, force: np.ndarray) -> np.ndarray:
+        """Forces per substep in the block's order (n, width), in joint order (n, joints)."""
+        return force if self.cols is None else force[:, self.cols]

@@ -26,9 +26,8 @@ from collections.abc import Callable, Sequence
 import mujoco
 import numpy as np
 
-from nextage_qp.control import Gains, PDController
+from nextage_qp.control import ActuatorBlock, Gains, PDController
 from nextage_qp.divergence import raise_divergence
-from nextage_qp.errors import ConfigError
 from nextage_qp.mj_warnings import MUJOCO_WARNINGS
 from nextage_qp.mobile.odometry import BaseTrack
 from nextage_qp.recorder import FrameRows, Recorder, StageTimer
@@ -111,17 +110,14 @@ class Simulation:
         self.hooks: list[Hook] = []
         self.substep_hooks: list[Hook] = []
         self.timer: StageTimer | None = None
-        # Views into MjData (the robot's joints and actuators are contiguous in every bundled scene; an index
-        # array otherwise) and per-tick buffers, so the loop allocates little.
+        # Views into MjData (the robot's joints are contiguous in every bundled scene; an index array otherwise;
+        # its actuators a block of any order) and per-tick buffers, so the loop allocates little.
         self._qi, self._di = _view(robot.qpos_idx), _view(robot.dof_idx)
-        ai = _view(robot.actuator_ids)
-        self._ctrl, self._act_force = self.data.ctrl[ai], self.data.actuator_force[ai]
+        self._act = ActuatorBlock(robot.actuator_ids, self.data)
         self._bad_warnings = [self.data.warning[w] for w in _BAD]  # views into the data
-        if not isinstance(ai, slice):
-            raise ConfigError("the robot's actuators must be contiguous in the model")
         self.base = BaseTrack(robot.base) if robot.base is not None else None
         self._fractions = np.arange(self.n_substeps) / self.n_substeps
-        self._force = np.zeros((self.n_substeps, robot.nq))
+        self._force = np.zeros((self.n_substeps, self._act.width))
         self._raw: RefState | None = None
         self._step = 0
         self.physics_s = 0.0
@@ -222,11 +218,12 @@ class Simulation:
         c1 = c0 if end is start else self.pd.ctrl(end.q, end.qd, bias, *offsets)
         ramp = np.multiply.outer(self._fractions, c1 - c0)
         ramp += c0
+        ramp = self._act.spread(ramp)  # into the actuators' order
         self.recorder.record(self.time, q, qd, start.q, start.qd, None, self._frame_poses(), self._object_rows())
         if timer:
             timer.lap("pd+record")
-        ctrl, force, hooks, clock, step = self._ctrl, self._force, self.substep_hooks, time.perf_counter, mujoco.mj_step
-        act_force, physics = self._act_force, 0.0
+        ctrl, act_force, force, hooks = self._act.ctrl, self._act.force, self._force, self.substep_hooks
+        clock, step, physics = time.perf_counter, mujoco.mj_step, 0.0
         if hooks:
             for k in range(n):
                 ctrl[:] = ramp[k]
@@ -248,6 +245,7 @@ class Simulation:
         self.physics_s += physics
         if timer:
             timer.lap("physics")
+        force = self._act.joint_order(force)
         self.pd.count(force)
         self.recorder.set_last("tau", force[0])
         self._check()

@@ -2,6 +2,7 @@
 validation branch of a robot file (one line naming the file and the key, exit 2)."""
 
 import importlib.util
+import json
 import shutil
 from pathlib import Path
 
@@ -287,6 +288,27 @@ def test_init_two_arms(tmp_path, capsys):
                "--pos", *map(str, target))[0] == 0
     assert cli(capsys, "step-response", "--robot", str(out), "--joint", "l_elbow", "--target-deg", "45",
                "--duration", "0.5")[0] == 0
+
+
+def test_a_floating_robot_with_its_motors_in_another_order_stands_fixed_and_reaches(tmp_path, capsys):
+    """A humanoid's model: a free joint at its root (fixed at the mount: it would fall) and motors listed in an order
+    of their own (the G1's legs, torso, right arm, left arm), driven each by its own joint's control."""
+    joints = ["waist", "head_pan", "l_shoulder_pitch", "l_shoulder_roll", "l_elbow", "l_wrist", "r_shoulder_pitch",
+              "r_shoulder_roll", "r_elbow", "r_wrist"]
+    motors = "".join(f"<motor joint='{j}' ctrlrange='-50 50'/>" for j in reversed(joints))
+    model = model_variant(tmp_path, '<body name="base">', '<body name="base"><freejoint/>')
+    model.write_text(model.read_text().replace("</worldbody>", f"</worldbody><actuator>{motors}</actuator>"))
+    out = tmp_path / "float.yaml"
+    assert cli(capsys, "robot", "init", str(model), "--out", str(out))[0] == 0
+    robot = Robot.from_scene("scene", robot=out)
+    assert robot.actuator_ids.tolist() != sorted(robot.actuator_ids.tolist())  # not in joint order
+    d = mujoco.MjData(robot.model)
+    robot.set_q(d, robot.keyframe_q("home"))
+    mujoco.mj_kinematics(robot.model, d)
+    target = d.site("l_grip").xpos + np.array([0.03, 0.0, 0.03])
+    code, text, _ = cli(capsys, "reach", "--robot", str(out), "--frame", "l_grip", "--duration", "2",
+                        "--pos", *map(str, target), "--json")
+    assert code == 0 and json.loads(text)["reached"]
 
 
 def test_init_refuses_to_overwrite(tmp_path, capsys):

@@ -99,8 +99,9 @@ def compose(desc: RobotDescription, scene: str | Path, overrides: SceneOverrides
     """The task scene with the robot attached at its mount, the overrides applied (not compiled).
 
     The scene's options (time step, integrator, friction cone) and visual settings win; the robot model's own world
-    geoms, lights and cameras (a demo floor, say) are left out, and its assets whose names the scene uses too are
-    renamed ``ROBOT/NAME``.
+    geoms, lights and cameras (a demo floor, say) are left out, its assets whose names the scene uses too are
+    renamed ``ROBOT/NAME``, and a free joint of its root (a humanoid's floating pelvis) is removed: the robot stands
+    fixed at its mount (or on its wheeled base).
 
     Raises:
         ConfigError: The scene or the robot cannot be read, or an override names a body the scene lacks.
@@ -110,6 +111,8 @@ def compose(desc: RobotDescription, scene: str | Path, overrides: SceneOverrides
     for element in [*child.worldbody.geoms, *child.worldbody.lights, *child.worldbody.cameras, *child.worldbody.sites]:
         child.delete(element)
     _rename_clashing_assets(child, parent, desc.name)
+    for joint in [j for j in child.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]:
+        child.delete(joint)  # a floating root (a humanoid's pelvis): the robot is fixed at its mount, or on its base
     yaw = desc.mount.yaw
     robot_bodies = [b.name for b in child.bodies if b.name and b.name != "world"]
     if desc.base is not None:  # the robot stands on a wheeled base (nextage_qp.mobile.build)
