@@ -302,6 +302,10 @@ def test_a_floating_robot_with_its_motors_in_another_order_stands_fixed_and_reac
     assert cli(capsys, "robot", "init", str(model), "--out", str(out))[0] == 0
     robot = Robot.from_scene("scene", robot=out)
     assert robot.actuator_ids.tolist() != sorted(robot.actuator_ids.tolist())  # not in joint order
+    m = robot.model
+    assert not (m.jnt_type == mujoco.mjtJoint.mjJNT_FREE).any()  # fixed at its mount
+    base, chest = m.body("base").id, m.body("chest").id  # welded to the world now, its child still does not collide
+    assert ((base << 16) + chest) in m.exclude_signature.tolist() or ((chest << 16) + base) in m.exclude_signature
     d = mujoco.MjData(robot.model)
     robot.set_q(d, robot.keyframe_q("home"))
     mujoco.mj_kinematics(robot.model, d)
@@ -354,6 +358,23 @@ def test_init_aloha_writes_angle_and_pairs_arms(tmp_path, capsys):
     robot = Robot.from_scene("scene", robot=out)
     assert [a.name for a in robot.arms] == ["left", "right"] and robot.arms[0].joints[0] == "left/waist"
     assert robot.upper[0] == pytest.approx(3.14158)
+
+
+@needs_robosuite
+@pytest.mark.parametrize(("name", "target"), [("g1", (0.3, 0.2, 0.95)), ("h1", (0.4, 0.25, 1.1)),
+                                              ("pr2", (0.55, 0.3, 0.85))])
+def test_init_humanoids_and_the_pr2_find_arms_not_legs_and_reach(tmp_path, capsys, name, target):
+    """The G1 and H1 float at the pelvis, list their motors legs first and have four chains of joints: the two that
+    end at the feet are legs; the PR2's qpos0 stretches its arms straight at their elbow limits."""
+    root = Path(importlib.util.find_spec("robosuite_models").submodule_search_locations[0])
+    out = tmp_path / f"{name}.yaml"
+    assert cli(capsys, "robot", "init", str(root / f"assets/robots/{name}/robot.xml"), "--out", str(out))[0] == 0
+    robot = Robot.from_scene("scene", robot=out)
+    assert [a.name for a in robot.arms] == ["left", "right"]
+    legs = robot.description.joint_groups.get("legs", ())
+    assert (len(legs) >= 10) == (name != "pr2") and not any("leg" in j for a in robot.arms for j in a.joints)
+    code, text, _ = cli(capsys, "reach", "--robot", str(out), "--pos", *map(str, target), "--json")
+    assert code == 0 and json.loads(text)["reached"]
 
 
 def test_arm_pairing_by_name_and_home_search_deterministic():

@@ -3,7 +3,8 @@
 The joints make a tree (a joint's parent is the next joint towards the root). A branch shorter than
 :data:`MIN_ARM_JOINTS` hanging beside another branch (fingers at a wrist, a head on a chest) is not an arm: its joints
 become a joint group of their own. Each remaining leaf gives an arm, root to leaf; joints that several arms share
-(a waist, a chest) become the group ``torso``. Two arms are told apart by their names (``left``/``right``,
+(a waist, a chest) become the group ``torso``; with more than two, those ending at the robot's feet are legs
+(:data:`LEG_SHARE`), the joint group ``legs``. Two arms are told apart by their names (``left``/``right``,
 ``l``/``r``, ``L``/``R`` in the same place of otherwise equal names), else by mirror symmetry: the arm whose hand
 is further along +y at home is ``left``, and comes first.
 """
@@ -19,6 +20,9 @@ from nextage_qp.robots.modelfile import descendants, moved_by
 
 MIN_ARM_JOINTS = 4
 """Joints an arm has at least, root to hand (shared joints included)."""
+LEG_SHARE = 0.2
+"""With more than two chains, one whose end at home is in the lowest this share of the robot's height is a leg (a
+humanoid's, a quadruped's): it stands, it does not handle. Legs become joint groups (``legs``), not arms."""
 SIDES = (("left", "right"), ("Left", "Right"), ("LEFT", "RIGHT"), ("l", "r"), ("L", "R"))
 """Name parts that tell a left arm's joints from a right arm's."""
 _MOVING = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
@@ -148,6 +152,16 @@ def find_arms(model: mujoco.MjModel, data: mujoco.MjData, single: str = "arm") -
             grip.append(tail)
         else:
             grip.append([])
+    legs: list[list[int]] = []
+    if len(own) > 2:  # a humanoid's or a quadruped's legs end where it stands
+        z = data.xpos[1:, 2]
+        low = float(z.min()) + LEG_SHARE * float(z.max() - z.min())
+        legs = [o for o in own if float(data.xpos[int(model.jnt_bodyid[o[-1]])][2]) < low]
+        if len(legs) < len(own):
+            keep = [k for k, o in enumerate(own) if o not in legs]
+            own, grip = [own[k] for k in keep], [grip[k] for k in keep]
+        else:
+            legs = []
     hand_y = [float(data.xpos[int(model.jnt_bodyid[o[-1]])][1]) for o in own]
     order = sorted(range(len(own)), key=lambda k: -hand_y[k])
     names = [single] if len(own) == 1 else [f"arm{i + 1}" for i in range(len(own))]
@@ -167,6 +181,9 @@ def find_arms(model: mujoco.MjModel, data: mujoco.MjData, single: str = "arm") -
         if grip[k]:
             taken.add(f"{name}_gripper")
             groups[f"{name}_gripper"] = tuple(grip[k])
+    if legs:
+        groups[_group_name(model, [j for leg in legs for j in leg], taken, "legs")] = tuple(sorted(j for leg in legs
+                                                                                                for j in leg))
     for branch in minor:
         parent = [j for j in moved_by(model, int(model.jnt_bodyid[branch[0]])) if j < branch[0]][-1:]
         arm = next((a for a in arms if parent and parent[0] in a.joints), None)

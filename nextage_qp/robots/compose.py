@@ -111,8 +111,7 @@ def compose(desc: RobotDescription, scene: str | Path, overrides: SceneOverrides
     for element in [*child.worldbody.geoms, *child.worldbody.lights, *child.worldbody.cameras, *child.worldbody.sites]:
         child.delete(element)
     _rename_clashing_assets(child, parent, desc.name)
-    for joint in [j for j in child.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]:
-        child.delete(joint)  # a floating root (a humanoid's pelvis): the robot is fixed at its mount, or on its base
+    _fix_floating_root(child)
     yaw = desc.mount.yaw
     robot_bodies = [b.name for b in child.bodies if b.name and b.name != "world"]
     if desc.base is not None:  # the robot stands on a wheeled base (nextage_qp.mobile.build)
@@ -136,6 +135,25 @@ def compose(desc: RobotDescription, scene: str | Path, overrides: SceneOverrides
 
         speckle(parent, robot_bodies)
     return parent
+
+
+def _fix_floating_root(spec: mujoco.MjSpec) -> None:
+    """Remove the free joints of a model's roots (a humanoid's floating pelvis), keeping their children's contacts off.
+
+    A body welded to the world collides with its children (MuJoCo filters parent-child contacts except with the
+    world): the pelvis would lock the torso's joint. Each body now welded to the world is excluded from its jointed
+    children, as the free joint had them.
+    """
+    for joint in [j for j in spec.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]:
+        welded = [joint.parent]
+        spec.delete(joint)
+        while welded:
+            body = welded.pop()
+            for kid in body.bodies:
+                if not kid.joints:
+                    welded.append(kid)  # welded to it: to the world too
+                elif body.name and kid.name:
+                    spec.add_exclude(bodyname1=body.name, bodyname2=kid.name)
 
 
 def _rename_clashing_assets(child: mujoco.MjSpec, parent: mujoco.MjSpec, robot: str) -> None:
