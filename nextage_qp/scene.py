@@ -96,18 +96,19 @@ def touch_sensor(body: str) -> str:
     return body + TOUCH_SUFFIX
 
 
-_QUIET = "empty prefix"
+_QUIET = ("empty prefix", "Attach conflict")
 """MuJoCo warns on every compile of a spec a robot was attached to with an empty prefix (the robot keeps its
-names); that warning is dropped."""
+names), and where the robot model's options differ from the scene's (the scene's are kept, by design: the Z1's
+``impratio``); those warnings are dropped."""
 
 
 @contextlib.contextmanager
 def quiet_prefix_warning() -> Iterator[None]:
-    """Drop MuJoCo's warning about an empty attach prefix (C and Python) inside the block; forward the others."""
+    """Drop MuJoCo's warnings of :data:`_QUIET` (C and Python) inside the block; forward the others."""
     previous = mujoco.get_mju_user_warning()
 
     def forward(message: str) -> None:
-        if _QUIET in message:
+        if any(quiet in message for quiet in _QUIET):
             return
         if previous is not None:
             previous(message)
@@ -117,7 +118,8 @@ def quiet_prefix_warning() -> Iterator[None]:
     mujoco.set_mju_user_warning(forward)
     try:
         with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message=f".*{_QUIET}.*")
+            for quiet in _QUIET:
+                warnings.filterwarnings("ignore", message=f".*{quiet}")
             yield
     finally:
         mujoco.set_mju_user_warning(previous)
