@@ -389,6 +389,31 @@ def test_a_push_the_hand_hides_stops_to_look_from_the_robot_s_side_without_using
     assert np.linalg.norm(view.bodies["cube"].pos[:2] - [0.70, 0.0]) <= 0.002
 
 
+def test_a_push_still_hidden_after_looking_moves_further_aside_to_look_again():
+    """The arm still hides the cube where the first move aside leaves the tool: the tool moves on towards the robot's
+    side and looks again, and the push is judged on what the camera then sees (not on the hidden estimate)."""
+    view = HiddenCubeView(bodies={"cube": pose(0.33, 0.0, 0.91), "cube_target": pose(0.70, 0.0, 0.91)},
+                          commanded={"left_tool": pose(0.5, 0.23, 1.03)}, frames={"left_tool": pose(0.5, 0.23, 1.03)},
+                          home=pose(0.0, 0.6, 1.0))
+    view.blind = 0.3  # hidden while the tool is within 30 cm of the cube
+    phase = make("push", frame="left_tool", object="cube", target="cube_target", blind=1.0)
+    phase.start(view)
+    push, routes = pushed_along_the_tool_face(view), []
+
+    def each(cmd):
+        before = view.bodies["cube"].pos.copy()
+        push(cmd)
+        moving = np.linalg.norm(view.bodies["cube"].pos - before) > 0
+        view.forces["left_tool"] = -2.0 * view.frames["left_tool"].rot[:, 0] if moving else np.zeros(3)
+        if phase.stage == "retreat":
+            routes.append(len(phase.route))
+
+    cmd = run_until_done(phase, view, each=each)
+    assert cmd.done and max(routes) >= 4  # back, up, aside, and aside again
+    assert np.linalg.norm(view.bodies["cube"].pos[:2] - [0.70, 0.0]) <= 0.002
+    assert phase.info["object_error_xy_m"] <= 0.002
+
+
 def grasp_view():
     pads = {"left_pad": pose(0.5, 0.25, 1.05), "right_pad": pose(0.5, -0.25, 1.05)}
     return ScriptedView(bodies={"dumbbell": pose(0.5, 0.0, 1.015)}, commanded=dict(pads), frames=dict(pads))

@@ -62,6 +62,7 @@ class Push(Phase):
     final: bool
     back_at: float  # when the retreat reached its last waypoint [s]
     seen_from: float | None  # since when the camera has seen the object, looking after a hidden push [s]
+    asides: int  # moves aside made to look again, the object still hidden
 
     def start(self, view: View) -> None:  # noqa: D102
         pos, rot = view.commanded_pose(self.spec.frame)

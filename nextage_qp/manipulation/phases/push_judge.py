@@ -4,8 +4,9 @@ After the push stops, the object comes to rest against the tool and the push is 
 tool retreats and the phase is done; short on the same line it pushes again (``nudges``); otherwise it retreats and
 approaches again along the error, up to ``attempts`` approaches, and with nothing left to try an error within
 ``accept`` ends the phase, a larger one fails it. A push the camera could not see (the hand hid the object) is judged
-after backing off, once the object is in sight again (waiting at most ``LOOK_S``; still hidden, the tool first moves
-towards the robot's side, ``ASIDE``, which folds the arm out of the camera's line of sight).
+after backing off, once the object is in sight again (the tool first moves towards the robot's side, ``ASIDE``, which
+folds the arm out of the camera's line of sight; still hidden after ``LOOK_S``, it moves on as far again, up to
+``LOOK_AGAIN`` times, and then judges on the estimate it has).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import numpy as np
 from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import unit2
 from nextage_qp.manipulation.context import View
-from nextage_qp.manipulation.phases.push_spec import ASIDE, HIDDEN_S, LOOK_S, SEEN_S
+from nextage_qp.manipulation.phases.push_spec import ASIDE, HIDDEN_S, LOOK_AGAIN, LOOK_S, SEEN_S
 from nextage_qp.servo import Command
 
 if TYPE_CHECKING:
@@ -73,7 +74,7 @@ def start_retreat(p: Push, final: bool, view: View | None = None) -> Command:
     p.route = [back, back + np.array([0.0, 0.0, c.clearance])]
     if view is not None:
         p.route.append(_aside(p.route[-1], p.spec.frame, view))
-    p.stage, p.leg, p.final, p.seen_from = "retreat", 0, final, None
+    p.stage, p.leg, p.final, p.seen_from, p.asides = "retreat", 0, final, None, 0
     return p._command(allow=True)
 
 
@@ -89,6 +90,10 @@ def retreat(p: Push, view: View) -> Command:
         if view.unseen_s(c.object) > HIDDEN_S:
             p.seen_from = None
             if waited < LOOK_S:
+                return p._command(allow=False)
+            if p.asides < LOOK_AGAIN:  # the arm still hides it: fold further towards the robot's side, look again
+                p.asides += 1
+                p.route.append(_aside(p.route[-1], c.frame, view))
                 return p._command(allow=False)
         else:
             p.seen_from = view.t if p.seen_from is None else p.seen_from

@@ -38,6 +38,10 @@ BLIND_S = 5.0
 ASIDE = 0.15
 """Looking at a push the camera could not see, the tool moves this far [m] towards the robot's side, level, after
 backing off."""
+LOOK_AGAIN = 2
+"""Times the tool moves on by ``ASIDE`` when the camera still does not see the object ``LOOK_S`` after the last move:
+judged on an estimate unseen for seconds, a push may be taken for centimetres off (one coasted 31 mm past the cube
+after a partial view as the hand rose)."""
 LOST_GAP = 0.03
 """An object this far [m] beyond the approach gap, or off the tool face, was knocked away: approach it again."""
 
