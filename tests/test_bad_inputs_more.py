@@ -1,0 +1,53 @@
+"""More bad inputs, each with the exit code and the words its one-line message must hold.
+
+Cases are ``(id, argv, files, code, expected)``: ``{tmp}`` in argv is the case's temporary folder, ``{root}`` the
+project's, and ``files`` maps a file name in the temporary folder to its content. Every case is refused before
+anything moves.
+"""
+
+import re
+from pathlib import Path
+
+import pytest
+
+from nextage_qp.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+PUSH = str(ROOT / "configs" / "push_cube.yaml")
+SWEEP = str(ROOT / "configs" / "sweeps" / "push_cube.yaml")
+
+CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
+    ("run --plot into /proc", ["run", PUSH, "--json", "--plot", "/proc/x.png"], {}, 2,
+     "--plot: '/proc/x.png': folder /proc is not writable"),
+    ("run --log under a missing folder of /proc", ["run", PUSH, "--log", "/proc/x/y.npz"], {}, 2,
+     "folder /proc is not writable"),
+    ("sweep --json into /proc", ["sweep", SWEEP, "--n", "1", "--json", "/proc/x.json"], {}, 2,
+     "--json: '/proc/x.json': folder /proc is not writable"),
+    ("perception.dump into /proc", ["run", PUSH, "--set", "perception.source=camera", "--set",
+                                    "perception.dump=/proc/x"], {}, 2,
+     "perception.dump: '/proc/x': folder /proc is not writable"),
+    ("perception.dump under a file", ["run", PUSH, "--set", "perception.source=camera", "--set",
+                                      "perception.dump={root}/pyproject.toml/x"], {}, 2,
+     "pyproject.toml is a file, not a folder"),
+    ("perception.dump without a camera", ["run", PUSH, "--set", "perception.dump={tmp}/frame"], {}, 2,
+     "perception.dump: '{tmp}/frame' writes a frame of the robot's camera, but the poses come from truth"),
+]
+
+
+@pytest.mark.parametrize(("argv", "files", "code", "expected"), [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_input_is_refused_with_one_line_naming_it(tmp_path, monkeypatch, capsys, argv, files, code, expected):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("COLUMNS", "400")
+    for name, content in files.items():
+        (tmp_path / name).write_text(content)
+    subs = {"{tmp}": str(tmp_path), "{root}": str(ROOT)}
+
+    def fill(text: str) -> str:
+        return re.sub(r"\{tmp\}|\{root\}", lambda m: subs[m.group(0)], text)
+
+    assert main([fill(a) for a in argv]) == code
+    out, err = capsys.readouterr()
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert "error" in lines[0] and fill(expected) in lines[0], lines[0]
+    assert not out.strip()
