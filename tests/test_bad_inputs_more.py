@@ -16,6 +16,17 @@ ROOT = Path(__file__).resolve().parents[1]
 PUSH = str(ROOT / "configs" / "push_cube.yaml")
 SWEEP = str(ROOT / "configs" / "sweeps" / "push_cube.yaml")
 
+NEXTAGE = ((ROOT / "robots" / "nextage.yaml").read_text()
+           .replace("model: nextage/", f"model: {ROOT}/robots/nextage/")
+           .replace("../configs/gains", f"{ROOT}/configs/gains"))
+
+
+def robot(old: str, new: str) -> dict[str, str]:
+    """The Nextage's robot file with one exact piece of text replaced, as the case's file r.yaml."""
+    assert old in NEXTAGE, old
+    return {"r.yaml": NEXTAGE.replace(old, new, 1)}
+
+
 CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
     ("run --plot into /proc", ["run", PUSH, "--json", "--plot", "/proc/x.png"], {}, 2,
      "--plot: '/proc/x.png': folder /proc is not writable"),
@@ -31,6 +42,23 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
      "pyproject.toml is a file, not a folder"),
     ("perception.dump without a camera", ["run", PUSH, "--set", "perception.dump={tmp}/frame"], {}, 2,
      "perception.dump: '{tmp}/frame' writes a frame of the robot's camera, but the poses come from truth"),
+    # a value that fits no member of a union: the member meant, without pydantic's names of the members
+    ("start joint nan", ["run", PUSH, "--set", "start={LARM_JOINT1: .nan}"], {}, 2,
+     "push_cube.yaml: start.LARM_JOINT1: Input should be a finite number (got nan)"),
+    ("start a number", ["run", PUSH, "--set", "start=7"], {}, 2,
+     "start: Input should be a valid string; or Input should be a valid dictionary (got 7)"),
+    ("posture target unknown", ["run", PUSH, "--set", "ik.posture_target=nope"], {}, 2,
+     "ik.posture_target: Input should be 'home' or 'zero'; or Input should be a valid dictionary (got 'nope')"),
+    ("object pos nan", ["run", PUSH, "--set", "scene.objects.puck={shape: sphere, size: [0.02], pos: [.nan, 0]}"],
+     {}, 2, "scene.objects.puck.pos[0]: Input should be a finite number (got nan)"),
+    ("sweep bound inf", ["sweep", "{tmp}/s.yaml", "--n", "1"],
+     {"s.yaml": f"base: {PUSH}\nrandomize: {{scene.masses.cube: {{uniform: [0.05, .inf]}}}}\n"}, 2,
+     "randomize.scene.masses.cube.uniform[1]: Input should be a finite number; or Input should be a valid list"),
+    ("robot gains rule nan", ["robot", "check", "{tmp}/r.yaml"],
+     robot("gains: " + f"{ROOT}/configs/gains/default.yaml", "gains: {bandwidth: .nan}"), 2,
+     "r.yaml: gains.bandwidth: Input should be a finite number (got nan)"),
+    ("robot home nan", ["robot", "check", "{tmp}/r.yaml"], robot("  home: model", "  home: {LARM_JOINT1: .nan}"), 2,
+     "r.yaml: keyframes.home.LARM_JOINT1: Input should be a finite number (got nan)"),
 ]
 
 
