@@ -155,6 +155,8 @@ def format_validation_error(source: str, exc: ValidationError, root: type[BaseMo
     quiet = ("missing", "extra_forbidden", "union_tag_not_found")
     shown = "" if first["type"] in quiet or isinstance(got, dict) else f" (got {got!r})"
     more = f" (and {len(errors) - 1} more problem{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
+    if not loc and re.match(r"[\w.\[\]]+: ", msg):  # a check across keys that names its own key
+        return f"{source}: {msg}{shown}{more}"
     return f"{source}: {key}: {msg}{shown}{more}"
 
 

@@ -14,6 +14,8 @@ from nextage_qp.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 PUSH = str(ROOT / "configs" / "push_cube.yaml")
+PICK = str(ROOT / "configs" / "pick_place_box.yaml")
+STACK = str(ROOT / "configs" / "stack_boxes.yaml")
 SWEEP = str(ROOT / "configs" / "sweeps" / "push_cube.yaml")
 
 NEXTAGE = ((ROOT / "robots" / "nextage.yaml").read_text()
@@ -63,6 +65,29 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
      {}, 2, "phases[0].positions.LARM_JOINT1: 9 is outside the joint's range"),
     ("posture target out of range", ["run", PUSH, "--set", "ik.posture_target={LARM_JOINT1: -5}"], {}, 2,
      "ik.posture_target.LARM_JOINT1: -5 is outside the joint's range"),
+    # phases that cannot do what they say: refused before anything moves
+    ("move offset huge", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool, offset: [1e9, 0, 0]}]}"],
+     {}, 2, "phases[0].targets[0].offset[0]: Input should be less than or equal to 10 (got 1000000000.0)"),
+    ("move speed huge", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool}], speed: 1e12}"], {},
+     2, "phases[0].speed: Input should be less than or equal to 1"),
+    ("move yaw huge", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool, yaw: 1e9}]}"], {}, 2,
+     "phases[0].targets[0].yaw: Input should be less than or equal to 7"),
+    ("move one frame twice", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool}, "
+                                                    "{frame: left_tool, offset: [0, 0, 0.2]}]}"], {}, 2,
+     "phases[0]: targets: two targets for frame 'left_tool'"),
+    ("move zero axis", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool, axis: [0, 0, 0], "
+                                              "direction: [0, 0, -1]}]}"], {}, 2,
+     "phases[0].targets[0]: axis must be a non-zero vector"),
+    ("push to the object itself", ["run", PUSH, "--set", "phases[0].target=cube"], {}, 2,
+     "phases[0]: target: 'cube' is the phase's object itself"),
+    ("place on the object itself", ["run", STACK, "--set", "phases[1].target=box_b"], {}, 2,
+     "phases[1]: target: 'box_b' is the phase's object itself"),
+    ("grasp placing at the object itself", ["run", PICK, "--set", "phases[0].place_at=box"], {}, 2,
+     "phases[0]: place_at: 'box' is the phase's object itself"),
+    ("grasp with one pad twice", ["run", PICK, "--set", "phases[0].frames=[left_palm, left_palm]"], {}, 2,
+     "phases[0]: frames: 'left_palm' twice"),
+    ("config target is the object", ["run", PUSH, "--set", "target=cube"], {}, 2,
+     "push_cube.yaml: target: 'cube' is the object itself"),
     ("robot gains rule nan", ["robot", "check", "{tmp}/r.yaml"],
      robot("gains: " + f"{ROOT}/configs/gains/default.yaml", "gains: {bandwidth: .nan}"), 2,
      "r.yaml: gains.bandwidth: Input should be a finite number (got nan)"),
