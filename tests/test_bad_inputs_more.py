@@ -5,6 +5,7 @@ project's, and ``files`` maps a file name in the temporary folder to its content
 anything moves.
 """
 
+import json
 import re
 from pathlib import Path
 
@@ -93,6 +94,12 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
      "r.yaml: gains.bandwidth: Input should be a finite number (got nan)"),
     ("robot home nan", ["robot", "check", "{tmp}/r.yaml"], robot("  home: model", "  home: {LARM_JOINT1: .nan}"), 2,
      "r.yaml: keyframes.home.LARM_JOINT1: Input should be a finite number (got nan)"),
+    ("robot frame named as a model site", ["info", "--robot", "{tmp}/r.yaml"],
+     robot("gains_dir:", "frames: {left_tool: {body: LARM_JOINT5_Link}}\ngains_dir:"), 2,
+     "r.yaml: frames.left_tool: the model has a site 'left_tool' already"),
+    ("robot frame with a zero quat", ["robot", "check", "{tmp}/r.yaml"],
+     robot("gains_dir:", "frames: {extra: {body: LARM_JOINT5_Link, quat: [0, 0, 0, 0]}}\ngains_dir:"), 2,
+     "r.yaml: frames.extra: quat must be a non-zero quaternion"),
 ]
 
 
@@ -113,3 +120,24 @@ def test_bad_input_is_refused_with_one_line_naming_it(tmp_path, monkeypatch, cap
     assert len(lines) == 1 and "Traceback" not in err, err
     assert "error" in lines[0] and fill(expected) in lines[0], lines[0]
     assert not out.strip()
+
+
+FINDINGS = {  # robot check finds these (exit 1: the file reads, but the commands refuse it)
+    "frame named as a model site": (("gains_dir:", "frames: {left_tool: {body: LARM_JOINT5_Link}}\ngains_dir:"),
+                                    "frames.left_tool: the model has a site 'left_tool' already"),
+    "collision group body unknown": (("head: {bodies: [HEAD_JOINT0_Link, HEAD_JOINT1_Link]}",
+                                      "head: {bodies: [HEAD_JOINT0_Link, HEAD_LINK]}"),
+                                     "collision_groups.head.bodies: 'HEAD_LINK' is not a body of the model"),
+    "camera body unknown": (("{body: HEAD_JOINT1_Link, pos: [0.088, 0.0, 0.105]", "{body: HEAD_LINK, pos: [0.088, 0.0, 0.105]"),
+                            "cameras.head_rgbd.body: 'HEAD_LINK' is not a body of the model"),
+}
+
+
+@pytest.mark.parametrize("case", list(FINDINGS))
+def test_robot_check_finds_what_the_commands_refuse(tmp_path, capsys, case):
+    (old, new), message = FINDINGS[case]
+    path = tmp_path / "r.yaml"
+    path.write_text(robot(old, new)["r.yaml"])
+    assert main(["robot", "check", str(path), "--json"]) == 1
+    found = json.loads(capsys.readouterr().out)["findings"]
+    assert [f["message"] for f in found if f["level"] == "problem"] == [message]

@@ -64,5 +64,5 @@ class GraspSpec(Spec):
     def _two_pads(self) -> GraspSpec:
         if self.frames is not None and self.frames[0] == self.frames[1]:
             raise ValueError(f"frames: {self.frames[0]!r} twice; give the two pads' frames, one on each side "
-                             "(e.g. [left_pad, right_pad])")
+                             "of the object")
         return self
