@@ -89,6 +89,14 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
      "phases[0]: frames: 'left_palm' twice"),
     ("config target is the object", ["run", PUSH, "--set", "target=cube"], {}, 2,
      "push_cube.yaml: target: 'cube' is the object itself"),
+    ("object start off the table", ["run", PUSH, "--set", "scene.poses.cube.pos=[30, 0, 0.91]"], {}, 2,
+     "scene.poses.cube: cube starts at (30.000, 0.000), not over the table"),
+    ("object colour above 1", ["run", PUSH, "--set", "scene.objects.cube={shape: box, size: [0.03, 0.03, 0.03], "
+                                                     "rgba: [2, 0, 0, 1]}"], {}, 2,
+     "scene.objects.cube.rgba[0]: Input should be less than or equal to 1 (got 2)"),
+    ("part colour negative", ["run", PUSH, "--set", "scene.objects.cube={shape: compound, parts: [{shape: sphere, "
+                                                    "size: [0.03], rgba: [0.5, -1, 0, 1]}]}"], {}, 2,
+     "scene.objects.cube.parts[0].rgba[1]: Input should be greater than or equal to 0 (got -1)"),
     ("robot gains rule nan", ["robot", "check", "{tmp}/r.yaml"],
      robot("gains: " + f"{ROOT}/configs/gains/default.yaml", "gains: {bandwidth: .nan}"), 2,
      "r.yaml: gains.bandwidth: Input should be a finite number (got nan)"),
