@@ -6,12 +6,14 @@ camera).
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import mujoco
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.faults import FaultsConfig
+from nextage_qp.out_paths import folder_problem
 from nextage_qp.perception import FaultySensors
 from nextage_qp.shoves import Shoves
 
@@ -33,9 +35,11 @@ def perception_of(cfg: Any, robot: Any, source: str) -> tuple[FaultySensors | No
 
     Raises:
         ConfigError: A shove names a phase the config does not have, or a sensor the scene does not have;
-            ``perception.source: simulated`` without ``faults.object_pose``.
+            ``perception.source: simulated`` without ``faults.object_pose``; a ``perception.dump`` that cannot be
+            written.
     """
     where, faults = source_of(cfg), cfg.faults
+    check_dump(cfg.perception.dump, where, source)
     if where == "simulated" and (faults is None or faults.object_pose is None):
         raise ConfigError(f"{source}: perception.source: simulated needs faults.object_pose (the simulated camera's "
                           f"rate, latency, noise, dropout); valid sources without it: truth, camera")
@@ -55,6 +59,25 @@ def perception_of(cfg: Any, robot: Any, source: str) -> tuple[FaultySensors | No
     sensors = FaultySensors(faults, cfg.estimation, cfg.seed, sites, source, symmetry)
     bodies = {name: robot.model.body(name).id for name in robot.object_names}
     return sensors, Shoves(faults.shoves, bodies, cfg.timing.ctrl_dt)
+
+
+def check_dump(dump: str | None, where: str, source: str) -> None:
+    """Refuse a ``perception.dump`` that would never be written.
+
+    Without a robot camera there is no frame to write; a folder that cannot take files is found before anything
+    moves, not when the frame comes.
+
+    Raises:
+        ConfigError: Names the key, the value and what would be valid.
+    """
+    if dump is None:
+        return
+    if where != "camera":
+        raise ConfigError(f"{source}: perception.dump: {dump!r} writes a frame of the robot's camera, but the poses "
+                          f"come from {where}; set perception.source: camera or drop perception.dump")
+    problem = folder_problem(Path(dump))
+    if problem is not None:
+        raise ConfigError(f"{source}: perception.dump: {dump!r}: {problem}; give a folder that can be written")
 
 
 def attach_camera(cfg: Any, sensors: FaultySensors, robot: Any, data: mujoco.MjData, source: str) -> None:

@@ -34,6 +34,9 @@ SIZES = {"box": 3, "cylinder": 2, "capsule": 2, "sphere": 1, "prism": 2}
 """Entries of ``size`` per shape."""
 Length = Annotated[float, Field(gt=0, le=1.0, allow_inf_nan=False)]
 Vec3 = tuple[float, float, float]
+Unit = Annotated[float, Field(ge=0.0, le=1.0)]
+RGBA = tuple[Unit, Unit, Unit, Unit]
+"""A colour: red, green, blue and alpha, each in [0, 1]."""
 
 
 class PartDecl(BaseModel):
@@ -46,7 +49,7 @@ class PartDecl(BaseModel):
     sides: int | None = Field(default=None, ge=3, le=24, description="Sides of a prism.")
     pos: Vec3 = Field(default=(0.0, 0.0, 0.0), description="Offset in the object's frame [m] (compound parts).")
     axis: Literal["x", "y", "z"] = Field(default="z", description="Axis of a cylinder, capsule or prism.")
-    rgba: tuple[float, float, float, float] | None = Field(default=None, description="Colour (default: the object's).")
+    rgba: RGBA | None = Field(default=None, description="Colour (default: the object's).")
 
     @model_validator(mode="after")
     def _size_fits_shape(self) -> PartDecl:
@@ -70,7 +73,7 @@ class ObjectDecl(BaseModel):
     friction: float = Field(default=0.5, gt=0, le=5.0, allow_inf_nan=False, description="Sliding friction.")
     pos: tuple[float, float] | Vec3 | None = Field(default=None, description="Start position [m] (z: on the table).")
     yaw: float | None = Field(default=None, ge=-7.0, le=7.0, description="Start yaw [rad].")
-    rgba: tuple[float, float, float, float] = (0.95, 0.8, 0.1, 1.0)
+    rgba: RGBA = (0.95, 0.8, 0.1, 1.0)
     yaw_symmetry: float | None = Field(default=None, ge=0.0, le=7.0, description="[rad]; 0: any yaw.")
     marker: bool = Field(default=True, description="Add a target marker NAME_target for a new object.")
     inertia_scale: float = Field(default=1.0, gt=0, le=100.0, allow_inf_nan=False,

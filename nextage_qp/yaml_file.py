@@ -135,7 +135,7 @@ def format_validation_error(source: str, exc: ValidationError, root: type[BaseMo
     lists the valid tags.
     """
     errors = exc.errors()
-    first = errors[0]
+    first, errors = _union_branch(errors, _model_names(root))
     loc = tuple(first["loc"])
     key = _dotted(root, loc) or "<top level>"
     msg = first["msg"].removeprefix("Value error, ")
@@ -155,7 +155,52 @@ def format_validation_error(source: str, exc: ValidationError, root: type[BaseMo
     quiet = ("missing", "extra_forbidden", "union_tag_not_found")
     shown = "" if first["type"] in quiet or isinstance(got, dict) else f" (got {got!r})"
     more = f" (and {len(errors) - 1} more problem{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
+    if not loc and re.match(r"[\w.\[\]]+: ", msg):  # a check across keys that names its own key
+        return f"{source}: {msg}{shown}{more}"
     return f"{source}: {key}: {msg}{shown}{more}"
+
+
+UNION_MEMBER = re.compile(r"(str|int|float|bool|none|constrained-\w+|(literal|dict|list|tuple|function-\w+)\[.*\])")
+"""How pydantic names a member of a plain union in an error's location (``start.dict[str,float].JOINT``)."""
+
+
+def _model_names(root: type[BaseModel]) -> set[str]:
+    """Names of every model reachable from ``root`` (pydantic names a union's model member by its class)."""
+    seen: dict[str, type[BaseModel]] = {}
+    todo = [root]
+    while todo:
+        model = todo.pop()
+        if model.__name__ not in seen:
+            seen[model.__name__] = model
+            todo += [m for f in model.model_fields.values() for m in _models_in(f.annotation)]
+    return set(seen)
+
+
+def _member(part: Any, models: set[str]) -> bool:
+    return isinstance(part, str) and (part in models or UNION_MEMBER.fullmatch(part) is not None)
+
+
+def _union_branch(errors: list[Any], models: set[str]) -> tuple[Any, list[Any]]:
+    """The error to report, and the problems counted beside it.
+
+    A value that fits no member of a union fails once per member. The member that got furthest into the value is
+    the one meant (``start: {JOINT: .nan}`` is a mapping with a bad number, not a bad string); where none got
+    further than the others, their messages are joined: each says what would be valid.
+    """
+    def plain(loc: Any) -> tuple[Any, ...]:  # the location without the names of union members
+        return tuple(p for p in loc if not _member(p, models))
+
+    first = errors[0]
+    cut = next((i for i, p in enumerate(first["loc"]) if _member(p, models)), None)
+    if cut is None:
+        return first, errors
+    prefix = tuple(first["loc"][:cut])
+    branch = [e for e in errors if tuple(e["loc"][:cut]) == prefix]
+    rest = [e for e in errors if tuple(e["loc"][:cut]) != prefix]
+    best = max(branch, key=lambda e: len(plain(e["loc"])))  # the first of the deepest
+    same = [e for e in branch if plain(e["loc"]) == plain(best["loc"])]
+    msg = "; or ".join(dict.fromkeys(e["msg"].removeprefix("Value error, ") for e in same))
+    return {**best, "loc": plain(best["loc"]), "msg": msg}, [best, *rest]
 
 
 def _models_in(annotation: Any) -> list[type[BaseModel]]:

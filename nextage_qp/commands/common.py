@@ -14,6 +14,7 @@ import numpy as np
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.json_out import dumps
+from nextage_qp.out_paths import folder_problem
 from nextage_qp.robot import Robot
 
 
@@ -93,8 +94,8 @@ SEED = number(0, 2**32 - 1, integer=True)
 def output_file(*suffixes: str) -> Callable[[str], Path]:
     """An argparse ``type`` for an output file, checked before anything runs.
 
-    The path must not be a directory, its nearest existing folder must be writable (the writers make the missing
-    folders), and its suffix one of ``suffixes`` (none given: the first is added, so the
+    The path must not be a directory, its nearest existing folder must take a new file (the writers make the
+    missing folders), and its suffix one of ``suffixes`` (none given: the first is added, so the
     path reported is the path written).
     """
 
@@ -107,13 +108,9 @@ def output_file(*suffixes: str) -> Callable[[str], Path]:
             if path.suffix:
                 raise argparse.ArgumentTypeError(f"{text!r}: expected a file ending in {want}")
             path = path.with_name(path.name + suffixes[0])
-        folder = path.parent
-        while not folder.exists() and folder != folder.parent:
-            folder = folder.parent
-        if not folder.is_dir():
-            raise argparse.ArgumentTypeError(f"{text!r}: {folder} is a file, not a folder")
-        if not os.access(folder, os.W_OK | os.X_OK):
-            raise argparse.ArgumentTypeError(f"{text!r}: folder {folder} is not writable")
+        problem = folder_problem(path.parent)
+        if problem is not None:
+            raise argparse.ArgumentTypeError(f"{text!r}: {problem}")
         return path
 
     parse.__name__ = "output file"

@@ -144,16 +144,33 @@ def run(args: argparse.Namespace) -> int:
     wall = time.monotonic() - t0
     summary = write_summary(out, spec, args.seed, episodes, session_episodes=len(episodes) - len(already),
                             session_wall_s=wall)
+    failed = _write_outputs(args, spec, summary, episodes)
+    console = out_console(width=120)
+    _print_summary(summary, console, only=args.only is not None, episodes=episodes)
+    if failed:  # the records and the summary above are kept; only these files are missing
+        print(f"nextage-qp sweep: error: {'; '.join(failed)}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def _write_outputs(args: argparse.Namespace, spec: SweepSpec, summary: dict[str, Any],
+                   episodes: list[Any]) -> list[str]:
+    """Write ``--json`` and ``--plot``; one that cannot be written does not stop the other (nor the summary)."""
+    failed = []
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(dumps(summary) + "\n")
+        try:
+            args.json.parent.mkdir(parents=True, exist_ok=True)
+            args.json.write_text(dumps(summary) + "\n")
+        except OSError as exc:
+            failed.append(f"--json {args.json}: cannot write: {exc.strerror or exc}")
     if args.plot:
         from nextage_qp.viz.sweep import plot_sweep
 
-        plot_sweep(spec, episodes, args.plot)
-    console = out_console(width=120)
-    _print_summary(summary, console, only=args.only is not None, episodes=episodes)
-    return 0
+        try:
+            plot_sweep(spec, episodes, args.plot)
+        except OSError as exc:
+            failed.append(f"--plot {args.plot}: cannot write: {exc.strerror or exc}")
+    return failed
 
 
 def _mm(value: float | None) -> str:

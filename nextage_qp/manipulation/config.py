@@ -15,7 +15,7 @@ from typing import Annotated, Any, Union
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, Field, create_model
+from pydantic import BaseModel, Field, create_model, model_validator
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.faults import EstimationConfig, FaultsConfig
@@ -106,6 +106,13 @@ class ManipulationConfig(_Strict):
     estimation: EstimationConfig = Field(default_factory=EstimationConfig)
     perception: PerceptionConfig = Field(default_factory=PerceptionConfig)
     phases: list[Spec] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _target_is_another_body(self) -> ManipulationConfig:
+        if self.target == self.object:
+            raise ValueError(f"target: {self.object!r} is the object itself (its error to itself is always 0); "
+                             "name the body that marks its target")
+        return self
 
     def phase_name(self, index: int) -> str:
         """The phase's name, or ``kind[index]`` when it has none."""

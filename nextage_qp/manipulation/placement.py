@@ -1,11 +1,11 @@
 """Refuse what cannot be done before moving.
 
 An object whose target rest pose overlaps an obstacle or is not over the table, or whose start pose intersects
-something, is refused. The target rest pose is the target's x, y and yaw with the object standing on the table
-top (its lowest point on the top face). The object is placed there in a scratch copy of the scene and its
-distance to every obstacle geom is measured: an overlap is an :class:`~nextage_qp.errors.InfeasibleError` (exit 2)
-naming the obstacle and the depth; otherwise the smallest distance is the target's clearance, reported with the
-result.
+something or is not over the table, is refused. The target rest pose is the target's x, y and yaw with the object
+standing on the table top (its lowest point on the top face). The object is placed there in a scratch copy of the
+scene and its distance to every obstacle geom is measured: an overlap is an
+:class:`~nextage_qp.errors.InfeasibleError` (exit 2) naming the obstacle and the depth; otherwise the smallest
+distance is the target's clearance, reported with the result.
 """
 
 from __future__ import annotations
@@ -107,7 +107,8 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
 
     Raises:
         InfeasibleError: The target rest pose overlaps an obstacle or is not over the table, or the start pose
-            overlaps the robot, an obstacle or the table (one line with the word "overlaps" and the depth).
+            overlaps the robot, an obstacle or the table (one line with the word "overlaps" and the depth) or is
+            not over the table.
     """
     m = robot.model
     data = mujoco.MjData(m)
@@ -123,6 +124,10 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
     if dist < -1e-3:  # resting contact allows a little penetration
         raise InfeasibleError(f"{source}: scene.poses.{obj}: the start pose of {obj} overlaps "
                           f"{_name(m, geom)} by {-dist * 1e3:.1f} mm")
+    start = data.xpos[m.body(obj).id]
+    if not _over_table(robot, data, table, start[:2]):
+        raise InfeasibleError(f"{source}: scene.poses.{obj}: {obj} starts at ({start[0]:.3f}, {start[1]:.3f}), not "
+                              "over the table; move it onto the table top")
     rest = data.xpos[tid].copy()
     rest[2] = rest_height(robot, data, obj, target)
     tyaw = float(np.arctan2(data.xmat[tid][3], data.xmat[tid][0]))

@@ -23,6 +23,7 @@ from nextage_qp.gains import load_gains, robot_gains
 from nextage_qp.ik import QPIK
 from nextage_qp.ik.look_at import watch
 from nextage_qp.manipulation.config import ManipulationConfig
+from nextage_qp.manipulation.joint_checks import check_angles
 from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, summarize
 from nextage_qp.manipulation.phases import Phase, build, names_in
 from nextage_qp.manipulation.placement import Placement, check_placement
@@ -69,6 +70,7 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
             raise ConfigError(f"{source}: {exc}") from None
         raise
     check_names(cfg, robot, source)
+    check_angles(cfg, robot, source)
     check_clear(robot, source)
     return robot
 

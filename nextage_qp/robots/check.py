@@ -71,7 +71,10 @@ def check_robot(ref: str | Path) -> CheckReport:
         spec.compiler.degree = desc.angle == "degree"
     bodies = {b.name for b in spec.bodies if b.name}
     for name, frame in desc.frames.items():
-        if frame.body in bodies:
+        if spec.site(name) is not None:
+            found.append(Finding("problem", "frame", f"frames.{name}: the model has a site {name!r} already",
+                                 "use the model's site, or give the frame another name"))
+        elif frame.body in bodies:
             spec.body(frame.body).add_site(name=name, pos=list(frame.pos), quat=list(frame.quat))
     for a, b in desc.exclude:
         if a in bodies and b in bodies:

@@ -83,7 +83,7 @@ def frame_body(model: mujoco.MjModel, desc: RobotDescription, name: str) -> int:
 
 
 def names(model: mujoco.MjModel, desc: RobotDescription) -> list[Finding]:
-    """Joints, frames, frame bodies and excluded bodies the robot file names but the model lacks."""
+    """Joints, frames and bodies (of frames, exclusions, collision groups, cameras) the model lacks."""
     out = []
     joints = {model.joint(j).name for j in range(model.njnt)}
     keys = [(f"arms[{i}].joints", j) for i, a in enumerate(desc.arms) for j in a.joints]
@@ -107,6 +107,13 @@ def names(model: mujoco.MjModel, desc: RobotDescription) -> list[Finding]:
             if _body(model, body) < 0:
                 out.append(Finding("problem", "name", f"exclude[{i}]: {body!r} is not a body of the model",
                                    "name bodies of the model"))
+    bodies = [(f"collision_groups.{g}.{part}", b) for g, group in desc.collision_groups.items()
+              for part in ("bodies", "subtrees") for b in getattr(group, part)]
+    bodies += [(f"cameras.{c}.body", cam.body) for c, cam in desc.cameras.items()]
+    for key, body in bodies:
+        if _body(model, body) < 0:
+            out.append(Finding("problem", "name", f"{key}: {body!r} is not a body of the model",
+                               "name a body of the model (the commands refuse the file until then)"))
     return out
 
 

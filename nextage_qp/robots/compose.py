@@ -48,6 +48,9 @@ def robot_spec(desc: RobotDescription) -> mujoco.MjSpec:
                 f"{desc.source}: frames.{name}.body: {frame.body!r} is not a body of the model; "
                 f"bodies: {', '.join(sorted(bodies))}"
             )
+        if spec.site(name) is not None:
+            raise ConfigError(f"{desc.source}: frames.{name}: the model has a site {name!r} already; use it, or "
+                              "give the frame another name")
         spec.body(frame.body).add_site(name=name, pos=list(frame.pos), quat=list(frame.quat))
     for i, pair in enumerate(desc.exclude):
         for name in pair:

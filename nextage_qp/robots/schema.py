@@ -69,6 +69,13 @@ class FrameFile(BaseModel):
         default=(1.0, 0.0, 0.0, 0.0), description="Orientation in the body (w, x, y, z)."
     )
 
+    @model_validator(mode="after")
+    def _rotation(self) -> FrameFile:
+        if math.hypot(*self.quat) < 1e-6:
+            raise ValueError(f"quat must be a non-zero quaternion (w, x, y, z), got {list(self.quat)}; "
+                             "[1, 0, 0, 0] keeps the body's axes")
+        return self
+
 
 class GroupFile(BaseModel):
     """A collision group: bodies, and whole subtrees (a body and every body below it)."""

@@ -70,6 +70,7 @@ class CameraMeasurer:
                        for n in robot.object_names}
         self.ms: dict[str, list[float]] = {"render": [], "estimate": []}
         self.dumped = cfg.dump is None
+        self.dump_error: str | None = None
         self.last: tuple[float, np.ndarray] | None = None
         self.poses: dict[str, np.ndarray | None] = {}
         """Each object's pose vector fitted in the latest frame (None: not seen in it); for videos."""
@@ -111,7 +112,10 @@ class CameraMeasurer:
                 self.counts[name]["unoccluded_ok"] += int(det.status == "ok")
         if not self.dumped and t + 1e-9 >= self.cfg.dump_at_s:
             self.dumped = True
-            self.dump(Path(str(self.cfg.dump)), frame, detections)
+            try:
+                self.dump(Path(str(self.cfg.dump)), frame, detections)
+            except OSError as exc:  # a lost frame dump is not a failed run: reported with the camera's figures
+                self.dump_error = f"perception.dump {self.cfg.dump}: cannot write: {exc.strerror or exc}"
         self.poses = {name: det.pose for name, det in detections.items()}
         return dict(self.poses)
 
@@ -148,7 +152,7 @@ class CameraMeasurer:
                              "detected_of_unoccluded": c["unoccluded_ok"] / clear if clear else None}
         med = {f"{k}_ms_median": float(np.median(v)) if v else None for k, v in self.ms.items()}
         return {"camera": self.camera.name, "depth": self.cfg.depth, "frames": len(self.ms["render"]), **med,
-                "objects": objects}
+                "objects": objects, **({"dump_error": self.dump_error} if self.dump_error else {})}
 
     def close(self) -> None:
         """Free the renderers."""

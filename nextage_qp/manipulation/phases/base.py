@@ -11,7 +11,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from typing import Any, ClassVar
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, model_validator
 
 from nextage_qp.errors import PhaseError
 from nextage_qp.manipulation.clamp import Clamp
@@ -30,6 +30,14 @@ class Spec(BaseModel):
     kind: str
     name: str | None = Field(default=None, description="Label in progress and results (default: kind + index).")
     timeout: float = Field(default=10.0, gt=0, le=MAX_SECONDS, description="Simulated time before the phase fails [s].")
+
+    @model_validator(mode="after")
+    def _object_is_not_its_own_goal(self) -> Spec:
+        obj = getattr(self, "object", None)
+        for key in ("target", "place_at"):
+            if obj is not None and getattr(self, key, None) == obj:
+                raise ValueError(f"{key}: {obj!r} is the phase's object itself; name the body it should go to")
+        return self
 
     @classmethod
     def kind_name(cls) -> str:

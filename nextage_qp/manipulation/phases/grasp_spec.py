@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Spec, name_field
 
@@ -59,3 +59,10 @@ class GraspSpec(Spec):
     place_at: str | None = name_field("body", default=None,
                                       description="Body where the object will be set down: the pads take a grip "
                                                   "that reaches there too; none fails the grasp before moving.")
+
+    @model_validator(mode="after")
+    def _two_pads(self) -> GraspSpec:
+        if self.frames is not None and self.frames[0] == self.frames[1]:
+            raise ValueError(f"frames: {self.frames[0]!r} twice; give the two pads' frames, one on each side "
+                             "of the object")
+        return self

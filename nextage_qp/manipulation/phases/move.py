@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, Field, model_validator
@@ -14,6 +14,8 @@ from nextage_qp.servo import Command
 from nextage_qp.yaml_file import STRICT
 
 Vec3 = tuple[float, float, float]
+Metres = Annotated[float, Field(ge=-10.0, le=10.0)]
+"""A coordinate or offset [m]: within 10 m (as the command line's positions)."""
 
 
 class TargetSpec(BaseModel):
@@ -29,9 +31,10 @@ class TargetSpec(BaseModel):
 
     frame: str = name_field("frame", description="Site or body of the robot to move, e.g. an arm's tool frame.")
     relative_to: str = name_field("reference", default="world", description="'world' or a body name.")
-    offset: Vec3 = Field(default=(0.0, 0.0, 0.0), description="Position offset [m].")
+    offset: tuple[Metres, Metres, Metres] = Field(default=(0.0, 0.0, 0.0), description="Position offset [m].")
     axes: Literal["world", "yaw"] = Field(default="yaw", description="Axes the offset is expressed in.")
-    yaw: float | None = Field(default=None, description="Frame yaw relative to the reference yaw [rad].")
+    yaw: float | None = Field(default=None, ge=-7.0, le=7.0,
+                              description="Frame yaw relative to the reference yaw [rad].")
     quat: tuple[float, float, float, float] | None = Field(default=None, description="World orientation (wxyz).")
     axis: Vec3 | None = Field(default=None, description="Tool axis in the frame's coordinates.")
     direction: Vec3 | None = Field(default=None, description="World direction the axis points along.")
@@ -43,6 +46,10 @@ class TargetSpec(BaseModel):
             raise ValueError(f"give at most one of yaw, quat, axis+direction; got {', '.join(given)}")
         if (self.axis is None) != (self.direction is None):
             raise ValueError("axis and direction must be given together")
+        for name in ("axis", "direction"):
+            vec = getattr(self, name)
+            if vec is not None and math.hypot(*vec) < 1e-6:
+                raise ValueError(f"{name} must be a non-zero vector, got {list(vec)}")
         if self.quat is not None and not math.isclose(math.hypot(*self.quat), 1.0, abs_tol=1e-3):
             raise ValueError(f"quat must be a unit quaternion (w, x, y, z), got {self.quat}")
         return self
@@ -53,8 +60,16 @@ class MoveSpec(Spec):
 
     kind: Literal["move"]
     targets: list[TargetSpec] = Field(min_length=1, max_length=2)
-    tolerance: float = Field(default=0.005, gt=0, description="Position tolerance of the real frames [m].")
-    speed: float = Field(default=0.15, gt=0, description="Cartesian speed of the moving setpoint [m/s].")
+    tolerance: float = Field(default=0.005, gt=0, le=0.1, description="Position tolerance of the real frames [m].")
+    speed: float = Field(default=0.15, gt=0, le=1.0, description="Cartesian speed of the moving setpoint [m/s].")
+
+    @model_validator(mode="after")
+    def _one_target_per_frame(self) -> MoveSpec:
+        frames = [t.frame for t in self.targets]
+        if len(set(frames)) < len(frames):
+            raise ValueError(f"targets: two targets for frame {frames[0]!r}; give each frame one target (a frame "
+                             "goes to one place at a time: use two move phases)")
+        return self
 
 
 class Move(Phase):

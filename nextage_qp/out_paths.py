@@ -1,0 +1,31 @@
+"""Output folders checked before anything runs: a file or folder that cannot be written is refused up front.
+
+``os.access`` is not enough: it says yes to root everywhere, and to folders of ``/proc`` that take no new files.
+A folder is writable when a temporary file can be made in it (and is gone again at once).
+"""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+
+def nearest_existing(path: Path) -> Path:
+    """``path`` or its nearest ancestor that exists (the writers make the missing folders below it)."""
+    folder = path
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    return folder
+
+
+def folder_problem(folder: Path) -> str | None:
+    """Why files cannot be written into ``folder`` (made if missing), or None when they can."""
+    existing = nearest_existing(folder)
+    if not existing.is_dir():
+        return f"{existing} is a file, not a folder"
+    try:
+        with tempfile.TemporaryFile(dir=existing):
+            pass
+    except OSError as exc:
+        return f"folder {existing} is not writable ({exc.strerror or exc})"
+    return None

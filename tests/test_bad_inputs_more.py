@@ -1,0 +1,151 @@
+"""More bad inputs, each with the exit code and the words its one-line message must hold.
+
+Cases are ``(id, argv, files, code, expected)``: ``{tmp}`` in argv is the case's temporary folder, ``{root}`` the
+project's, and ``files`` maps a file name in the temporary folder to its content. Every case is refused before
+anything moves.
+"""
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from nextage_qp.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+PUSH = str(ROOT / "configs" / "push_cube.yaml")
+PICK = str(ROOT / "configs" / "pick_place_box.yaml")
+STACK = str(ROOT / "configs" / "stack_boxes.yaml")
+SWEEP = str(ROOT / "configs" / "sweeps" / "push_cube.yaml")
+
+NEXTAGE = ((ROOT / "robots" / "nextage.yaml").read_text()
+           .replace("model: nextage/", f"model: {ROOT}/robots/nextage/")
+           .replace("../configs/gains", f"{ROOT}/configs/gains"))
+
+
+def robot(old: str, new: str) -> dict[str, str]:
+    """The Nextage's robot file with one exact piece of text replaced, as the case's file r.yaml."""
+    assert old in NEXTAGE, old
+    return {"r.yaml": NEXTAGE.replace(old, new, 1)}
+
+
+CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
+    ("run --plot into /proc", ["run", PUSH, "--json", "--plot", "/proc/x.png"], {}, 2,
+     "--plot: '/proc/x.png': folder /proc is not writable"),
+    ("run --log under a missing folder of /proc", ["run", PUSH, "--log", "/proc/x/y.npz"], {}, 2,
+     "folder /proc is not writable"),
+    ("sweep --json into /proc", ["sweep", SWEEP, "--n", "1", "--json", "/proc/x.json"], {}, 2,
+     "--json: '/proc/x.json': folder /proc is not writable"),
+    ("perception.dump into /proc", ["run", PUSH, "--set", "perception.source=camera", "--set",
+                                    "perception.dump=/proc/x"], {}, 2,
+     "perception.dump: '/proc/x': folder /proc is not writable"),
+    ("perception.dump under a file", ["run", PUSH, "--set", "perception.source=camera", "--set",
+                                      "perception.dump={root}/pyproject.toml/x"], {}, 2,
+     "pyproject.toml is a file, not a folder"),
+    ("perception.dump without a camera", ["run", PUSH, "--set", "perception.dump={tmp}/frame"], {}, 2,
+     "perception.dump: '{tmp}/frame' writes a frame of the robot's camera, but the poses come from truth"),
+    # a value that fits no member of a union: the member meant, without pydantic's names of the members
+    ("start joint nan", ["run", PUSH, "--set", "start={LARM_JOINT1: .nan}"], {}, 2,
+     "push_cube.yaml: start.LARM_JOINT1: Input should be a finite number (got nan)"),
+    ("start a number", ["run", PUSH, "--set", "start=7"], {}, 2,
+     "start: Input should be a valid string; or Input should be a valid dictionary (got 7)"),
+    ("posture target unknown", ["run", PUSH, "--set", "ik.posture_target=nope"], {}, 2,
+     "ik.posture_target: Input should be 'home' or 'zero'; or Input should be a valid dictionary (got 'nope')"),
+    ("object pos nan", ["run", PUSH, "--set", "scene.objects.puck={shape: sphere, size: [0.02], pos: [.nan, 0]}"],
+     {}, 2, "scene.objects.puck.pos[0]: Input should be a finite number (got nan)"),
+    ("sweep bound inf", ["sweep", "{tmp}/s.yaml", "--n", "1"],
+     {"s.yaml": f"base: {PUSH}\nrandomize: {{scene.masses.cube: {{uniform: [0.05, .inf]}}}}\n"}, 2,
+     "randomize.scene.masses.cube.uniform[1]: Input should be a finite number; or Input should be a valid list"),
+    # joint angles outside the robot's joints or their ranges: refused before anything moves, not a failed task
+    ("start angle out of range", ["run", PUSH, "--set", "start={LARM_JOINT1: 9}"], {}, 2,
+     "push_cube.yaml: start.LARM_JOINT1: 9 is outside the joint's range [-2.443, 1.047] rad"),
+    ("start joint unknown", ["run", PUSH, "--set", "start={NOPE: 0.1}"], {}, 2,
+     "push_cube.yaml: start: unknown joint 'NOPE'; valid: CHEST_JOINT0, "),
+    ("joints phase angle out of range", ["run", PUSH, "--set", "phases[0]={kind: joints, positions: {LARM_JOINT1: 9}}"],
+     {}, 2, "phases[0].positions.LARM_JOINT1: 9 is outside the joint's range"),
+    ("posture target out of range", ["run", PUSH, "--set", "ik.posture_target={LARM_JOINT1: -5}"], {}, 2,
+     "ik.posture_target.LARM_JOINT1: -5 is outside the joint's range"),
+    # phases that cannot do what they say: refused before anything moves
+    ("move offset huge", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool, offset: [1e9, 0, 0]}]}"],
+     {}, 2, "phases[0].targets[0].offset[0]: Input should be less than or equal to 10 (got 1000000000.0)"),
+    ("move speed huge", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool}], speed: 1e12}"], {},
+     2, "phases[0].speed: Input should be less than or equal to 1"),
+    ("move yaw huge", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool, yaw: 1e9}]}"], {}, 2,
+     "phases[0].targets[0].yaw: Input should be less than or equal to 7"),
+    ("move one frame twice", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool}, "
+                                                    "{frame: left_tool, offset: [0, 0, 0.2]}]}"], {}, 2,
+     "phases[0]: targets: two targets for frame 'left_tool'"),
+    ("move zero axis", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool, axis: [0, 0, 0], "
+                                              "direction: [0, 0, -1]}]}"], {}, 2,
+     "phases[0].targets[0]: axis must be a non-zero vector"),
+    ("push to the object itself", ["run", PUSH, "--set", "phases[0].target=cube"], {}, 2,
+     "phases[0]: target: 'cube' is the phase's object itself"),
+    ("place on the object itself", ["run", STACK, "--set", "phases[1].target=box_b"], {}, 2,
+     "phases[1]: target: 'box_b' is the phase's object itself"),
+    ("grasp placing at the object itself", ["run", PICK, "--set", "phases[0].place_at=box"], {}, 2,
+     "phases[0]: place_at: 'box' is the phase's object itself"),
+    ("grasp with one pad twice", ["run", PICK, "--set", "phases[0].frames=[left_palm, left_palm]"], {}, 2,
+     "phases[0]: frames: 'left_palm' twice"),
+    ("config target is the object", ["run", PUSH, "--set", "target=cube"], {}, 2,
+     "push_cube.yaml: target: 'cube' is the object itself"),
+    ("object start off the table", ["run", PUSH, "--set", "scene.poses.cube.pos=[30, 0, 0.91]"], {}, 2,
+     "scene.poses.cube: cube starts at (30.000, 0.000), not over the table"),
+    ("object colour above 1", ["run", PUSH, "--set", "scene.objects.cube={shape: box, size: [0.03, 0.03, 0.03], "
+                                                     "rgba: [2, 0, 0, 1]}"], {}, 2,
+     "scene.objects.cube.rgba[0]: Input should be less than or equal to 1 (got 2)"),
+    ("part colour negative", ["run", PUSH, "--set", "scene.objects.cube={shape: compound, parts: [{shape: sphere, "
+                                                    "size: [0.03], rgba: [0.5, -1, 0, 1]}]}"], {}, 2,
+     "scene.objects.cube.parts[0].rgba[1]: Input should be greater than or equal to 0 (got -1)"),
+    ("robot gains rule nan", ["robot", "check", "{tmp}/r.yaml"],
+     robot("gains: " + f"{ROOT}/configs/gains/default.yaml", "gains: {bandwidth: .nan}"), 2,
+     "r.yaml: gains.bandwidth: Input should be a finite number (got nan)"),
+    ("robot home nan", ["robot", "check", "{tmp}/r.yaml"], robot("  home: model", "  home: {LARM_JOINT1: .nan}"), 2,
+     "r.yaml: keyframes.home.LARM_JOINT1: Input should be a finite number (got nan)"),
+    ("robot frame named as a model site", ["info", "--robot", "{tmp}/r.yaml"],
+     robot("gains_dir:", "frames: {left_tool: {body: LARM_JOINT5_Link}}\ngains_dir:"), 2,
+     "r.yaml: frames.left_tool: the model has a site 'left_tool' already"),
+    ("robot frame with a zero quat", ["robot", "check", "{tmp}/r.yaml"],
+     robot("gains_dir:", "frames: {extra: {body: LARM_JOINT5_Link, quat: [0, 0, 0, 0]}}\ngains_dir:"), 2,
+     "r.yaml: frames.extra: quat must be a non-zero quaternion"),
+]
+
+
+@pytest.mark.parametrize(("argv", "files", "code", "expected"), [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_input_is_refused_with_one_line_naming_it(tmp_path, monkeypatch, capsys, argv, files, code, expected):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("COLUMNS", "400")
+    for name, content in files.items():
+        (tmp_path / name).write_text(content)
+    subs = {"{tmp}": str(tmp_path), "{root}": str(ROOT)}
+
+    def fill(text: str) -> str:
+        return re.sub(r"\{tmp\}|\{root\}", lambda m: subs[m.group(0)], text)
+
+    assert main([fill(a) for a in argv]) == code
+    out, err = capsys.readouterr()
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert "error" in lines[0] and fill(expected) in lines[0], lines[0]
+    assert not out.strip()
+
+
+FINDINGS = {  # robot check finds these (exit 1: the file reads, but the commands refuse it)
+    "frame named as a model site": (("gains_dir:", "frames: {left_tool: {body: LARM_JOINT5_Link}}\ngains_dir:"),
+                                    "frames.left_tool: the model has a site 'left_tool' already"),
+    "collision group body unknown": (("head: {bodies: [HEAD_JOINT0_Link, HEAD_JOINT1_Link]}",
+                                      "head: {bodies: [HEAD_JOINT0_Link, HEAD_LINK]}"),
+                                     "collision_groups.head.bodies: 'HEAD_LINK' is not a body of the model"),
+    "camera body unknown": (("{body: HEAD_JOINT1_Link, pos: [0.088, 0.0, 0.105]", "{body: HEAD_LINK, pos: [0.088, 0.0, 0.105]"),
+                            "cameras.head_rgbd.body: 'HEAD_LINK' is not a body of the model"),
+}
+
+
+@pytest.mark.parametrize("case", list(FINDINGS))
+def test_robot_check_finds_what_the_commands_refuse(tmp_path, capsys, case):
+    (old, new), message = FINDINGS[case]
+    path = tmp_path / "r.yaml"
+    path.write_text(robot(old, new)["r.yaml"])
+    assert main(["robot", "check", str(path), "--json"]) == 1
+    found = json.loads(capsys.readouterr().out)["findings"]
+    assert [f["message"] for f in found if f["level"] == "problem"] == [message]
