@@ -149,3 +149,12 @@ def test_robot_check_finds_what_the_commands_refuse(tmp_path, capsys, case):
     assert main(["robot", "check", str(path), "--json"]) == 1
     found = json.loads(capsys.readouterr().out)["findings"]
     assert [f["message"] for f in found if f["level"] == "problem"] == [message]
+
+
+@pytest.mark.slow
+def test_a_run_whose_phases_complete_but_a_criterion_fails_says_which(capsys):
+    """Exit 1 with one line naming the unmet criterion, its value and its limit (the phases all completed)."""
+    code = main(["run", PUSH, "--set", "success.planar_error=0.0001", "--set", "timing.settle=0.1"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1 and err[-1].startswith("nextage-qp run: failed: criteria not met: object_error")
+    assert "(limit 0.0001)" in err[-1]

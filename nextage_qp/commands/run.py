@@ -103,7 +103,21 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if result["error"]:
         print(f"nextage-qp run: error: {' '.join(result['error'].split())}", file=sys.stderr)
+    elif not result["success"]:  # every phase done, a criterion not met: say which
+        print(f"nextage-qp run: failed: {_unmet(result)}", file=sys.stderr)
     return 0 if result["success"] else 1
+
+
+def _unmet(result: dict[str, Any]) -> str:
+    """The criteria a run did not meet, with their values and limits where they have them."""
+    parts = []
+    for name, c in result.get("criteria", {}).items():
+        if not c.get("ok", True):
+            value, limit = c.get("value"), c.get("limit")
+            numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (value, limit))
+            have = f" {value:.4g} (limit {limit:.4g})" if numbers else ""
+            parts.append(f"{name}{have}")
+    return "criteria not met: " + (", ".join(parts) or ", ".join(result.get("failed_criteria", [])) or "unknown")
 
 
 def _write_outputs(runner: Runner, args: argparse.Namespace, video: Any,
