@@ -32,7 +32,9 @@ from nextage_qp.yaml_file import STRICT
 Shape = Literal["box", "cylinder", "capsule", "sphere", "prism"]
 SIZES = {"box": 3, "cylinder": 2, "capsule": 2, "sphere": 1, "prism": 2}
 """Entries of ``size`` per shape."""
-Length = Annotated[float, Field(gt=0, le=1.0, allow_inf_nan=False)]
+Length = Annotated[float, Field(ge=0.001, le=1.0, allow_inf_nan=False)]
+"""A size entry [m]: from 1 mm (thinner is no object a hand can push or clamp, and MuJoCo's contacts fail on it) to
+1 m."""
 Vec3 = tuple[float, float, float]
 Unit = Annotated[float, Field(ge=0.0, le=1.0)]
 RGBA = tuple[Unit, Unit, Unit, Unit]

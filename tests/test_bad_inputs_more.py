@@ -31,6 +31,8 @@ def robot(old: str, new: str) -> dict[str, str]:
 
 
 CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
+    ("object thinner than 1 mm", ["run", PUSH, "--set", "scene.objects.cube.size=[1e-9,0.03,0.03]"], {}, 2,
+     "scene.objects.cube.size[0]: Input should be greater than or equal to 0.001"),
     ("run --plot into /proc", ["run", PUSH, "--json", "--plot", "/proc/x.png"], {}, 2,
      "--plot: '/proc/x.png': folder /proc is not writable"),
     ("run --log under a missing folder of /proc", ["run", PUSH, "--log", "/proc/x/y.npz"], {}, 2,
