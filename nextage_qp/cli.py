@@ -61,6 +61,7 @@ QUIET_WARNINGS = (
     r"Converted matrix .* to scipy\.sparse",  # qpsolvers, when the QP goes to OSQP: a cost, not a fault
     r"The default value of raise_error will change",  # osqp's notice of its own future default
     r"Tight layout not applied",  # matplotlib, for figures whose legends do not fit tightly
+    r"\(655\d\d\) b'",  # GLFW without a display: the camera's own one-line error says what to install and set
 )
 """Library warnings the command line keeps off stderr (an error there is one line; these are not errors)."""
 
