@@ -4,7 +4,21 @@ The Python API (:mod:`nextage_qp.api`): :func:`load_task`, :func:`run_task`, :cl
 :func:`run_sweep`, :func:`load_robot`, :func:`register_phase`; the errors every function raises on bad input.
 """
 
+import os
+import sys
 from typing import Any
+
+try:  # MuJoCo loads the OpenGL platform MUJOCO_GL names when it is imported
+    import mujoco  # noqa: F401
+except (ImportError, RuntimeError, AttributeError) as _exc:  # pragma: no cover - a machine without that platform
+    _gl = os.environ.get("MUJOCO_GL")
+    _message = (f"MuJoCo cannot load with MUJOCO_GL={_gl!r} ({' '.join(str(_exc).split())}); valid: egl (Debian "
+                "libegl1 libegl-mesa0 libgl1-mesa-dri), osmesa (libosmesa6), glfw (a display), or unset"
+                if _gl else f"MuJoCo cannot load: {' '.join(str(_exc).split())}")
+    if os.path.basename(sys.argv[0]) in ("nextage-qp", "-m", "cli.py"):  # the command line: one line, exit 2
+        print(f"nextage-qp: error: {_message}", file=sys.stderr)
+        raise SystemExit(2) from None
+    raise ImportError(_message) from None
 
 from nextage_qp.errors import (
     ConfigError,

@@ -160,3 +160,16 @@ def test_a_run_whose_phases_complete_but_a_criterion_fails_says_which(capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 1 and err[-1].startswith("nextage-qp run: failed: criteria not met: object_error")
     assert "(limit 0.0001)" in err[-1]
+
+
+def test_an_invalid_mujoco_gl_is_one_line_and_exit_2():
+    """MuJoCo reads MUJOCO_GL when it is imported: the command line says so on one line, with the valid values."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "MUJOCO_GL": "bogus"}
+    out = subprocess.run([sys.executable, "-m", "nextage_qp.cli", "info"], env=env, capture_output=True, text=True,
+                         cwd=ROOT, timeout=120)
+    lines = out.stderr.strip().splitlines()
+    assert out.returncode == 2 and len(lines) == 1 and "MUJOCO_GL='bogus'" in lines[0] and "valid: egl" in lines[0]
