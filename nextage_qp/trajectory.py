@@ -9,8 +9,7 @@ bounds, :math:`|\dot q| \le v_{max}` [rad/s], :math:`|\ddot q| \le a_{max}` [rad
 * :func:`~nextage_qp.trajectory_offline.chain_waypoints` plans an offline trajectory through waypoints, one
   state-to-state segment per pair (the community edition's intermediate waypoints need Ruckig's cloud service).
 
-Every Ruckig result is checked; invalid input raises :class:`~nextage_qp.errors.TrajectoryError` naming
-the joints involved.
+Every Ruckig result is checked; invalid input raises :class:`~nextage_qp.errors.TrajectoryError` naming the joints.
 """
 
 from __future__ import annotations
@@ -28,6 +27,7 @@ from nextage_qp.robot import PerJoint, per_joint
 from nextage_qp.yaml_file import STRICT
 
 _OK = (ruckig.Result.Working, ruckig.Result.Finished)
+NUDGE = 1e-12  # [rad] a target moves for Ruckig to solve a step it failed on numerically (JointTrajectory._nudged)
 
 
 class TrajectoryLimits(BaseModel):
@@ -224,12 +224,23 @@ class JointTrajectory:
                     break
                 except ruckig.RuckigError as exc:
                     if i == len(modes) - 1:
-                        raise joint_error(exc, "reference update", self.names) from None
+                        result = self._nudged(exc)
+
         finally:
             if modes[-1] != ruckig.Synchronization.Time:
                 self._inp.synchronization = ruckig.Synchronization.Time
         check_result(result, "reference update")
         return result
+
+    def _nudged(self, exc: ruckig.RuckigError) -> ruckig.Result:
+        """The step with the target ``NUDGE`` off (Ruckig fails rare states, "error in step 1"; raises if again)."""
+        target, self._inp.target_position = self._inp.target_position, [q + NUDGE for q in self._inp.target_position]
+        try:
+            return self._otg.update(self._inp, self._out)
+        except ruckig.RuckigError:
+            raise joint_error(exc, "reference update", self.names) from None
+        finally:
+            self._inp.target_position = target
 
     def interpolate(self, tau: float) -> RefState:
         """The reference ``tau`` [s] after the start of the last :meth:`update` (0 <= tau <= dt)."""

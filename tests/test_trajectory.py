@@ -110,3 +110,23 @@ def test_chain_waypoints_passes_every_waypoint_within_limits():
 def test_chain_waypoints_needs_two():
     with pytest.raises(TrajectoryError, match="at least two"):
         chain_waypoints([np.zeros(N)], LIMITS, dt=0.01)
+
+
+def test_a_state_ruckig_fails_on_numerically_is_stepped_with_the_target_a_picoradian_off():
+    """A camera push's state (episode 97 of its sweep): Ruckig's profile search fails for joint 1 ("error in step 1"),
+    synchronised or not; the step is solved with the target moved by 1e-12 rad."""
+    q0 = [-0.2760662237123702, 0.283336304663246, 0.5745288260790065, -0.06311806678222627, -0.543650991415784,
+          0.2144058656362579, 5.556524595524712e-06, 0.326814345989219, 0.389531522053482, 0.0, -0.4, 0.0, 0, 0, 0]
+    v0 = [-0.243234885074084, 0.006609921144692034, -0.01329915464624131, 0.04325114303994779, -0.1545663387148554,
+          0.1391124870830602, -9.819014214690293e-07, -0.04629669587106466, 0.07271818371120974, 0, 0, 0, 0, 0, 0]
+    a0 = [-0.0875982128379329, -0.7271820209379238, 0, -0.1632665377704237, -1.868813111824615, 1.190172161908999,
+          0, 0, -2.220446049250313e-16, 0, 0, 0, 0, 0, 0]
+    target = [-0.6117005309115717, 0.3633763597950481, 0.5581129101786576, -0.0192969056216769, -0.6939503064134349,
+              0.432947922721071, 4.125609640706765e-06, 0.2609198798685506, 1.518015006968197, 0, -0.4, 0, 0, 0, 0]
+    gen = JointTrajectory(TrajectoryLimits(max_velocity=1.0, max_acceleration=4.0, max_jerk=40.0), dt=0.02,
+                          joint_names=JOINT_NAMES)
+    gen.reset(np.array(q0), np.array(v0))
+    gen._inp.current_acceleration = a0  # the state mid-motion, as the last step left it
+    gen.set_target(np.array(target))
+    state = gen.update()
+    assert np.isfinite(state.q).all() and abs(state.q[1] - 0.28337640001528) < 1e-12
