@@ -16,6 +16,7 @@ from rich.table import Table
 from nextage_qp.commands.common import PLAIN_PROGRESS_S, PLOT_SUFFIXES, SEED, out_console, output_file, print_json
 from nextage_qp.manipulation.config import jitter_overrides, load_config
 from nextage_qp.manipulation.runner import Runner
+from nextage_qp.sweep.episode import unmet_criteria
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -104,20 +105,8 @@ def run(args: argparse.Namespace) -> int:
     if result["error"]:
         print(f"nextage-qp run: error: {' '.join(result['error'].split())}", file=sys.stderr)
     elif not result["success"]:  # every phase done, a criterion not met: say which
-        print(f"nextage-qp run: failed: {_unmet(result)}", file=sys.stderr)
+        print(f"nextage-qp run: failed: {unmet_criteria(result)}", file=sys.stderr)
     return 0 if result["success"] else 1
-
-
-def _unmet(result: dict[str, Any]) -> str:
-    """The criteria a run did not meet, with their values and limits where they have them."""
-    parts = []
-    for name, c in result.get("criteria", {}).items():
-        if not c.get("ok", True):
-            value, limit = c.get("value"), c.get("limit")
-            numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (value, limit))
-            have = f" {value:.4g} (limit {limit:.4g})" if numbers else ""
-            parts.append(f"{name}{have}")
-    return "criteria not met: " + (", ".join(parts) or ", ".join(result.get("failed_criteria", [])) or "unknown")
 
 
 def _write_outputs(runner: Runner, args: argparse.Namespace, video: Any,

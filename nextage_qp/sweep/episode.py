@@ -128,8 +128,7 @@ def run_episode(task: EpisodeTask) -> Episode:
             record.status = "success"
         else:
             record.status = "error" if stopped else "failed"
-            record.reason = result["error"] or "criteria not met: " + ", ".join(
-                _criterion_text(result, name) for name in record.failed_criteria)
+            record.reason = result["error"] or unmet_criteria(result)
     except ConfigError as exc:
         record.status, record.reason = "refused", " ".join(str(exc).split())
     except Exception as exc:
@@ -137,6 +136,11 @@ def run_episode(task: EpisodeTask) -> Episode:
         record.reason = f"{type(exc).__name__}: {exc} (at {os.path.basename(last.filename)}:{last.lineno})"
     record.wall_time_s = time.perf_counter() - start
     return record
+
+
+def unmet_criteria(result: dict[str, Any]) -> str:
+    """``criteria not met: NAME VALUE > LIMIT, ...`` of a run's result (the criteria it failed, in order)."""
+    return "criteria not met: " + ", ".join(_criterion_text(result, n) for n in result.get("failed_criteria", []))
 
 
 def _criterion_text(result: dict[str, Any], name: str) -> str:
