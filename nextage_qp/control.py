@@ -165,8 +165,7 @@ class ActuatorBlock:
     def __init__(self, actuator_ids: np.ndarray, data: mujoco.MjData) -> None:
         ids = np.asarray(actuator_ids, dtype=int)
         lo, hi = (int(ids.min()), int(ids.max()) + 1) if ids.size else (0, 0)
-        self.data, self.block = data, slice(lo, hi)
-        self.ctrl, self.force = data.ctrl[self.block], data.actuator_force[self.block]
+        self.ctrl, self.force = data.ctrl[lo:hi], data.actuator_force[lo:hi]
         """Views of the block's controls and actuator forces."""
         cols = ids - lo
         self.cols = None if np.array_equal(cols, np.arange(hi - lo)) else cols

@@ -156,12 +156,11 @@ def find_arms(model: mujoco.MjModel, data: mujoco.MjData, single: str = "arm") -
     if len(own) > 2:  # a humanoid's or a quadruped's legs end where it stands
         z = data.xpos[1:, 2]
         low = float(z.min()) + LEG_SHARE * float(z.max() - z.min())
-        legs = [o for o in own if float(data.xpos[int(model.jnt_bodyid[o[-1]])][2]) < low]
-        if len(legs) < len(own):
-            keep = [k for k, o in enumerate(own) if o not in legs]
-            own, grip = [own[k] for k in keep], [grip[k] for k in keep]
-        else:
-            legs = []
+        high = [float(data.xpos[int(model.jnt_bodyid[o[-1]])][2]) >= low for o in own]
+        if any(high):  # (every chain low: no arm to tell legs from, all stay arms)
+            legs = [o for o, h in zip(own, high, strict=True) if not h]
+            own = [o for o, h in zip(own, high, strict=True) if h]
+            grip = [g for g, h in zip(grip, high, strict=True) if h]
     hand_y = [float(data.xpos[int(model.jnt_bodyid[o[-1]])][1]) for o in own]
     order = sorted(range(len(own)), key=lambda k: -hand_y[k])
     names = [single] if len(own) == 1 else [f"arm{i + 1}" for i in range(len(own))]
@@ -182,8 +181,8 @@ def find_arms(model: mujoco.MjModel, data: mujoco.MjData, single: str = "arm") -
             taken.add(f"{name}_gripper")
             groups[f"{name}_gripper"] = tuple(grip[k])
     if legs:
-        groups[_group_name(model, [j for leg in legs for j in leg], taken, "legs")] = tuple(sorted(j for leg in legs
-                                                                                                for j in leg))
+        leg_joints = sorted(j for leg in legs for j in leg)
+        groups[_group_name(model, leg_joints, taken, "legs")] = tuple(leg_joints)
     for branch in minor:
         parent = [j for j in moved_by(model, int(model.jnt_bodyid[branch[0]])) if j < branch[0]][-1:]
         arm = next((a for a in arms if parent and parent[0] in a.joints), None)
