@@ -66,8 +66,7 @@ class CameraMeasurer:
         self.symmetry = {n: robot.yaw_symmetry(n) for n in robot.object_names}
         shapes = {n: ShapeModel.of_body(model, n, self.symmetry[n]) for n in robot.object_names}
         self.estimator = Estimator(shapes, seed)
-        self.counts = {n: dict.fromkeys((*STATUSES, "partly_occluded", "unoccluded", "unoccluded_ok"), 0)
-                       for n in robot.object_names}
+        self.counts = {n: dict.fromkeys((*STATUSES, "partly_occluded", "unoccluded"), 0) for n in robot.object_names}
         self.ms: dict[str, list[float]] = {"render": [], "estimate": []}
         self.dumped = cfg.dump is None
         self.dump_error: str | None = None
@@ -107,9 +106,7 @@ class CameraMeasurer:
         for name, det in detections.items():
             self.counts[name][det.status] += 1
             self.counts[name]["partly_occluded"] += int(det.status == "ok" and det.occluded > PARTLY)
-            if det.status in IN_VIEW and det.occluded <= PARTLY:  # in view, the robot covering at most PARTLY of it
-                self.counts[name]["unoccluded"] += 1
-                self.counts[name]["unoccluded_ok"] += int(det.status == "ok")
+            self.counts[name]["unoccluded"] += int(det.status in IN_VIEW and det.occluded <= PARTLY)
         if not self.dumped and t + 1e-9 >= self.cfg.dump_at_s:
             self.dumped = True
             try:
@@ -147,9 +144,9 @@ class CameraMeasurer:
         """
         objects = {}
         for name, c in self.counts.items():
-            seen, clear = sum(c[s] for s in IN_VIEW), c["unoccluded"]
-            objects[name] = {**c, "detected_of_in_view": c["ok"] / seen if seen else None,
-                             "detected_of_unoccluded": c["unoccluded_ok"] / clear if clear else None}
+            seen, clear, clear_ok = sum(c[s] for s in IN_VIEW), c["unoccluded"], c["ok"] - c["partly_occluded"]
+            objects[name] = {**c, "unoccluded_ok": clear_ok, "detected_of_in_view": c["ok"] / seen if seen else None,
+                             "detected_of_unoccluded": clear_ok / clear if clear else None}
         med = {f"{k}_ms_median": float(np.median(v)) if v else None for k, v in self.ms.items()}
         return {"camera": self.camera.name, "depth": self.cfg.depth, "frames": len(self.ms["render"]), **med,
                 "objects": objects, **({"dump_error": self.dump_error} if self.dump_error else {})}
