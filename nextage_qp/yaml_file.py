@@ -257,9 +257,10 @@ def valid_keys(root: type[BaseModel], loc: tuple[int | str, ...]) -> list[str]:
     return sorted(candidates[0].model_fields) if len(candidates) == 1 else []
 
 
-NameKind = Literal["frame", "object", "body", "reference", "joint"]
-"""What a name field refers to: a site or body of the robot (``frame``), a free object, any body, a body or
-``world`` (``reference``), or a robot joint (the keys of a mapping)."""
+NameKind = Literal["frame", "object", "body", "place", "reference", "joint"]
+"""What a name field refers to: a site or body of the robot (``frame``), a free object, any body, a body no robot
+joint moves (``place``: where an object goes, e.g. a target marker or another object), a body or ``world``
+(``reference``), or a robot joint (the keys of a mapping)."""
 
 MAX_SECONDS = 3600.0
 """Upper bound of every duration in a config [s]: a run always has a bounded length."""

@@ -110,6 +110,23 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
     ("robot frame with a zero quat", ["robot", "check", "{tmp}/r.yaml"],
      robot("gains_dir:", "frames: {extra: {body: LARM_JOINT5_Link, quat: [0, 0, 0, 0]}}\ngains_dir:"), 2,
      "r.yaml: frames.extra: quat must be a non-zero quaternion"),
+    # where an object goes: a scene body, never one of the robot's links (nor listed among the valid ones)
+    ("target a robot link", ["run", PUSH, "--set", "target=WAIST"], {}, 2,
+     "push_cube.yaml: target: 'WAIST' is not valid; valid: table, cube, cube_target"),
+    ("place_at a robot link", ["run", PICK, "--set", "phases[0].place_at=LARM_JOINT5_Link"], {}, 2,
+     "phases[0].place_at: 'LARM_JOINT5_Link' is not valid; valid: table, obstacle, box, box_target"),
+    # a sweep's base config that is itself wrong is named as the base, a key of its set: as set
+    ("sweep base with an unknown key", ["sweep", "{tmp}/s.yaml", "--n", "1"],
+     {"s.yaml": "base: b.yaml\nrandomize: {scene.masses.cube: {uniform: [0.05, 0.3]}}\n",
+      "b.yaml": Path(PUSH).read_text().replace("  ctrl_dt:", "  ctrl_dtt:").replace("../", f"{ROOT}/")}, 2,
+     "s.yaml: base: {tmp}/b.yaml: timing.ctrl_dtt: unknown key; valid: ctrl_dt, settle, sim_dt"),
+    ("sweep set with an unknown key", ["sweep", "{tmp}/s.yaml", "--n", "1"],
+     {"s.yaml": f"base: {PUSH}\nset: {{timing.ctrl_dtt: 0.01}}\n"
+                "randomize: {scene.masses.cube: {uniform: [0.05, 0.3]}}\n"}, 2,
+     "s.yaml: set: " + PUSH + ": timing.ctrl_dtt: unknown key"),
+    ("sweep bounds of two lengths", ["sweep", "{tmp}/s.yaml", "--n", "1"],
+     {"s.yaml": f"base: {PUSH}\nrandomize: {{scene.poses.cube.pos: {{offset: [[-0.05, -0.05], [0.05, 0.05, 0]]}}}}\n"},
+     2, "randomize.scene.poses.cube.pos: lo and hi must have the same length, got [-0.05, -0.05] and [0.05, 0.05, 0.0]"),
 ]
 
 

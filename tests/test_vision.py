@@ -311,3 +311,21 @@ def test_the_default_push_from_the_head_camera_reaches_its_target() -> None:
     assert 0 < frames["unoccluded_ok"] <= frames["unoccluded"] <= in_view
     assert frames["detected_of_unoccluded"] == frames["unoccluded_ok"] / frames["unoccluded"]
     assert frames["detected_of_in_view"] == frames["ok"] / in_view
+
+
+def test_a_frame_dump_asked_for_after_the_run_ended_is_reported_not_silently_dropped() -> None:
+    from types import SimpleNamespace
+
+    from nextage_qp.vision.config import PerceptionConfig
+    from nextage_qp.vision.source import CameraMeasurer
+
+    cfg = PerceptionConfig(source="camera", dump="/tmp/frame", dump_at_s=50.0)
+    source = object.__new__(CameraMeasurer)  # the report's state only: no renderer needed
+    source.cfg, source.camera, source.counts = cfg, SimpleNamespace(name="head_rgbd"), {}
+    source.ms, source.dumped, source.dump_error = {"render": [], "estimate": []}, False, None
+    source.last = (16.68, np.zeros((2, 2)))
+    report = source.report()
+    assert report["dump_error"] == ("perception.dump_at_s 50 s: the camera's last frame was at 16.68 s; nothing "
+                                    "written to /tmp/frame (set a time within the run)")
+    source.dumped, source.dump_error = True, None  # dumped: nothing to say
+    assert "dump_error" not in source.report()

@@ -99,6 +99,9 @@ def run(args: argparse.Namespace) -> int:
         print_json(result)
     else:
         _print_summary(result, out_console())
+    camera = ((result.get("estimation") or {}).get("camera") or {})
+    if camera.get("dump_error"):  # the frame dump asked for was not written (the run goes on without it)
+        print(f"nextage-qp run: warning: {camera['dump_error']}", file=sys.stderr)
     if failed:
         print(f"nextage-qp run: error: {'; '.join(failed)}", file=sys.stderr)
         return 2

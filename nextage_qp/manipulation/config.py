@@ -87,7 +87,7 @@ class ManipulationConfig(_Strict):
                                   "mount): a mobile robot's start pose.")
     scene: SceneConfig
     object: str = name_field("object", description="Body whose final error is reported.")
-    target: str = name_field("body", description="Body marking the object's target.")
+    target: str = name_field("place", description="Body marking the object's target.")
     start: str | dict[str, float] = Field(
         default="home", description="Start pose: a keyframe of the robot file (home, zero, ...), or joint -> rad "
                                     "on top of home.")

@@ -83,7 +83,7 @@ def check_names(cfg: ManipulationConfig, robot: Robot, source: str) -> None:
     """
     bodies = sorted(robot.body_names)
     objects = (*robot.object_names, *((BASE_BODY,) if robot.base is not None else ()))  # a base parks, judged
-    valid = {"frame": robot.site_names, "object": objects, "body": bodies,
+    valid = {"frame": robot.site_names, "object": objects, "body": bodies, "place": robot.unmoved_body_names(),
              "reference": ["world", *bodies], "joint": robot.joint_names}
     accepted = {**valid, "frame": robot.frame_names}
     for key, kind, name in names_in(cfg, ""):

@@ -64,7 +64,7 @@ class Distribution(_Strict):
         if self.bounds is not None:
             lo, hi = (np.atleast_1d(np.asarray(b, dtype=float)) for b in self.bounds)
             if lo.shape != hi.shape:
-                raise ValueError(f"lo and hi must have the same length, got {list(lo)} and {list(hi)}")
+                raise ValueError(f"lo and hi must have the same length, got {lo.tolist()} and {hi.tolist()}")
             if np.any(lo > hi):
                 raise ValueError(f"lo > hi in [{self.bounds[0]}, {self.bounds[1]}]")
         for value in self.choice or ():
@@ -123,6 +123,11 @@ class SweepFile(_Strict):
         return value
 
 
+def _from_set(message: str, fixed: Sequence[str]) -> bool:
+    """Whether a base config's error is about one of the sweep's ``set:`` keys (named in the message)."""
+    return any(f"{item.split('=', 1)[0]}:" in message or f"{item.split('=', 1)[0]}." in message for item in fixed)
+
+
 class SweepSpec:
     """A validated sweep: the file, its base config, the distributions and the base value of every key.
 
@@ -147,8 +152,9 @@ class SweepSpec:
         self.fixed = [f"{key}={_flow(value)}" for key, value in self.file.set.items()]
         try:
             self.base = load_config(self.base_path, self.fixed)
-        except ConfigError as exc:
-            raise ConfigError(f"{self.path}: set: {exc}") from None
+        except ConfigError as exc:  # the base config itself, or a key of the sweep's own set:
+            where = "set" if self.fixed and _from_set(str(exc), self.fixed) else "base"
+            raise ConfigError(f"{self.path}: {where}: {exc}") from None
         self.extra = list(extra)
         self.distributions = dict(self.file.randomize)
         if self.extra:

@@ -147,6 +147,10 @@ class CameraMeasurer:
             seen, clear, clear_ok = sum(c[s] for s in IN_VIEW), c["unoccluded"], c["ok"] - c["partly_occluded"]
             objects[name] = {**c, "unoccluded_ok": clear_ok, "detected_of_in_view": c["ok"] / seen if seen else None,
                              "detected_of_unoccluded": clear_ok / clear if clear else None}
+        if not self.dumped and not self.dump_error:  # the run ended before the time of the frame asked for
+            last = f"{self.last[0]:g} s" if self.last is not None else "its start"
+            self.dump_error = (f"perception.dump_at_s {self.cfg.dump_at_s:g} s: the camera's last frame was at "
+                               f"{last}; nothing written to {self.cfg.dump} (set a time within the run)")
         med = {f"{k}_ms_median": float(np.median(v)) if v else None for k, v in self.ms.items()}
         return {"camera": self.camera.name, "depth": self.cfg.depth, "frames": len(self.ms["render"]), **med,
                 "objects": objects, **({"dump_error": self.dump_error} if self.dump_error else {})}

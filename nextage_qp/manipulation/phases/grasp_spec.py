@@ -56,7 +56,7 @@ class GraspSpec(Spec):
     off_centre: float = Field(default=0.0, ge=0, le=0.2,
                               description="Farthest the pads may clamp off the centre of the faces, along them, "
                                           "where the centre is out of reach at the object or at the placement [m].")
-    place_at: str | None = name_field("body", default=None,
+    place_at: str | None = name_field("place", default=None,
                                       description="Body where the object will be set down: the pads take a grip "
                                                   "that reaches there too; none fails the grasp before moving.")
 

@@ -53,7 +53,7 @@ class PlaceSpec(Spec):
 
     kind: Literal["place"]
     object: str = name_field("object")
-    target: str = name_field("body", description="Body whose x, y and yaw the object should take.")
+    target: str = name_field("place", description="Body whose x, y and yaw the object should take.")
     clearance: float = Field(default=0.03, gt=0, le=0.3, description="Object's bottom over the obstacles [m].")
     lift: float = Field(default=0.03, ge=0, le=0.5, description="Least rise before moving sideways [m].")
     hover: float = Field(default=0.02, gt=0, le=0.2, description="Height over rest where it corrects [m].")
