@@ -56,7 +56,7 @@ class PairBounds:
         moved = self.moved(data, self._last_pos, self._last_mat)
         if self._first:  # no pose stored yet (NaN), and no bound to void
             moved[:], self._first = 0.0, False
-        if self._exact_any and moved.any():
+        if self._exact_any and np.count_nonzero(moved):
             self._exact[:], self._exact_any = False, False
         self._travel += moved
         self._last_pos[:], self._last_mat[:] = data.geom_xpos, data.geom_xmat
@@ -77,17 +77,19 @@ class PairBounds:
         return np.maximum(self._base - travel.take(self.geom1) - travel.take(self.geom2), self.sphere_gaps(data))
 
     def near(self, data: mujoco.MjData, within: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Pairs whose bound is below ``within`` [m] (per pair), with that bound: travel first, then spheres."""
+        """Pairs whose bound is below ``within`` [m] (per pair), with that bound: travel first, then spheres.
+
+        A pair the spheres rule out is not stored (:meth:`remember`): its travel bound stays as it was, and next time
+        the spheres rule it out again if they did now (the spheres' gap shrinks no faster than the travel grows).
+        """
         travel = self.update(data)
-        lower = self._base - travel.take(self.geom1) - travel.take(self.geom2)
-        idx = np.flatnonzero(lower < within)
+        lower = self._base - travel[self.geom1] - travel[self.geom2]
+        idx = (lower < within).nonzero()[0]
         if not idx.size:
             return idx, lower[idx]
         sphere = self.sphere_gaps(data, idx)
-        far = sphere >= within.take(idx)
-        self.remember(idx[far], sphere[far])
-        near = ~far
-        return idx[near], np.maximum(lower.take(idx), sphere)[near]
+        near = sphere < within[idx]
+        return idx[near], np.maximum(lower[idx], sphere)[near]
 
     def remember(self, pairs: np.ndarray, lower: np.ndarray, *, exact: bool = False) -> None:
         """Store lower bounds [m] of ``pairs`` at the configuration last seen (``exact``: their distances)."""

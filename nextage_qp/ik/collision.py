@@ -101,6 +101,7 @@ class ActiveCollisionLimit(mink.Limit):
         # Per active pair of one call: the point Jacobians of its two witness points (geom2's, then geom1's).
         self._jacs = np.zeros((len(keys), 2, 3, model.nv))
         self._jac_slots = [(j[0], j[1]) for j in self._jacs]  # views made once
+        self._zero1 = [True] * len(keys)  # per slot: geom1's Jacobian is zeros
         self.enabled = np.ones(len(keys), dtype=bool)
         """Pairs watched at the next call (see :meth:`allow`)."""
         self._watch_within = self.detection_distance.copy()
@@ -156,7 +157,7 @@ class ActiveCollisionLimit(mink.Limit):
         kept for the next call's rows.
         """
         lower = self.bounds.lower(data)
-        check = np.flatnonzero((lower < self.min_distance) & self.enabled)
+        check = ((lower < self.min_distance) & self.enabled).nonzero()[0]
         dists = self.measure(data, check)
         self.bounds.remember(check, dists, exact=True)
         return bool((dists >= self.min_distance.take(check) - 1e-6).all())
@@ -186,7 +187,7 @@ class ActiveCollisionLimit(mink.Limit):
         gain, margin, distance = self.gain, self.margin, mujoco.mj_geomDistance
         self.queries = len(near)
         dists: list[float] = []
-        body, jacs, jac = self._body, self._jac_slots, mujoco.mj_jac
+        body, jacs, jac, zero1 = self._body, self._jac_slots, mujoco.mj_jac, self._zero1
         exact, kept, kept_fromto, points = self.bounds.exact, self._kept, self._kept_fromto, self._kept_points
         for k, idx in enumerate(near.tolist()):
             g1, g2, dmax = geom1[idx], geom2[idx], detect[idx]
@@ -198,12 +199,14 @@ class ActiveCollisionLimit(mink.Limit):
             dists.append(dist)
             if dist >= dmax:
                 continue
-            bound = gain * max(dist - minimum[idx], 0.0)
+            gap = dist - minimum[idx]
+            bound = gain * gap if gap > 0.0 else 0.0
             if reach is not None and bound > reach[k]:
                 self.slack += 1
                 continue
             # The witness points' Jacobians (zero on a side no joint moves): geom2's ("to"), then geom1's ("from").
-            jac2, jac1 = jacs[len(bounds)]
+            slot = len(bounds)
+            jac2, jac1 = jacs[slot]
             start, end = points[idx]
             b1, b2 = body[g1], body[g2]
             if b2 >= 0:
@@ -212,8 +215,10 @@ class ActiveCollisionLimit(mink.Limit):
                 jac2.fill(0.0)
             if b1 >= 0:
                 jac(model, data, jac1, None, start, b1)
-            else:
+                zero1[slot] = False
+            elif not zero1[slot]:  # a side no joint moves: zeros (the slot keeps them until a moving side writes it)
                 jac1.fill(0.0)
+                zero1[slot] = True
             bounds.append(bound)
             self.active.append((idx, dist))
             active_pairs.append(idx)
