@@ -84,7 +84,7 @@ class ScriptedView:
     def default_posture(self):
         return np.array([-1.0])  # pose_at: the home pose
 
-    def plan(self, targets, start=None, allow=frozenset(), pos_tol=None):
+    def plan(self, targets, start=None, allow=frozenset(), pos_tol=None, restarts=True):
         if self.reach is not None and not self.reach(tuple(targets)):
             return None
         self.plans.append(tuple(targets))
@@ -772,3 +772,22 @@ def test_a_push_starts_behind_the_face_it_pushes_not_the_one_ahead():
     route = routes(view, spec, np.array([0.3, 0.2, 1.0]), np.array([1.0, 0.0]))[1]
     behind = route[-1]
     assert behind[0] == pytest.approx(0.4 - view.back - spec.approach)  # off the face at -x, 4 cm from the centre
+
+
+def test_a_correction_is_declined_only_when_it_could_not_reach_the_tolerance_and_risks_an_accepted_error():
+    from types import SimpleNamespace
+
+    from nextage_qp.manipulation.phases.push_judge import _worth_it
+
+    def worth(err_xy, d):
+        obj, tgt = np.zeros(3), np.array([*err_xy, 0.0])
+        p = SimpleNamespace(spec=SimpleNamespace(tolerance=0.002, accept=0.005), d=np.asarray(d, dtype=float),
+                            _planar=lambda view: (obj, tgt, float(np.linalg.norm(err_xy))))
+        return _worth_it(p, None)
+
+    diagonal = [np.cos(np.pi / 4), np.sin(np.pi / 4)]
+    assert worth([0.0, 0.003], [0.0, 1.0])  # straight at the error: a perfect push ends at 0
+    assert not worth([0.0, 0.003], diagonal)  # 45 deg off: 3 mm x sin 45 = 2.1 mm left > 2 mm: keep the 3 mm
+    assert worth([0.0, 0.0025], diagonal)  # 2.5 mm x sin 45 = 1.8 mm: worth a try
+    assert not worth([0.0, 0.003], [0.0, -1.0])  # pushing away cannot help
+    assert worth([0.0, 0.006], [0.0, -1.0])  # beyond accept: nothing to lose

@@ -68,6 +68,7 @@ class OfflineSolver:
         allow: frozenset[str] = frozenset(),
         good_enough: tuple[float, float] | None = None,
         accept: tuple[float, float] | None = None,
+        restarts: int | None = None,
     ) -> IKResult:
         """Iterate IK steps of ``config.dt`` from ``q0`` until every target is within tolerance.
 
@@ -102,6 +103,7 @@ class OfflineSolver:
                 millimetres need not pay for restarts or steps chasing microns).
             accept: Position [m] and orientation [rad] errors the caller accepts as reached; turns on the
                 relaxation gate (above).
+            restarts: Random restarts of this solve (default ``config.restarts``); 0: the descent from ``q0`` only.
 
         Raises:
             IKInfeasibleError: A step's QP is infeasible (e.g. ``q0`` far outside the joint limits).
@@ -114,13 +116,13 @@ class OfflineSolver:
             data = self.configuration.data
             key = self.memo.key(targets, q0, (data.mocap_pos, data.mocap_quat, self.base_pose, self.posture.target_q,
                                               *(good_enough or (None,)), *(accept or (None,))),
-                                (str(max_iters), *sorted(allow)))
+                                (str(max_iters), str(restarts), *sorted(allow)))
             found = self.memo.get(key)
             if found is not None:
                 self.configuration.update(self._full(found.q))
                 return found._replace(time_s=time.perf_counter() - start)
         frames = [self.frame(t.frame) for t in targets]
-        starts = self.starts(frames, q0)
+        starts = self.starts(frames, q0, restarts)
         cap = max_iters or cfg.max_iters
         search = _Search(good_enough)
         if self.collision is not None and accept is not None:
@@ -141,16 +143,17 @@ class OfflineSolver:
             self.memo.put(key, result)
         return result
 
-    def starts(self, frames: Sequence[Frame], q0: np.ndarray) -> Starts:
-        """The starts of a solve for ``frames`` from ``q0``: ``q0``, then ``config.restarts`` seeded random ones.
+    def starts(self, frames: Sequence[Frame], q0: np.ndarray, restarts: int | None = None) -> Starts:
+        """The starts of a solve for ``frames`` from ``q0``: ``q0``, then ``restarts`` seeded random ones.
 
-        Restarts re-draw only the joints that move a target frame; the others keep their ``q0`` values (and a mobile
-        robot's base stays where it is: a solve plans the arms).
+        ``restarts`` defaults to ``config.restarts``. Restarts re-draw only the joints that move a target frame; the
+        others keep their ``q0`` values (and a mobile robot's base stays where it is: a solve plans the arms).
         """
         moving = np.any([chain_dofs(self.model, f) for f in frames], axis=0)
         moving[: self.nb] = False
         return Starts(self._full(np.array(q0, dtype=float)), moving, self.box.lower[self.nb :],
-                       self.box.upper[self.nb :], self.config.restarts + 1, self.config.seed)
+                       self.box.upper[self.nb :], (self.config.restarts if restarts is None else restarts) + 1,
+                       self.config.seed)
 
     def _prepare(self, object_poses: ObjectPoses | None, allow: frozenset[str]) -> None:
         """Set a solve's allowed collision groups and object poses."""

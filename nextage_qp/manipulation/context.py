@@ -177,12 +177,15 @@ class View(Protocol):
         """
 
     def plan(self, targets: Sequence[FrameTarget], start: np.ndarray | None = None,
-             allow: frozenset[str] = frozenset(), pos_tol: float | None = None) -> np.ndarray | None:
+             allow: frozenset[str] = frozenset(), pos_tol: float | None = None,
+             restarts: bool = True) -> np.ndarray | None:
         """Joints that put the frames on the targets together, or None when the arms cannot.
 
         An offline IK solve from ``start`` (default: the commanded joints), avoiding the IK's collision pairs with
         the objects where they are now (but for the ``allow`` groups, e.g. an object the frames hold); a target
         counts as reached within ``pos_tol`` (default ``sim_view.REACH_POS_TOL``) and ``sim_view.REACH_ROT_TOL``.
+        ``restarts=False``: only the descent from ``start`` (no random restarts), so a solution found is one the
+        joints reach continuously from there.
         """
 
 

@@ -4,6 +4,11 @@ Directions are tried from the wanted one outwards through a fan of deviations, e
 routes to the point ``approach`` behind the object's face: lift, then down beside the object (on the side the
 tool is on) and in behind it; or over it and straight down behind it. The first route whose every waypoint the
 planner reaches (each solved from the previous, see :class:`~nextage_qp.manipulation.route.PlannedRoute`) wins.
+
+The fan is searched twice: first for a route whose waypoints the joints reach by descending from the previous
+one (no random restarts: the arm moves continuously from where it is), then, only if none does, with the
+planner's restarts (a route that may need the arm to reconfigure). A route found only by a restart is a far
+joint move; a failing route costs a fraction of its restarts' descents in the first pass.
 """
 
 from __future__ import annotations
@@ -34,7 +39,7 @@ class Approach(NamedTuple):
         yaw: Tool yaw for the push [rad].
         route: The planned transit.
         push_z: Tool height while pushing [m].
-        tried: Directions tried to find it.
+        tried: Directions tried to find it (each pass and height counting).
         raised: How far above ``spec.height`` it pushes [m].
     """
 
@@ -77,14 +82,15 @@ def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: S
     tried = 0
     heights = raises(view, spec) if higher is True else [float(higher)]  # a number: that raise only
     for raise_by in heights:
-        for deviation in (s * a for a in fan for s in ((1.0,) if a == 0 else (1.0, -1.0))):
-            d = rotate2(wanted, deviation)
-            yaw = float(np.arctan2(d[1], d[0])) + spec.yaw
-            tried += 1
-            for route in routes(view, spec, tool, d, raise_by):
-                planned = PlannedRoute([(target(p, yaw),) for p in route[1:]])
-                if planned.plan(view):
-                    return Approach(d, route[0], yaw, planned, float(route[-1][2]), tried, raise_by)
+        for restarts in (False, True):  # continuous routes first (see the module doc)
+            for deviation in (s * a for a in fan for s in ((1.0,) if a == 0 else (1.0, -1.0))):
+                d = rotate2(wanted, deviation)
+                yaw = float(np.arctan2(d[1], d[0])) + spec.yaw
+                tried += 1
+                for route in routes(view, spec, tool, d, raise_by):
+                    planned = PlannedRoute([(target(p, yaw),) for p in route[1:]])
+                    if planned.plan(view, restarts=restarts):
+                        return Approach(d, route[0], yaw, planned, float(route[-1][2]), tried, raise_by)
     return None
 
 

@@ -46,11 +46,14 @@ class PlannedRoute:
         self.leg = 0
         self._points: list[Setpoint] | None = None
 
-    def plan(self, view: View) -> bool:
-        """Solve every waypoint, each from the previous solution; False when one is out of reach."""
+    def plan(self, view: View, restarts: bool = True) -> bool:
+        """Solve every waypoint, each from the previous solution; False when one is out of reach.
+
+        ``restarts=False``: each waypoint only by the descent from the previous one (see :meth:`View.plan`).
+        """
         self.joints, self.planned, start = [], [], None
         for targets in self.waypoints:
-            q = view.plan(targets, start, pos_tol=self.pos_tol)
+            q = view.plan(targets, start, pos_tol=self.pos_tol, restarts=restarts)
             if q is None:
                 return False
             self.joints.append(q)

@@ -93,7 +93,8 @@ class SimView:
         return float(np.max(np.abs(self._sim.measured.q - self._servo.q_cmd)))
 
     def plan(self, targets: Sequence[FrameTarget], start: np.ndarray | None = None,  # noqa: D102
-             allow: frozenset[str] = frozenset(), pos_tol: float | None = None) -> np.ndarray | None:
+             allow: frozenset[str] = frozenset(), pos_tol: float | None = None,
+             restarts: bool = True) -> np.ndarray | None:
         if self._planner is None:
             config = self._servo.ik.config.model_copy(update={"restarts": 4, "max_iters": 80})
             self._planner = QPIK(self.robot, config, model=self._servo.ik.model, memo=PLAN_MEMO)
@@ -102,7 +103,8 @@ class SimView:
         q0 = np.array(self._servo.q_cmd if start is None else start)
         tol = REACH_POS_TOL if pos_tol is None else pos_tol
         result = self._planner.solve(list(targets), q0, object_poses=poses, allow=allow,
-                                     good_enough=(0.5 * tol, 0.5 * REACH_ROT_TOL), accept=(tol, REACH_ROT_TOL))
+                                     good_enough=(0.5 * tol, 0.5 * REACH_ROT_TOL), accept=(tol, REACH_ROT_TOL),
+                                     restarts=None if restarts else 0)
         return result.q if result.pos_err_m <= tol and result.rot_err_rad <= REACH_ROT_TOL else None
 
     def base(self) -> MobileBase | None:  # noqa: D102
