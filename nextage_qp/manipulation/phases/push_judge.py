@@ -123,7 +123,30 @@ def retreat(p: Push, view: View) -> Command:
         p.info["unreachable_corrections"] = p.info.get("unreachable_corrections", 0) + 1
         _, _, err = p._planar(view)
         return finish(p, err)
+    if not _worth_it(p, view):  # an accepted error, and a correction that could not reach the tolerance: keep it
+        p.info["declined_corrections"] = p.info.get("declined_corrections", 0) + 1
+        p.stage, p.final, p.approaches = "retreat", True, p.approaches - 1
+        return p._command(allow=False, done=view.settled())
     return p._command(allow=False)
+
+
+def _worth_it(p: Push, view: View) -> bool:
+    """Whether the correction just planned may be pushed.
+
+    It may when the error is beyond ``accept`` (nothing to lose), or when a push along the planned direction, even a
+    perfect one, could bring it within ``tolerance``: a perfect push along the unit direction ``d`` removes the
+    error's component along it and leaves the rest, ``err * sin`` of the angle between ``d`` and where the object
+    should go (all of it when ``d`` points away). Where the reachable side deviates so far that this rest exceeds the
+    tolerance, the push could only trade an accepted error for a gamble: a push across the object's face at an angle
+    shoves it sideways too.
+    """
+    c = p.spec
+    obj, tgt, err = p._planar(view)
+    if err > c.accept or err <= c.tolerance:
+        return True
+    e = (tgt - obj)[:2] / err
+    rest = err * abs(float(e[0] * p.d[1] - e[1] * p.d[0])) if float(e @ p.d) > 0 else err
+    return rest <= c.tolerance
 
 
 def _aside(point: np.ndarray, frame: str, view: View) -> np.ndarray:
