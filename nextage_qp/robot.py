@@ -159,29 +159,6 @@ class Robot:
         """Names of all named bodies except the world."""
         return tuple(n for n in (self.model.body(i).name for i in range(1, self.model.nbody)) if n)
 
-    def unmoved_body_names(self) -> tuple[str, ...]:
-        """Named bodies of the scene, not of the robot: where objects may go.
-
-        None that a robot joint (or a mobile robot's base) moves, nor the robot's fixed links those hang from.
-        """
-        m = self.model
-        movers = {int(m.jnt_bodyid[m.joint(j).id]) for j in self.joint_names}
-        if self.description.base is not None:
-            movers.add(m.body(BASE_BODY).id)
-        robot = set()
-        for b in movers:  # the robot: its moving bodies' chains down to the world
-            while b > 0:
-                robot.add(b)
-                b = int(m.body_parentid[b])
-        names = []
-        for b in range(1, m.nbody):
-            up = b
-            while up > 0 and up not in robot:
-                up = int(m.body_parentid[up])
-            if up == 0 and m.body(b).name:
-                names.append(m.body(b).name)
-        return tuple(names)
-
     @property
     def frame_names(self) -> tuple[str, ...]:
         """Every name accepted as a frame: sites first, then bodies."""

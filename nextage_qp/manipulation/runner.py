@@ -34,6 +34,7 @@ from nextage_qp.object_checks import check_clear
 from nextage_qp.perception_setup import attach_camera, log_estimates, perception_of
 from nextage_qp.robot import Robot, tool_frames
 from nextage_qp.robots.description import load_robot
+from nextage_qp.robots.groups import scene_bodies
 from nextage_qp.scene import BodyPose, SceneOverrides
 from nextage_qp.servo import HOLD, Command, Servo
 from nextage_qp.sim import Simulation
@@ -83,7 +84,7 @@ def check_names(cfg: ManipulationConfig, robot: Robot, source: str) -> None:
     """
     bodies = sorted(robot.body_names)
     objects = (*robot.object_names, *((BASE_BODY,) if robot.base is not None else ()))  # a base parks, judged
-    valid = {"frame": robot.site_names, "object": objects, "body": bodies, "place": robot.unmoved_body_names(),
+    valid = {"frame": robot.site_names, "object": objects, "body": bodies, "place": scene_bodies(robot),
              "reference": ["world", *bodies], "joint": robot.joint_names}
     accepted = {**valid, "frame": robot.frame_names}
     for key, kind, name in names_in(cfg, ""):

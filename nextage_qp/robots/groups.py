@@ -81,3 +81,29 @@ def check_arm_frames(model: mujoco.MjModel, desc: Any) -> None:
                     and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) <= 0):
                 raise ConfigError(f"{desc.source}: arms[{i}].{key}: {name!r} is neither a site nor a body of the "
                                   f"model; name one of its sites or bodies, or add it under frames: (body, pos)")
+
+
+def scene_bodies(robot: Robot) -> tuple[str, ...]:
+    """Named bodies of the scene, not of the robot: where objects may go.
+
+    None that a robot joint (or a mobile robot's base) moves, nor the robot's fixed links those hang from.
+    """
+    from nextage_qp.mobile.build import BASE_BODY
+
+    m = robot.model
+    movers = {int(m.jnt_bodyid[m.joint(j).id]) for j in robot.joint_names}
+    if robot.description.base is not None:
+        movers.add(m.body(BASE_BODY).id)
+    own = set()
+    for b in movers:  # the robot: its moving bodies' chains down to the world
+        while b > 0:
+            own.add(b)
+            b = int(m.body_parentid[b])
+    names = []
+    for b in range(1, m.nbody):
+        up = b
+        while up > 0 and up not in own:
+            up = int(m.body_parentid[up])
+        if up == 0 and m.body(b).name:
+            names.append(m.body(b).name)
+    return tuple(names)
