@@ -9,8 +9,8 @@ The fan is searched twice: first for a route whose waypoints the joints reach by
 one (no random restarts: the arm moves continuously from where it is), then, only if none does, with the
 planner's restarts (a route that may need the arm to reconfigure). A route found only by a restart is a far
 joint move; a failing route costs a fraction of its restarts' descents in the first pass. A search that needs the
-second pass repeats the first pass's descents from the current joints there (1 push approach in the 800 of the
-push, shapes and faults sweeps did).
+second pass repeats the first pass's descents from the current joints there (the last approach of 1 of the 600
+episodes of the push, shapes and faults sweeps did).
 """
 
 from __future__ import annotations
