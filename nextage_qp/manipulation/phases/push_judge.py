@@ -126,6 +126,7 @@ def retreat(p: Push, view: View) -> Command:
     if not _worth_it(p, view):  # an accepted error, and a correction that could not reach the tolerance: keep it
         p.info["declined_corrections"] = p.info.get("declined_corrections", 0) + 1
         p.stage, p.final, p.approaches = "retreat", True, p.approaches - 1
+        p.info["attempts"] = p.approaches  # the declined one was planned, not made
         return p._command(allow=False, done=view.settled())
     return p._command(allow=False)
 
