@@ -123,9 +123,13 @@ class SweepFile(_Strict):
         return value
 
 
-def _from_set(message: str, fixed: Sequence[str]) -> bool:
-    """Whether a base config's error is about one of the sweep's ``set:`` keys (named in the message)."""
-    return any(f"{item.split('=', 1)[0]}:" in message or f"{item.split('=', 1)[0]}." in message for item in fixed)
+def _fails(path: Path) -> bool:
+    """Whether a config fails to load on its own."""
+    try:
+        load_config(path)
+    except ConfigError:
+        return True
+    return False
 
 
 class SweepSpec:
@@ -152,8 +156,8 @@ class SweepSpec:
         self.fixed = [f"{key}={_flow(value)}" for key, value in self.file.set.items()]
         try:
             self.base = load_config(self.base_path, self.fixed)
-        except ConfigError as exc:  # the base config itself, or a key of the sweep's own set:
-            where = "set" if self.fixed and _from_set(str(exc), self.fixed) else "base"
+        except ConfigError as exc:  # the base config itself (it fails alone too), or a key of the sweep's own set:
+            where = "base" if not self.fixed or _fails(self.base_path) else "set"
             raise ConfigError(f"{self.path}: {where}: {exc}") from None
         self.extra = list(extra)
         self.distributions = dict(self.file.randomize)
