@@ -170,6 +170,27 @@ def test_memo_returns_the_same_solve_without_iterating(robot: Robot, kin: Kinema
     assert memo.memo.hits == 1
 
 
+def test_relaxed_descents_are_remembered_across_solves_that_restart_alike(robot: Robot) -> None:
+    # An unreachable target: every start's descent without collision rows runs. From a start that differs only in a
+    # joint the restarts re-draw, the restarts' descents are the same questions: answered from the memo, and the
+    # solve's result is the one a solver without memo gives.
+    pair = CollisionPairConfig(a="left_arm", b="table", min_distance=0.01, detection_distance=0.05)
+    cfg = IKConfig(collision_pairs=(pair,), restarts=3, max_iters=60)
+    memo, plain = QPIK(robot, cfg, memo=16), QPIK(robot, cfg)
+    home = robot.keyframe_q("home")
+    moved = home.copy()
+    moved[robot.joint_index("LARM_JOINT2")] += 0.05
+    far = [FrameTarget("left_wrist", pos=np.array([1.5, 0.25, 1.0]))]
+    kwargs = {"accept": (0.005, 0.05), "good_enough": (0.0025, 0.025)}
+    first = memo.solve(far, home, **kwargs)
+    assert memo.relaxed_memo is not None and memo.relaxed_memo.hits == 0 and not first.converged
+    second = memo.solve(far, moved, **kwargs)
+    assert memo.relaxed_memo.hits == cfg.restarts  # every restart; the first start (moved) is a new question
+    reference = plain.solve(far, moved, **kwargs)
+    np.testing.assert_array_equal(second.q, reference.q)
+    assert (second.pos_err_m, second.iters, second.status) == (reference.pos_err_m, reference.iters, reference.status)
+
+
 def test_infeasible_start_raises_with_active_limits(robot: Robot) -> None:
     ik = QPIK(robot, IKConfig())
     q0 = robot.keyframe_q("home")

@@ -11,10 +11,14 @@ from __future__ import annotations
 import hashlib
 from collections import OrderedDict
 from collections.abc import Iterable, Sequence
+from typing import Generic, TypeVar
 
 import numpy as np
 
+from nextage_qp.ik.search import Descent
 from nextage_qp.ik.targets import FrameTarget, IKResult
+
+R = TypeVar("R", IKResult, Descent)
 
 _NONE = b"\x00"
 
@@ -23,8 +27,8 @@ def _feed(h: hashlib.blake2b, value: np.ndarray | float | None) -> None:
     h.update(_NONE if value is None else np.ascontiguousarray(value, dtype=float).tobytes() + b"\x01")
 
 
-class SolveMemo:
-    """At most ``size`` solve results, the least recently used dropped first.
+class SolveMemo(Generic[R]):
+    """At most ``size`` solve results or descents (records with joints ``q``), the least recently used dropped first.
 
     Args:
         size: How many results to keep.
@@ -32,7 +36,7 @@ class SolveMemo:
 
     def __init__(self, size: int = 512) -> None:
         self.size = size
-        self._store: OrderedDict[bytes, IKResult] = OrderedDict()
+        self._store: OrderedDict[bytes, R] = OrderedDict()
         self.hits = 0
         """Results returned from the memo since it was made."""
 
@@ -52,7 +56,7 @@ class SolveMemo:
             h.update(label.encode() + b"\x02")
         return h.digest()
 
-    def get(self, key: bytes) -> IKResult | None:
+    def get(self, key: bytes) -> R | None:
         """The stored result (its joints a fresh copy), or None."""
         found = self._store.get(key)
         if found is None:
@@ -61,7 +65,7 @@ class SolveMemo:
         self.hits += 1
         return found._replace(q=found.q.copy())
 
-    def put(self, key: bytes, result: IKResult) -> None:
+    def put(self, key: bytes, result: R) -> None:
         """Store a result (a copy of its joints)."""
         self._store[key] = result._replace(q=result.q.copy())
         self._store.move_to_end(key)

@@ -31,8 +31,9 @@ from nextage_qp.ik.model import (
     set_object_poses,
 )
 from nextage_qp.ik.objective import Objective
+from nextage_qp.ik.search import Descent
 from nextage_qp.ik.solve import OfflineSolver
-from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, RelativeTarget
+from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, RelativeTarget
 from nextage_qp.ik.tasks import TaskCache
 from nextage_qp.mobile.rows import BaseRows
 from nextage_qp.robot import Robot, per_joint
@@ -47,7 +48,8 @@ class QPIK(OfflineSolver):
         model: The robot's kinematic model (:func:`kinematic_model`) when another IK of the same robot has it
             already (e.g. a planner beside the servo's IK); compiled otherwise.
         memo: Remember this many :meth:`solve` results by their inputs (:class:`~nextage_qp.ik.memo.SolveMemo`),
-            so a planner that asks the same question again gets the stored answer; 0: none.
+            so a planner that asks the same question again gets the stored answer, and as many descents without
+            collision rows (a solve's restarts draw the same starts for the same targets); 0: none.
 
     Raises:
         UnknownNameError: A geom group, joint or keyframe named in the config is not in the robot.
@@ -56,7 +58,9 @@ class QPIK(OfflineSolver):
     def __init__(self, robot: Robot, config: IKConfig, *, model: mujoco.MjModel | None = None,
                  memo: int = 0) -> None:
         self.robot, self.config = robot, config
-        self.memo = SolveMemo(memo) if memo > 0 else None
+        self.memo: SolveMemo[IKResult] | None = SolveMemo(memo) if memo > 0 else None
+        self.relaxed_memo: SolveMemo[Descent] | None = SolveMemo(memo) if memo > 0 else None
+        """Descents without collision rows, remembered by their inputs (the same size as ``memo``)."""
         self.model = kinematic_model(robot) if model is None else model
         self._mocap = mocap_ids(self.model)
         # A mobile robot's IK variables start with its base's planar joints (world x, y, yaw): their values are

@@ -21,6 +21,7 @@ from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.ik.memo import SolveMemo
 from nextage_qp.ik.model import Frame, ObjectPoses, chain_dofs, set_object_poses
 from nextage_qp.ik.safe_step import advance
+from nextage_qp.ik.search import Descent, Search
 from nextage_qp.ik.starts import Starts
 from nextage_qp.ik.targets import FrameTarget, IKResult, worst_errors
 
@@ -39,7 +40,8 @@ class OfflineSolver:
     collision: ActiveCollisionLimit | None
     box: JointBoxLimit
     posture: mink.PostureTask
-    memo: SolveMemo | None
+    memo: SolveMemo[IKResult] | None
+    relaxed_memo: SolveMemo[Descent] | None
     nb: int
     base_pose: np.ndarray
     _mocap: dict[str, int]
@@ -124,7 +126,7 @@ class OfflineSolver:
         frames = [self.frame(t.frame) for t in targets]
         starts = self.starts(frames, q0, restarts)
         cap = max_iters or cfg.max_iters
-        search = _Search(good_enough)
+        search = Search(good_enough)
         if self.collision is not None and accept is not None:
             self._gated_search(search, targets, frames, starts, cap, extra_tasks, accept)
         else:
@@ -164,7 +166,7 @@ class OfflineSolver:
 
     def _gated_search(
         self,
-        search: _Search,
+        search: Search,
         targets: Sequence[FrameTarget],
         frames: Sequence[Frame],
         starts: Starts,
@@ -199,19 +201,30 @@ class OfflineSolver:
         *,
         relaxed: bool = False,
         enough: tuple[float, float] | None = None,
-    ) -> tuple[float, np.ndarray, float, float, int, str]:
-        """One descent from ``q0``: (score, best q, position error, orientation error, iterations, status).
+    ) -> Descent:
+        """One descent from ``q0``.
 
         ``relaxed``: without collision rows (and without the collision-safe step). ``enough``: the position [m] and
         orientation [rad] errors the caller is content with (``solve``'s ``good_enough``): once the best errors are
         within them, the descent stalls at its first step without 1 % progress (not ``config.stall_iters``).
         """
         if relaxed and self.collision is not None:
+            # A deterministic function of the targets, the start, the posture target and the caps (no collision
+            # rows, no object): remembered, as the restarts of solves of the same targets start alike.
+            memo, key = self.relaxed_memo, None
+            if memo is not None and not extra_tasks:
+                key = memo.key(targets, q0, (self.posture.target_q, self.base_pose, *(enough or (None,))), (str(cap),))
+                found = memo.get(key)
+                if found is not None:
+                    return found
             collision, self.collision = self.collision, None
             try:
-                return self._descend(targets, frames, q0, cap, extra_tasks, enough=enough)
+                outcome = self._descend(targets, frames, q0, cap, extra_tasks, enough=enough)
             finally:
                 self.collision = collision
+            if key is not None and memo is not None:
+                memo.put(key, outcome)
+            return outcome
         cfg, q = self.config, q0.copy()
         self.configuration.update(q)
         best = (np.inf, q.copy(), np.inf, np.inf)
@@ -225,11 +238,11 @@ class OfflineSolver:
                 if enough is not None and pos_err <= enough[0] and rot_err <= enough[1]:
                     window = 1
             if pos_err <= cfg.pos_tol and rot_err <= cfg.rot_tol:
-                return (*best, iters, "converged")
+                return Descent(*best, iters, "converged")
             if iters >= cap:
-                return (*best, iters, "max_iters")
+                return Descent(*best, iters, "max_iters")
             if since_best >= window:
-                return (*best, iters, "stalled")
+                return Descent(*best, iters, "stalled")
             dq = self._step(targets, cfg.dt, extra_tasks) * cfg.dt
             q_prev, q = q, self._advance(q, dq)
             iters, since_best = iters + 1, since_best + 1
@@ -240,7 +253,7 @@ class OfflineSolver:
                 ahead = min(cap - iters, window - since_best)
                 if ahead > 0:
                     iters, since_best = iters + ahead, since_best + ahead
-                return (*best, iters, "max_iters" if iters >= cap else "stalled")
+                return Descent(*best, iters, "max_iters" if iters >= cap else "stalled")
 
     def _advance(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """Q + dq inside the joint limits, collision-safe (:func:`~nextage_qp.ik.safe_step.advance`)."""
@@ -249,25 +262,3 @@ class OfflineSolver:
             self.configuration.update(q_new)
             return q_new
         return advance(self.collision, self.configuration, q, dq, self.box.lower, self.box.upper)
-
-
-class _Search:
-    """The best outcome of a solve's descents so far, and the iterations they took.
-
-    Args:
-        good_enough: Position [m] and orientation [rad] errors at which the search is done (or None).
-    """
-
-    def __init__(self, good_enough: tuple[float, float] | None) -> None:
-        self.good_enough = good_enough
-        self.best: tuple[float, np.ndarray, float, float, str] | None = None
-        """(score, q, position error, orientation error, status) of the best outcome."""
-        self.iters = 0
-
-    def keep(self, outcome: tuple[float, np.ndarray, float, float, int, str]) -> bool:
-        """Count a descent's ``outcome`` (score, q, errors, iterations, status); True when the search is done."""
-        self.iters += outcome[4]
-        if self.best is None or outcome[0] < self.best[0]:
-            self.best = (outcome[0], outcome[1], outcome[2], outcome[3], outcome[5])
-        best, errors = self.best, self.good_enough
-        return outcome[5] == "converged" or (errors is not None and best[2] <= errors[0] and best[3] <= errors[1])
