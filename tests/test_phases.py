@@ -508,6 +508,34 @@ def test_grasp_takes_the_off_centre_grip_that_also_reaches_the_placement():
         make_grasp(off_centre=0.035, place_at="target").start(view)
 
 
+def test_grasp_plans_no_approach_at_a_height_where_no_grip_reaches_the_placement():
+    # Such an approach would be given up anyway: only the placement is asked, and the refusal names it.
+    view = grasp_view()
+    view.bodies["target"] = pose(0.35, 0.38, 1.0)
+    asked = []
+    view.reach = lambda targets: asked.append(targets) or all(t.pos[1] < 0.2 for t in targets)
+    with pytest.raises(InfeasibleError, match=r"cannot reach target's pose .* out of the arms' reach"):
+        make_grasp(off_centre=0.035, place_at="target").start(view)
+    assert asked and all(t.pos[1] > 0.2 for targets in asked for t in targets)
+
+
+def test_a_continuous_route_restarts_the_planner_for_its_first_waypoint_only():
+    asked = []
+
+    class Recording(ScriptedView):
+        def plan(self, targets, start=None, allow=frozenset(), pos_tol=None, restarts=True):
+            asked.append(restarts)
+            return super().plan(targets, start, allow, pos_tol, restarts)
+
+    legs = [(FrameTarget("left_pad", pos=np.array([0.5, 0.2, z])),) for z in (1.2, 1.1, 1.0)]
+    assert PlannedRoute(legs, continuous=True).plan(Recording())
+    assert asked == [True, False, False]
+    asked.clear()
+    assert PlannedRoute(legs).plan(Recording()) and asked == [True, True, True]
+    asked.clear()
+    assert PlannedRoute(legs, continuous=True).plan(Recording(), restarts=False) and asked == [False] * 3
+
+
 def test_grasp_fails_when_the_pads_close_on_nothing():
     view = grasp_view()
     phase = make_grasp()

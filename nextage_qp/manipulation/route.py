@@ -34,13 +34,16 @@ class PlannedRoute:
             instead of a joint-space move; for short legs near objects, such as going down beside one.
         speed: Cartesian speed of straight legs [m/s].
         pos_tol: Position error [m] within which the planner counts a waypoint as reached (default: the view's).
+        continuous: The planner's random restarts (a reconfiguration of the arms) for the first waypoint only; each
+            later one is reached by descending from the previous one's joints, so the arms do not swing between
+            neighbouring waypoints (and a route out of reach is given up at the cost of one descent per waypoint).
     """
 
     def __init__(self, waypoints: Sequence[Sequence[FrameTarget]], straight: Sequence[bool] | None = None,
-                 speed: float = 0.05, pos_tol: float | None = None) -> None:
+                 speed: float = 0.05, pos_tol: float | None = None, continuous: bool = False) -> None:
         self.waypoints = [tuple(w) for w in waypoints]
         self.straight = list(straight) if straight is not None else [False] * len(self.waypoints)
-        self.speed, self.pos_tol = speed, pos_tol
+        self.speed, self.pos_tol, self.continuous = speed, pos_tol, continuous
         self.joints: list[np.ndarray] = []
         self.planned: list[list[np.ndarray]] = []  # per waypoint, each frame's position at the planned joints
         self.leg = 0
@@ -49,11 +52,12 @@ class PlannedRoute:
     def plan(self, view: View, restarts: bool = True) -> bool:
         """Solve every waypoint, each from the previous solution; False when one is out of reach.
 
-        ``restarts=False``: each waypoint only by the descent from the previous one (see :meth:`View.plan`).
+        ``restarts=False``: each waypoint only by the descent from the previous one (see :meth:`View.plan`); a
+        ``continuous`` route restarts for its first waypoint only.
         """
         self.joints, self.planned, start = [], [], None
-        for targets in self.waypoints:
-            q = view.plan(targets, start, pos_tol=self.pos_tol, restarts=restarts)
+        for k, targets in enumerate(self.waypoints):
+            q = view.plan(targets, start, pos_tol=self.pos_tol, restarts=restarts and (k == 0 or not self.continuous))
             if q is None:
                 return False
             self.joints.append(q)

@@ -7,8 +7,10 @@ r"""``grasp``: clamp an object between two pads and squeeze it to a measured for
    preferred, and a placement no grip reaches fails the phase before anything moves.
 2. **Approach.** Both pads rise where they are, then go ``HIGH`` over their approach point (so the arms' swing
    passes over the object), then ``clearance`` above the object's top, then straight down to ``gap`` outside its
-   faces, through planned joints (:class:`~nextage_qp.manipulation.route.PlannedRoute`), so nothing touches the
-   object before the pads close. Each pad's roll about the clamp axis is the one the planner found reachable
+   faces, through planned joints (:class:`~nextage_qp.manipulation.route.PlannedRoute`, continuous: the arms may
+   reconfigure on the first leg only), so nothing touches the object before the pads close. With ``place_at``, no
+   approach is planned at a height where no grip reaches the placement (the search goes on to the next heading or
+   height). Each pad's roll about the clamp axis is the one the planner found reachable
    (a palm is a disc); from then on it is held, so the object cannot pivot about that axis.
 3. **Close.** The pads move in at ``close_speed`` until the wrist force/torque sensors read ``force`` [N] along
    the pad axis on both sides (or fail past ``max_squeeze`` inside the surface: nothing there).
@@ -83,15 +85,17 @@ class Grasp(Phase):
                     break
             if found and (c.place_at is None or self._placement_found()):  # else: higher, if it may
                 break
+        # checked before anything moves: no grip reaches the placement (at any height tried; or at the height found)
+        placed = any(self.placements.values()) if found is None else self._placement_found()
+        if c.place_at is not None and not placed:
+            raise refusal(view)(f"phase {self.name!r} (grasp): the clamp cannot reach {c.place_at}'s pose with "
+                             f"{c.object} at any of its equivalent yaws, at the faces' centre or up to "
+                             f"{c.off_centre * 1e3:g} mm off it: the target is out of the arms' reach")
         if found is None:
             raise refusal(view)(f"phase {self.name!r} (grasp): the pads cannot reach both sides of {c.object} "
                              f"({2e3 * self.half:.0f} mm wide at the pads) at any of its headings "
                              f"({', '.join(f'{np.degrees(h):.0f}' for h in headings)} deg): too wide for the "
                              "clamp, or out of the arms' reach")
-        if c.place_at is not None and not self._placement_found():  # checked before anything moves
-            raise refusal(view)(f"phase {self.name!r} (grasp): the clamp cannot reach {c.place_at}'s pose with "
-                             f"{c.object} at any of its equivalent yaws, at the faces' centre or up to "
-                             f"{c.off_centre * 1e3:g} mm off it: the target is out of the arms' reach")
         gap = found[0]
         self.info["rolls_fit_placement"] = found[1]
         self.rots = [view.pose_at(f, self.route.joints[-1]).rot for f in self.frames]  # the rolls found: held
@@ -141,7 +145,11 @@ class Grasp(Phase):
         near = [towards * float(d) for d in steps]
         shifts = list(dict.fromkeys([*near, *(-s for s in near)]))
         fitting = ((shift, grip) for shift in shifts for grip in self._placements(view, shift))  # lazily
-        for shift, (rolls, place_q) in chain(fitting, ((shift, (None, None)) for shift in dict.fromkeys(near))):
+        # Then any grip, but only where one reaches the placement at this height: else the search goes on (another
+        # heading, or higher) and a grip here would be given up anyway.
+        anywhere = ((shift, (None, None)) for shift in dict.fromkeys(near) if c.place_at is None
+                    or self._placement_found())
+        for shift, (rolls, place_q) in chain(fitting, anywhere):
             self.place_q, self.shift = place_q, shift
             self.rots = None if rolls is None else [self.rz @ r for r in rolls]
             for gap in (c.gap, 0.6 * c.gap, 0.35 * c.gap):  # nearer the faces when the arms cannot spread so far
@@ -151,7 +159,8 @@ class Grasp(Phase):
                 down = [[a + f * (o - a) for a, o in zip(above, outside, strict=True)] for f in (0.0, 0.5, 1.0)]
                 legs = [self._targets(points) for points in [high, *down]]
                 for rise in (self._rise(view, high[0][2]), None):  # up where they are first, then over the object
-                    self.route = PlannedRoute(legs if rise is None else [rise, *legs], pos_tol=APPROACH_TOL)
+                    self.route = PlannedRoute(legs if rise is None else [rise, *legs], pos_tol=APPROACH_TOL,
+                                              continuous=True)
                     if self.route.plan(view):
                         return gap, rolls is not None
         return None
