@@ -27,7 +27,9 @@ farther than friction lets it, has stopped). A measurement whose
 normalised innovation :math:`\sum_i \nu_i^2 / S_i` under the mixture
 the models predict (weighted by their probabilities) exceeds the gate (the 99.9 % point of :math:`\chi^2_6`) is
 rejected as an outlier; after ``reset_after`` rejections in a row the object has really moved, and the filter
-restarts at the last of them, manoeuvring, with the velocity the last two show.
+restarts at the last of them, manoeuvring, with the velocity the last two show. A camera's partial view (the hand in
+front of the object) is gated against the resting model alone and never restarts the filter: it errs alike from frame
+to frame, and after a gap in the views a few such fits would otherwise make up a speed.
 """
 
 from __future__ import annotations
@@ -190,16 +192,24 @@ class PoseKalman:
         dt = 0.0 if t is None or self.t is None else max(t - self.t, 0.0)
         return np.asarray(sum(w * m.predicted(dt)[1][:, 0, 0] for w, m in zip(self.mode, self.models, strict=True)))
 
-    def update(self, t: float, z: np.ndarray) -> bool:
-        """Apply a measurement ``z`` (x, y, z, roll, pitch, yaw) describing time ``t`` [s]; False if gated out."""
+    def update(self, t: float, z: np.ndarray, *, partial: bool = False) -> bool:
+        """Apply a measurement ``z`` (x, y, z, roll, pitch, yaw) describing time ``t`` [s]; False if gated out.
+
+        ``partial``: a partial view (the hand in front of the object), whose fit errs by more than the camera's noise
+        and alike frame after frame. It may confirm where the filter holds the object, never move it: it is gated
+        against the resting model alone (so noisy fits after a gap in the views cannot make up a speed), and a
+        rejected one does not count towards a restart (nor breaks a run of rejected clear views that does).
+        """
         z = np.asarray(z, dtype=float)
         if self.t is None:
             self.reset(t, z)
             self.accepted += 1
             return True
         dt = max(t - self.t, 0.0)
-        if self._nis(dt, z) > self.gate:
+        if self._nis(dt, z, resting=partial) > self.gate:
             self.rejected += 1
+            if partial:
+                return False
             self._misses.append((t, z))
             if len(self._misses) >= self.reset_after:  # not an outlier: the object really is elsewhere
                 self.resets += 1
@@ -213,9 +223,12 @@ class PoseKalman:
         self.accepted += 1
         return True
 
-    def _nis(self, dt: float, z: np.ndarray) -> float:
-        """Normalised squared innovation of ``z`` under the predicted mixture (the models weighted by their prior)."""
+    def _nis(self, dt: float, z: np.ndarray, resting: bool = False) -> float:
+        """Normalised squared innovation of ``z`` under the predicted mixture (models by their prior), or at rest."""
         w = self.trans.T @ self.mode  # (models, axes)
+        if resting:
+            w = np.zeros_like(w)
+            w[0] = 1.0
         preds = [m.predicted(dt) for m in self.models]
         mean = sum(wi * x[:, 0] for wi, (x, _) in zip(w, preds, strict=True))
         var = sum(wi * (p[:, 0, 0] + (x[:, 0] - mean) ** 2) for wi, (x, p) in zip(w, preds, strict=True))

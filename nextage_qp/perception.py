@@ -30,7 +30,7 @@ class _Track:
 
     def __init__(self, kalman: PoseKalman | None) -> None:
         self.kalman = kalman
-        self.pending: deque[tuple[float, float, np.ndarray]] = deque()  # (arrival, stamp, measured vector)
+        self.pending: deque[tuple[float, float, np.ndarray, bool]] = deque()  # (arrival, stamp, vector, partial view)
         self.raw: np.ndarray | None = None  # latest raw measurement delivered
         self.taken = self.dropped = 0
         self.errors = EstimateErrors()
@@ -83,8 +83,7 @@ class FaultySensors:
 
     def _kalman(self) -> PoseKalman:
         cam = self.faults.object_pose
-        noise = self.filter_noise if self.measurer is not None else (
-            (cam.noise_pos_m, cam.noise_rot_rad) if cam else (0.0, 0.0))
+        noise = self.filter_noise if self.measurer else (cam.noise_pos_m, cam.noise_rot_rad) if cam else (0.0, 0.0)
         return PoseKalman(*noise, accel_pos=self.estimation.accel_pos, accel_rot=self.estimation.accel_rot)
 
     def _track(self, name: str) -> _Track:
@@ -180,17 +179,18 @@ class FaultySensors:
                 else:
                     # The camera sees the object as it is now; the controller gets it latency_s later (the very
                     # first simulated measurement is taken to exist before the run starts).
-                    tr.pending.append((t if first else t + latency, t, z))
+                    partial = camera is not None and name in camera.partial  # a partial view (see PoseKalman.update)
+                    tr.pending.append((t if first else t + latency, t, z, partial))
                     err = z[:3] - pose.pos
                     tr.errors.measurement(float(err @ err), self._yaw_error(name, z[5], true_yaw))
             delivered = None
             while tr.pending and tr.pending[0][0] <= t + 1e-9:
-                _, stamp, z = tr.pending.popleft()
+                _, stamp, z, partial = tr.pending.popleft()
                 tr.raw, tr.seen, delivered = z, stamp, z
                 if tr.carried is not None:
                     tr.carried.update(stamp, z)
                 elif tr.kalman is not None:
-                    tr.kalman.update(stamp, z)
+                    tr.kalman.update(stamp, z, partial=partial)
             if tr.raw is None:  # a camera that has not seen it yet
                 continue
             held = tr.raw[:3] - pose.pos

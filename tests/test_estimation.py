@@ -81,6 +81,22 @@ def test_an_outlier_is_gated_and_a_real_jump_restarts_the_filter():
     np.testing.assert_allclose(kf.estimate(2.4)[:3], moved[:3], atol=0.006)
 
 
+def test_partial_views_confirm_a_resting_object_never_move_it_and_clear_views_still_restart_the_filter():
+    truth = np.array([0.5, 0.0, 0.92, 0.0, 0.0, 0.0])
+    kf, rng = settled(3, truth)
+    before = kf.estimate(2.5).copy()
+    biased = truth + np.r_[0.05, 0, 0, 0, 0, 0]  # the hand in front: every partial view's fit 5 cm off, alike
+    for i in range(6):
+        assert not kf.update(2.0 + i / RATE, measure(rng, biased), partial=True)
+    assert kf.resets == 0 and kf.rejected == 6
+    np.testing.assert_allclose(kf.estimate(2.5), before, atol=1e-9)
+    assert kf.update(2.5, measure(rng, truth), partial=True)  # a partial view where the object rests: it confirms
+    moved = truth + np.r_[0.0, 0.08, 0, 0, 0, 0]  # then shoved: the clear views move it, partial ones between them
+    for i in range(8):
+        kf.update(2.5 + (i + 1) / RATE, measure(rng, moved if i % 2 == 0 else biased), partial=i % 2 == 1)
+    np.testing.assert_allclose(kf.estimate(2.5 + 8 / RATE)[:3], moved[:3], atol=0.006)
+
+
 def test_each_axis_keeps_its_own_model_a_pushed_object_s_height_stays_averaged():
     rng = np.random.default_rng(5)
     kf = PoseKalman(SIGMA_POS, SIGMA_ROT)

@@ -73,6 +73,9 @@ class CameraMeasurer:
         self.last: tuple[float, np.ndarray] | None = None
         self.poses: dict[str, np.ndarray | None] = {}
         """Each object's pose vector fitted in the latest frame (None: not seen in it); for videos."""
+        self.partial: set[str] = set()
+        """The objects of the latest frame fitted from a partial view (the robot's model covers more than ``PARTLY``
+        of them): the filter lets such a view confirm an object's pose, not move it (``PoseKalman.update``)."""
 
     @property
     def rate_hz(self) -> float:
@@ -114,6 +117,7 @@ class CameraMeasurer:
             except OSError as exc:  # a lost frame dump is not a failed run: reported with the camera's figures
                 self.dump_error = f"perception.dump {self.cfg.dump}: cannot write: {exc.strerror or exc}"
         self.poses = {name: det.pose for name, det in detections.items()}
+        self.partial = {name for name, det in detections.items() if det.pose is not None and det.occluded > PARTLY}
         return dict(self.poses)
 
     def dump(self, folder: Path, frame: Frame, detections: Mapping[str, Any]) -> None:
