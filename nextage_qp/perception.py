@@ -82,8 +82,8 @@ class FaultySensors:
         self.measurer, self.filter_noise = measurer, (noise_pos_m, noise_rot_rad)
 
     def _kalman(self) -> PoseKalman:
-        cam = self.faults.object_pose
-        noise = self.filter_noise if self.measurer else (cam.noise_pos_m, cam.noise_rot_rad) if cam else (0.0, 0.0)
+        cam, measured = self.faults.object_pose, self.measurer is not None
+        noise = self.filter_noise if measured else (cam.noise_pos_m, cam.noise_rot_rad) if cam else (0.0, 0.0)
         return PoseKalman(*noise, accel_pos=self.estimation.accel_pos, accel_rot=self.estimation.accel_rot)
 
     def _track(self, name: str) -> _Track:

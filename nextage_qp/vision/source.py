@@ -106,9 +106,10 @@ class CameraMeasurer:
         detections = self.estimator.estimate(frame, priors, held)
         self.ms["render"].append((t1 - t0) * 1e3)
         self.ms["estimate"].append((time.perf_counter() - t1) * 1e3)
+        self.partial = {name for name, det in detections.items() if det.status == "ok" and det.occluded > PARTLY}
         for name, det in detections.items():
             self.counts[name][det.status] += 1
-            self.counts[name]["partly_occluded"] += int(det.status == "ok" and det.occluded > PARTLY)
+            self.counts[name]["partly_occluded"] += int(name in self.partial)
             self.counts[name]["unoccluded"] += int(det.status in IN_VIEW and det.occluded <= PARTLY)
         if not self.dumped and t + 1e-9 >= self.cfg.dump_at_s:
             self.dumped = True
@@ -117,7 +118,6 @@ class CameraMeasurer:
             except OSError as exc:  # a lost frame dump is not a failed run: reported with the camera's figures
                 self.dump_error = f"perception.dump {self.cfg.dump}: cannot write: {exc.strerror or exc}"
         self.poses = {name: det.pose for name, det in detections.items()}
-        self.partial = {name for name, det in detections.items() if det.pose is not None and det.occluded > PARTLY}
         return dict(self.poses)
 
     def dump(self, folder: Path, frame: Frame, detections: Mapping[str, Any]) -> None:
