@@ -10,6 +10,11 @@ in the pads is a change of the relative pose, which the filter's moving model an
 
 The carrier frame is the first pad's frame turned by the object's orientation relative to it when the hold
 began, so the relative orientation starts at the identity, far from the roll-pitch-yaw singularity.
+
+A *pushed* object (the tool's contact takes it along, it is not held) rests on the table: only the tool's motion
+along the table carries it (its x, y and turn about the vertical), so a tool that rides up its face or tilts while
+the hand hides it leaves its height, roll and pitch where they were seen; and its relative pose is held at its last
+measurement rather than extrapolated.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ from collections import deque
 import numpy as np
 
 from nextage_qp.estimation import PoseKalman
-from nextage_qp.geometry import Pose, pose_vector, vector_pose
+from nextage_qp.geometry import Pose, pose_vector, rot_z, vector_pose, yaw_of
 
 HISTORY_S = 1.0
 """How long the carrier's poses are kept for latency compensation [s]."""
@@ -37,9 +42,11 @@ class HeldEstimate:
     """
 
     def __init__(self, t: float, carrier: Pose, world: np.ndarray, variance: np.ndarray, kalman: PoseKalman, *,
-                 extrapolate: bool = True) -> None:
-        self.extrapolate = extrapolate
-        """Predict the relative pose past its last measurement (a clamp); False: hold it there (a push's contact)."""
+                 pushed: bool = False) -> None:
+        self.pushed = pushed
+        """A pushed object (see the module doc); False: a held one, its relative pose predicted past its last
+        measurement."""
+        carrier = self._along(carrier)
         self.offset = carrier.rot.T @ vector_pose(world).rot
         self.history: deque[tuple[float, Pose]] = deque([(t, carrier)])
         self.kalman = kalman
@@ -52,9 +59,15 @@ class HeldEstimate:
         f, p = self._frame(carrier), vector_pose(z)
         return pose_vector(Pose(f.rot.T @ (p.pos - f.pos), f.rot.T @ p.rot))
 
+    def _along(self, carrier: Pose) -> Pose:
+        """The carrier's pose as it carries the object: of a pushed one, its motion along the table only."""
+        if not self.pushed:
+            return carrier
+        return Pose(np.array([carrier.pos[0], carrier.pos[1], 0.0]), rot_z(yaw_of(carrier.rot)))
+
     def observe(self, t: float, carrier: Pose) -> None:
         """Keep the carrier's pose at ``t`` [s] (every control tick)."""
-        self.history.append((t, carrier))
+        self.history.append((t, self._along(carrier)))
         while self.history[0][0] < t - HISTORY_S:
             self.history.popleft()
 
@@ -70,7 +83,7 @@ class HeldEstimate:
 
     def estimate(self, t: float) -> np.ndarray:
         """World pose (x, y, z, roll, pitch, yaw) at ``t`` [s]: the latest carrier pose with the relative estimate."""
-        at = t if self.extrapolate or self.kalman.t is None else min(t, self.kalman.t)
+        at = t if not self.pushed or self.kalman.t is None else min(t, self.kalman.t)
         f, r = self._frame(self.history[-1][1]), vector_pose(self.kalman.estimate(at))
         return pose_vector(Pose(f.pos + f.rot @ r.pos, f.rot @ r.rot))
 

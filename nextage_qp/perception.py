@@ -91,14 +91,14 @@ class FaultySensors:
             self._tracks[name] = _Track(self._kalman() if self.estimation.object_filter == "kalman" else None)
         return self._tracks[name]
 
-    def carry(self, name: str | None, carrier: Callable[[], Pose] | None = None, *, extrapolate: bool = True) -> None:
+    def carry(self, name: str | None, carrier: Callable[[], Pose] | None = None, *, pushed: bool = False) -> None:
         """The object the robot now holds and the pose of what holds it (None: nothing held).
 
         A held object is estimated relative to its carrier (:class:`~nextage_qp.held.HeldEstimate`); when the
-        hold ends the world filter restarts from that estimate. ``extrapolate``: the relative pose is predicted past
-        its last measurement (a clamp), or held there (a pushed object, which moves only where the contact takes it).
+        hold ends the world filter restarts from that estimate. ``pushed``: the object is pushed (a contact takes it
+        along the table, :class:`~nextage_qp.held.HeldEstimate`), not clamped.
         """
-        self._carrier = (name, carrier, extrapolate) if name is not None and carrier is not None else None
+        self._carrier = (name, carrier, pushed) if name is not None and carrier is not None else None
 
     def _hold(self, t: float, name: str, tr: _Track) -> None:
         """Start, keep or end the held estimate of ``name`` at ``t`` [s] (with the Kalman filter only)."""
@@ -107,7 +107,7 @@ class FaultySensors:
         if k is None:
             return
         if entry is not None and held is None and k.initialised:
-            tr.carried = HeldEstimate(t, entry[1](), k.estimate(t), k.variance(), self._kalman(), extrapolate=entry[2])
+            tr.carried = HeldEstimate(t, entry[1](), k.estimate(t), k.variance(), self._kalman(), pushed=entry[2])
         elif entry is not None and held is not None:
             held.observe(t, entry[1]())
         elif entry is None and held is not None:
@@ -145,7 +145,7 @@ class FaultySensors:
         """Estimated (or latest raw) object poses at ``t`` [s]; measurements sampled, delayed, dropped here.
 
         With a camera (:attr:`measurer`) an object not seen yet is left out; ``true`` then only scores the
-        estimates (the camera never reads it).
+        estimates and the camera's detections (its estimator never reads it).
         """
         cam, camera = self.faults.object_pose, self.measurer
         if cam is None and camera is None:  # no camera faults: the exact poses, unfiltered
@@ -159,8 +159,8 @@ class FaultySensors:
         if sample:
             self._next_sample += 1.0 / rate
         seen = camera(t, {n: self._prior(n, t) for n in true},  # the objects clamped in the hands, fitted tilted
-                      {n for n, tr in self._tracks.items() if tr.carried is not None and tr.carried.extrapolate}
-                      ) if camera is not None and sample else {}
+                      {n for n, tr in self._tracks.items() if tr.carried is not None and not tr.carried.pushed},
+                      true) if camera is not None and sample else {}
         out: dict[str, Pose] = {}
         for name, pose in true.items():
             tr, true_yaw = self._track(name), yaw_of(pose.rot)

@@ -251,10 +251,30 @@ def test_a_pushed_object_held_without_extrapolation_stays_where_the_tool_holds_i
     carrier = Pose(np.array([0.4, 0.0, 0.95]), np.eye(3))
     world = np.array([0.45, 0.0, 0.91, 0.0, 0.0, 0.0])
     held = HeldEstimate(0.0, carrier, world, np.full(6, SIGMA_POS**2), PoseKalman(SIGMA_POS, SIGMA_ROT),
-                        extrapolate=False)
+                        pushed=True)
     for k, t in enumerate((0.05, 0.10)):  # two measurements that drift 1 cm/s relative to the tool
         held.update(t, world + np.r_[0.0, 0.0005 * (k + 1), 0.0, 0.0, 0.0, 0.0])
     at_last = held.estimate(0.10)
     moved = Pose(carrier.pos + np.array([0.2, 0.0, 0.0]), carrier.rot)  # then the tool pushes on, unseen, 20 cm
     held.observe(3.0, moved)
     np.testing.assert_allclose(held.estimate(3.0)[:3], at_last[:3] + np.array([0.2, 0.0, 0.0]), atol=1e-12)
+
+
+def test_a_pushed_object_follows_the_tool_along_the_table_only():
+    """A tool that rides up the pushed object's face and tilts while it is unseen moves it in x, y and yaw only."""
+    from nextage_qp.geometry import Pose, axis_angle, rot_z
+    from nextage_qp.held import HeldEstimate
+
+    carrier = Pose(np.array([0.4, 0.0, 0.95]), rot_z(0.1))
+    world = np.array([0.45, 0.01, 0.91, 0.0, 0.0, 0.2])
+    held = HeldEstimate(0.0, carrier, world, np.full(6, SIGMA_POS**2), PoseKalman(SIGMA_POS, SIGMA_ROT), pushed=True)
+    held.update(0.05, world)
+    turn = rot_z(0.3) @ axis_angle(np.array([0.0, 1.0, 0.0]), 0.4)  # turned 0.2 rad further, pitched 0.4 rad
+    moved = Pose(carrier.pos + np.array([0.1, 0.05, 0.03]), turn)  # and 3 cm higher
+    held.observe(2.0, moved)
+    est = held.estimate(2.0)
+    assert est[2] == pytest.approx(0.91, abs=1e-9)  # the height, roll and pitch stay
+    np.testing.assert_allclose(est[3:5], 0.0, atol=1e-9)
+    assert est[5] == pytest.approx(0.4, abs=1e-9)  # the yaw turns with the tool's heading
+    offset = rot_z(0.2)[:2, :2] @ np.array([0.05, 0.01])  # the object's place relative to the tool, turned with it
+    np.testing.assert_allclose(est[:2], moved.pos[:2] + offset, atol=1e-9)

@@ -308,7 +308,7 @@ def test_the_default_push_from_the_head_camera_reaches_its_target() -> None:
     assert frames["occluded"] > 0.3 * (frames["occluded"] + frames["ok"])  # much of the push blind
     # the detection rate over the frames the robot did not cover (at most PARTLY of the cube), among those in view
     in_view = frames["ok"] + frames["missing"] + frames["bad_fit"]
-    assert 0 < frames["unoccluded_ok"] <= frames["unoccluded"] <= in_view
+    assert 0 < frames["unoccluded_ok"] <= frames["unoccluded"] <= result["estimation"]["camera"]["frames"]
     assert frames["detected_of_unoccluded"] == frames["unoccluded_ok"] / frames["unoccluded"]
     assert frames["detected_of_in_view"] == frames["ok"] / in_view
 
@@ -329,3 +329,31 @@ def test_a_frame_dump_asked_for_after_the_run_ended_is_reported_not_silently_dro
                                     "written to /tmp/frame (set a time within the run)")
     source.dumped, source.dump_error = True, None  # dumped: nothing to say
     assert "dump_error" not in source.report()
+
+
+@needs_gl
+def test_detections_are_counted_over_the_frames_in_which_the_object_truly_is_in_view_and_uncovered() -> None:
+    """The detection rate's frames are classed by the object's true pose (after the estimate), not by the estimator's
+    prediction: an object outside the view is no missed detection."""
+    from nextage_qp.geometry import Pose, rot_z
+    from nextage_qp.vision.config import PerceptionConfig
+    from nextage_qp.vision.source import CameraMeasurer
+
+    _, robot, data, q = aimed_scene("box", 0.45, 0.2)
+    source = CameraMeasurer(PerceptionConfig(source="camera"), robot, data, lambda t: q, seed=0)
+    body = robot.model.body("cube").id
+    truth = Pose(data.xpos[body].copy(), data.xmat[body].reshape(3, 3).copy())
+    behind = Pose(np.array([-1.0, 0.0, 0.91]), rot_z(0.0))
+    counts = source.counts["cube"]
+    try:
+        assert source(0.0, {"cube": None}, truth={"cube": truth})["cube"] is not None  # seen, in view: counted
+        assert (counts["unoccluded"], counts["unoccluded_ok"]) == (1, 1)
+        source(0.1, {"cube": None}, truth={"cube": behind})  # (told it is) out of view: not a frame of the rate
+        assert (counts["unoccluded"], counts["unoccluded_ok"]) == (1, 1)
+        source(0.2, {"cube": None}, truth={"cube": truth})
+        assert (counts["unoccluded"], counts["unoccluded_ok"]) == (2, 2)
+        source(0.3, {"cube": None})  # without the truth: the estimator's own view of it (seen, so in view)
+        assert (counts["unoccluded"], counts["unoccluded_ok"]) == (3, 3)
+    finally:
+        source.close()
+    assert counts["ok"] == 4 and source.report()["objects"]["cube"]["detected_of_unoccluded"] == 1.0

@@ -149,7 +149,7 @@ class Runner:
             carried = (grip.object, grip.frames[0]) if grip is not None else (
                 self.current.carrier(self.view) if self.current is not None else None)
             carrier = partial(self.view.frame_pose, carried[1]) if carried is not None else None
-            self.sensors.carry(carried[0] if carried is not None else None, carrier, extrapolate=grip is not None)
+            self.sensors.carry(carried[0] if carried is not None else None, carrier, pushed=grip is None)
         self.servo.step(command, objects)
         self.sim.tick()
         if self.view.grip is not None:

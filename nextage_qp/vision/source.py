@@ -7,7 +7,11 @@ cameras (``stereo``, :mod:`nextage_qp.vision.stereo`), in the left camera's view
 the camera's pose from the *measured* joints, and hands images, intrinsics and pose to the
 :class:`~nextage_qp.vision.estimate.Estimator`; the poses it returns go through the same latency queue and
 Kalman filter as the simulated camera's (:class:`~nextage_qp.perception.FaultySensors`). It counts, per object,
-frames seen, detections, predicted occlusions and the time per frame spent rendering and estimating.
+frames seen, detections, predicted occlusions and the time per frame spent rendering and estimating. For the
+detection rate it classes each frame by where the object truly is (given for that count alone, after the estimate):
+*unoccluded* when at least half of its camera-facing surface is inside the image and the robot's model covers at
+most ``PARTLY`` of it, whatever the estimator believed (an object still outside the view as the head turns to it is
+no missed detection; one the estimator thinks hidden, but in plain view, is).
 """
 
 from __future__ import annotations
@@ -21,11 +25,13 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.geometry import Pose, pose_vector
 from nextage_qp.vision.config import PerceptionConfig
 from nextage_qp.vision.estimate import PARTLY, Estimator, Frame
 from nextage_qp.vision.render import RobotCamera, render_problem
 from nextage_qp.vision.shapes import ShapeModel
 from nextage_qp.vision.stereo import StereoMatcher, check_pair
+from nextage_qp.vision.visible import occlusion
 
 STATUSES = ("ok", "out_of_view", "occluded", "missing", "bad_fit")
 IN_VIEW = ("ok", "missing", "bad_fit")
@@ -66,7 +72,8 @@ class CameraMeasurer:
         self.symmetry = {n: robot.yaw_symmetry(n) for n in robot.object_names}
         shapes = {n: ShapeModel.of_body(model, n, self.symmetry[n]) for n in robot.object_names}
         self.estimator = Estimator(shapes, seed)
-        self.counts = {n: dict.fromkeys((*STATUSES, "partly_occluded", "unoccluded"), 0) for n in robot.object_names}
+        kinds = (*STATUSES, "partly_occluded", "unoccluded", "unoccluded_ok")
+        self.counts = {n: dict.fromkeys(kinds, 0) for n in robot.object_names}
         self.ms: dict[str, list[float]] = {"render": [], "estimate": []}
         self.dumped = cfg.dump is None
         self.dump_error: str | None = None
@@ -87,11 +94,13 @@ class CameraMeasurer:
         """Age of a measurement when it reaches the filter [s]."""
         return self.spec.latency_s
 
-    def __call__(self, t: float, priors: Mapping[str, np.ndarray | None],
-                 held: Collection[str] = ()) -> dict[str, np.ndarray | None]:
+    def __call__(self, t: float, priors: Mapping[str, np.ndarray | None], held: Collection[str] = (),
+                 truth: Mapping[str, Pose] | None = None) -> dict[str, np.ndarray | None]:
         """Measured pose vectors (x, y, z, roll, pitch, yaw) at ``t`` [s], None where the object was not seen.
 
         ``held``: objects the robot holds (fitted with their roll and pitch, see :meth:`Estimator.estimate`).
+        ``truth``: the objects' true poses, for the detection count alone (see the module doc); without them a frame is
+        unoccluded where the estimator's prediction was in view and uncovered.
         """
         t0 = time.perf_counter()
         if self.matcher is not None and self.right is not None:
@@ -108,9 +117,16 @@ class CameraMeasurer:
         self.ms["estimate"].append((time.perf_counter() - t1) * 1e3)
         self.partial = {name for name, det in detections.items() if det.status == "ok" and det.occluded > PARTLY}
         for name, det in detections.items():
-            self.counts[name][det.status] += 1
-            self.counts[name]["partly_occluded"] += int(name in self.partial)
-            self.counts[name]["unoccluded"] += int(det.status in IN_VIEW and det.occluded <= PARTLY)
+            counts = self.counts[name]
+            counts[det.status] += 1
+            counts["partly_occluded"] += int(name in self.partial)
+            if truth is not None and name in truth:  # after the estimate: the estimator never sees it
+                share = occlusion(frame, self.estimator.shapes[name], pose_vector(truth[name]), tilt=True)
+                clear = share is not None and share <= PARTLY
+            else:
+                clear = det.status in IN_VIEW and det.occluded <= PARTLY
+            counts["unoccluded"] += int(clear)
+            counts["unoccluded_ok"] += int(clear and det.status == "ok")
         if not self.dumped and t + 1e-9 >= self.cfg.dump_at_s:
             self.dumped = True
             try:
@@ -142,15 +158,16 @@ class CameraMeasurer:
         """Frames, per object its frames by outcome, its detection rate, and the median ms per frame.
 
         ``partly_occluded``: detected though the robot covered more than ``PARTLY`` of it; ``unoccluded``: frames in
-        which it was in view and the robot covered at most ``PARTLY`` of it (``unoccluded_ok``: detected in them).
-        ``detected_of_unoccluded`` is the detection rate over those; ``detected_of_in_view`` over every frame it was in
-        view and the robot covered at most ``MAX_OCCLUDED`` of it (partly occluded ones too).
+        which it was in view and the robot covered at most ``PARTLY`` of it (at its true pose, see the module doc;
+        ``unoccluded_ok``: detected in them). ``detected_of_unoccluded`` is the detection rate over those;
+        ``detected_of_in_view`` over every frame in which the estimator predicted it in view and covered at most
+        ``MAX_OCCLUDED`` (partly occluded ones too).
         """
         objects = {}
         for name, c in self.counts.items():
-            seen, clear, clear_ok = sum(c[s] for s in IN_VIEW), c["unoccluded"], c["ok"] - c["partly_occluded"]
-            objects[name] = {**c, "unoccluded_ok": clear_ok, "detected_of_in_view": c["ok"] / seen if seen else None,
-                             "detected_of_unoccluded": clear_ok / clear if clear else None}
+            seen, clear = sum(c[s] for s in IN_VIEW), c["unoccluded"]
+            objects[name] = {**c, "detected_of_in_view": c["ok"] / seen if seen else None,
+                             "detected_of_unoccluded": c["unoccluded_ok"] / clear if clear else None}
         if not self.dumped and not self.dump_error:  # the run ended before the time of the frame asked for
             last = f"{self.last[0]:g} s" if self.last is not None else "its start"
             self.dump_error = (f"perception.dump_at_s {self.cfg.dump_at_s:g} s: the camera's last frame was at "
