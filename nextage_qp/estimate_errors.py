@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Sequence
 from typing import Any
@@ -40,14 +41,24 @@ class EstimateErrors:
         self.est_yaw.append(yaw)
         self.held_sq.append(held_sq)
 
-    def report(self, shoves: Sequence[tuple[float, float]] = ()) -> dict[str, Any]:
+    def report(self, shoves: Sequence[tuple[float, float]] = (),
+               views: Sequence[tuple[float, bool]] | None = None) -> dict[str, Any]:
         """RMS and max errors [m, rad] of the run so far.
 
         ``estimate_outside_shoves_rms_m`` leaves out the ticks within the ``shoves`` spans (start, end) [s] of
         this object (None when every tick is inside one); ``shove_ticks`` counts the ticks left out.
+        ``views``: a robot camera's frames (time [s], whether the object was in view and uncovered in it); then
+        ``estimate_unoccluded_rms_m`` is the estimate's RMS over the ticks whose latest frame had it so, and
+        ``unoccluded_ticks`` their number.
         """
         outside = [sq for t, sq in zip(self.t, self.est_sq, strict=True) if not any(a <= t < b for a, b in shoves)]
-        return {
+        seen = {}
+        if views is not None:
+            times, clear = [v[0] for v in views], [v[1] for v in views]
+            kept = [sq for t, sq in zip(self.t, self.est_sq, strict=True)
+                    if (k := bisect.bisect_right(times, t + 1e-9)) > 0 and clear[k - 1]]
+            seen = {"estimate_unoccluded_rms_m": _rms(kept), "unoccluded_ticks": len(kept)}
+        return {**seen,
             "estimate_rms_m": _rms(self.est_sq), "estimate_max_m": _max_sqrt(self.est_sq),
             "estimate_outside_shoves_rms_m": _rms(outside), "shove_ticks": len(self.est_sq) - len(outside),
             "estimate_yaw_rms_rad": _rms([y * y for y in self.est_yaw]),

@@ -112,8 +112,7 @@ class FaultySensors:
             held.observe(t, entry[1]())
         elif entry is None and held is not None:
             k.start(t, held.estimate(t), held.variance(t))  # as uncertain as the time unseen makes it
-            tr.carried_counts[0] += held.kalman.rejected
-            tr.carried_counts[1] += held.kalman.resets
+            tr.carried_counts = [tr.carried_counts[0] + held.kalman.rejected, tr.carried_counts[1] + held.kalman.resets]
             tr.carried = None
 
     def _measure(self, pose: Pose) -> np.ndarray:
@@ -257,15 +256,16 @@ class FaultySensors:
     def report(self, shoves: Sequence[tuple[str, float, float]] = ()) -> dict[str, Any]:
         """Estimation errors against the truth per object (see :class:`~nextage_qp.estimate_errors.EstimateErrors`).
 
-        ``shoves``: (body, start, end) [s] of the shoves applied (:meth:`~nextage_qp.shoves.Shoves.windows`), the
-        ticks the ``estimate_outside_shoves_rms_m`` of their body leaves out.
+        ``shoves``: (body, start, end) [s] of the shoves (:meth:`~nextage_qp.shoves.Shoves.windows`) left out of
+        ``estimate_outside_shoves_rms_m``; a robot camera's frames give ``estimate_unoccluded_rms_m`` (its views).
         """
         objects = {}
         for name, tr in self._tracks.items():
             k, c = tr.kalman, tr.carried
             spans = [(a, b) for body, a, b in shoves if body == name]
             objects[name] = {
-                **tr.errors.report(spans), "measurements": tr.taken, "dropouts": tr.dropped,
+                **tr.errors.report(spans, getattr(self.measurer, "views", {}).get(name)),
+                "measurements": tr.taken, "dropouts": tr.dropped,
                 "rejected": (k.rejected if k else 0) + tr.carried_counts[0] + (c.kalman.rejected if c else 0),
                 "filter_resets": (k.resets if k else 0) + tr.carried_counts[1] + (c.kalman.resets if c else 0),
             }

@@ -278,3 +278,15 @@ def test_a_pushed_object_follows_the_tool_along_the_table_only():
     assert est[5] == pytest.approx(0.4, abs=1e-9)  # the yaw turns with the tool's heading
     offset = rot_z(0.2)[:2, :2] @ np.array([0.05, 0.01])  # the object's place relative to the tool, turned with it
     np.testing.assert_allclose(est[:2], moved.pos[:2] + offset, atol=1e-9)
+
+
+def test_the_estimate_error_while_the_camera_sees_the_object_counts_the_ticks_after_clear_frames_only():
+    from nextage_qp.estimate_errors import EstimateErrors
+
+    errors = EstimateErrors()
+    for k in range(10):  # 1 mm off while the object is in view (ticks 0.3-0.6 s), 10 mm while hidden
+        t = 0.1 * k
+        errors.tick(t, (0.001 if 0.3 <= t < 0.65 else 0.01) ** 2, 0.0, 0.0)
+    report = errors.report((), [(0.0, False), (0.3, True), (0.65, False)])
+    assert report["unoccluded_ticks"] == 4 and report["estimate_unoccluded_rms_m"] == pytest.approx(0.001)
+    assert "estimate_unoccluded_rms_m" not in errors.report()  # no camera frames: not reported

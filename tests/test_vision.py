@@ -311,6 +311,8 @@ def test_the_default_push_from_the_head_camera_reaches_its_target() -> None:
     assert 0 < frames["unoccluded_ok"] <= frames["unoccluded"] <= result["estimation"]["camera"]["frames"]
     assert frames["detected_of_unoccluded"] == frames["unoccluded_ok"] / frames["unoccluded"]
     assert frames["detected_of_in_view"] == frames["ok"] / in_view
+    errors = result["estimation"]["objects"]["cube"]  # the estimate while the head sees the cube: nearer the truth
+    assert errors["unoccluded_ticks"] > 0 and errors["estimate_unoccluded_rms_m"] < errors["estimate_rms_m"]
 
 
 def test_a_frame_dump_asked_for_after_the_run_ended_is_reported_not_silently_dropped() -> None:

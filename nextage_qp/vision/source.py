@@ -80,6 +80,8 @@ class CameraMeasurer:
         self.last: tuple[float, np.ndarray] | None = None
         self.poses: dict[str, np.ndarray | None] = {}
         """Each object's pose vector fitted in the latest frame (None: not seen in it); for videos."""
+        self.views: dict[str, list[tuple[float, bool]]] = {n: [] for n in robot.object_names}
+        """Per object, each frame's time [s] and whether it was unoccluded in it (as counted: see the module doc)."""
         self.partial: set[str] = set()
         """The objects of the latest frame fitted from a partial view (the robot's model covers more than ``PARTLY``
         of them): the filter lets such a view confirm an object's pose, not move it (``PoseKalman.update``)."""
@@ -126,6 +128,7 @@ class CameraMeasurer:
             else:
                 clear = det.status in IN_VIEW and det.occluded <= PARTLY
             counts["unoccluded"] += int(clear)
+            self.views[name].append((t, clear))
             counts["unoccluded_ok"] += int(clear and det.status == "ok")
         if not self.dumped and t + 1e-9 >= self.cfg.dump_at_s:
             self.dumped = True
