@@ -199,6 +199,22 @@ def test_estimation_errors_pool_over_episodes_with_and_without_the_shoves():
     assert estimation([Episode(0, 0, {}, [], "success", result={"estimation": None})]) is None
 
 
+def test_a_robot_cameras_detections_pool_over_the_episodes_unoccluded_frames():
+    def ep(i, clear, ok, rms):
+        cube = {"estimate_rms_m": 0.004, "estimate_unoccluded_rms_m": rms, "raw_rms_m": 0.002, "held_rms_m": 0.003,
+                "dropouts": 1, "measurements": 10}
+        camera = {"objects": {"cube": {"unoccluded": clear, "unoccluded_ok": ok}}}
+        return Episode(i, i, {}, [], "success", result={"estimation": {"objects": {"cube": cube}, "camera": camera}})
+
+    est = estimation([ep(0, 100, 90, 0.002), ep(1, 300, 294, 0.001)])
+    assert (est["camera_unoccluded"], est["camera_unoccluded_ok"]) == (400, 384)
+    assert est["camera_detected_of_unoccluded"] == pytest.approx(0.96)
+    assert est["estimate_unoccluded_rms_m"] == pytest.approx(np.sqrt((0.002**2 + 0.001**2) / 2))
+    simulated = {"estimate_rms_m": 0.001, "raw_rms_m": 0.001, "held_rms_m": 0.001, "dropouts": 0, "measurements": 1}
+    plain = estimation([Episode(0, 0, {}, [], "success", result={"estimation": {"objects": {"cube": simulated}}})])
+    assert "camera_unoccluded" not in plain and plain["estimate_unoccluded_rms_m"] is None  # no robot camera
+
+
 def test_wilson_interval_known_values():
     lo, hi = wilson(0, 10)
     assert lo == 0.0 and hi == pytest.approx(0.2775, abs=1e-4)

@@ -201,6 +201,11 @@ def _print_summary(s: dict[str, Any], console: Console, *, only: bool, episodes:
         console.print(f"object estimate RMS {_mm(est['estimate_rms_m'])} mm ({ratios}); raw {_mm(est['raw_rms_m'])} "
                       f"mm, held {_mm(est['held_rms_m'])} mm; {est['dropouts']}/{est['measurements']} measurements "
                       f"dropped; {est['shoves']} shoves", markup=False)
+        if est.get("camera_unoccluded"):
+            rate = 100 * est["camera_detected_of_unoccluded"]
+            console.print(f"camera: detected in {est['camera_unoccluded_ok']}/{est['camera_unoccluded']} frames with "
+                          f"the object in view and uncovered ({rate:.1f} %); estimate RMS then "
+                          f"{_mm(est['estimate_unoccluded_rms_m'])} mm", markup=False)
         if est["shoves"] and est.get("estimate_outside_shoves_over_raw") is not None:
             console.print(f"outside the {SHOVE_SETTLE_S:g} s after each shove ({est['shove_ticks']} ticks): estimate "
                           f"RMS {_mm(est['estimate_outside_shoves_rms_m'])} mm "

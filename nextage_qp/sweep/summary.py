@@ -133,16 +133,18 @@ def by_target_clearance(episodes: Sequence[Episode]) -> list[dict[str, Any]]:
 def estimation(episodes: Sequence[Episode]) -> dict[str, Any] | None:
     """Object-estimation errors over the episodes that ran with faults (None when none did).
 
-    Per error kind (``estimate``, ``estimate_outside_shoves``, ``raw``, ``held``: see
+    Per error kind (``estimate``, ``estimate_outside_shoves``, ``estimate_unoccluded``, ``raw``, ``held``: see
     ``EstimateErrors.report``) the RMS over episodes of each episode's RMS [m], and the ratios of the estimate
-    (and of the estimate outside the shoves) to the raw and held errors.
+    (and of the estimate outside the shoves) to the raw and held errors. With a robot camera, its detections over
+    every episode's unoccluded frames (``camera_unoccluded``, ``camera_unoccluded_ok``, and their ratio
+    ``camera_detected_of_unoccluded``).
     """
     rows = [o for e in episodes if e.result and e.result.get("estimation")
             for o in e.result["estimation"]["objects"].values()]
     if not rows:
         return None
     out: dict[str, Any] = {"episodes": len(rows)}
-    for kind in ("estimate", "estimate_outside_shoves", "raw", "held"):
+    for kind in ("estimate", "estimate_outside_shoves", "estimate_unoccluded", "raw", "held"):
         values = [r[f"{kind}_rms_m"] for r in rows if r.get(f"{kind}_rms_m") is not None]
         out[f"{kind}_rms_m"] = float(np.sqrt(np.mean(np.square(values)))) if values else None
     for est in ("estimate", "estimate_outside_shoves"):
@@ -153,6 +155,12 @@ def estimation(episodes: Sequence[Episode]) -> dict[str, Any] | None:
     out["dropouts"] = int(sum(r["dropouts"] for r in rows))
     out["measurements"] = int(sum(r["measurements"] for r in rows))
     out["shoves"] = int(sum(len(e.result.get("shoves", [])) for e in episodes if e.result))
+    frames = [o for e in episodes if e.result and (cam := e.result["estimation"].get("camera"))
+              for o in cam["objects"].values()]
+    if frames:
+        clear, ok = sum(f["unoccluded"] for f in frames), sum(f["unoccluded_ok"] for f in frames)
+        out.update(camera_unoccluded=clear, camera_unoccluded_ok=ok,
+                   camera_detected_of_unoccluded=ok / clear if clear else None)
     return out
 
 
