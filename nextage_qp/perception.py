@@ -264,7 +264,7 @@ class FaultySensors:
             k, c = tr.kalman, tr.carried
             spans = [(a, b) for body, a, b in shoves if body == name]
             objects[name] = {
-                **tr.errors.report(spans, getattr(self.measurer, "views", {}).get(name)),
+                **tr.errors.report(spans, self.measurer.views.get(name) if self.measurer is not None else None),
                 "measurements": tr.taken, "dropouts": tr.dropped,
                 "rejected": (k.rejected if k else 0) + tr.carried_counts[0] + (c.kalman.rejected if c else 0),
                 "filter_resets": (k.resets if k else 0) + tr.carried_counts[1] + (c.kalman.resets if c else 0),

@@ -206,8 +206,9 @@ def test_a_robot_cameras_detections_pool_over_the_episodes_unoccluded_frames():
         camera = {"objects": {"cube": {"unoccluded": clear, "unoccluded_ok": ok}}}
         return Episode(i, i, {}, [], "success", result={"estimation": {"objects": {"cube": cube}, "camera": camera}})
 
-    est = estimation([ep(0, 100, 90, 0.002), ep(1, 300, 294, 0.001)])
-    assert (est["camera_unoccluded"], est["camera_unoccluded_ok"]) == (400, 384)
+    refused = Episode(2, 2, {}, [], "refused", result={"error": "out of reach"})  # ran nothing: no estimation
+    est = estimation([ep(0, 100, 90, 0.002), refused, ep(1, 300, 294, 0.001)])
+    assert est["episodes"] == 2 and (est["camera_unoccluded"], est["camera_unoccluded_ok"]) == (400, 384)
     assert est["camera_detected_of_unoccluded"] == pytest.approx(0.96)
     assert est["estimate_unoccluded_rms_m"] == pytest.approx(np.sqrt((0.002**2 + 0.001**2) / 2))
     simulated = {"estimate_rms_m": 0.001, "raw_rms_m": 0.001, "held_rms_m": 0.001, "dropouts": 0, "measurements": 1}

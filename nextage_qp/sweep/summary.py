@@ -139,8 +139,8 @@ def estimation(episodes: Sequence[Episode]) -> dict[str, Any] | None:
     every episode's unoccluded frames (``camera_unoccluded``, ``camera_unoccluded_ok``, and their ratio
     ``camera_detected_of_unoccluded``).
     """
-    rows = [o for e in episodes if e.result and e.result.get("estimation")
-            for o in e.result["estimation"]["objects"].values()]
+    runs = [e.result["estimation"] for e in episodes if e.result and e.result.get("estimation")]
+    rows = [o for run in runs for o in run["objects"].values()]
     if not rows:
         return None
     out: dict[str, Any] = {"episodes": len(rows)}
@@ -155,8 +155,7 @@ def estimation(episodes: Sequence[Episode]) -> dict[str, Any] | None:
     out["dropouts"] = int(sum(r["dropouts"] for r in rows))
     out["measurements"] = int(sum(r["measurements"] for r in rows))
     out["shoves"] = int(sum(len(e.result.get("shoves", [])) for e in episodes if e.result))
-    frames = [o for e in episodes if e.result and (cam := e.result["estimation"].get("camera"))
-              for o in cam["objects"].values()]
+    frames = [o for run in runs if run.get("camera") for o in run["camera"]["objects"].values()]
     if frames:
         clear, ok = sum(f["unoccluded"] for f in frames), sum(f["unoccluded_ok"] for f in frames)
         out.update(camera_unoccluded=clear, camera_unoccluded_ok=ok,
