@@ -186,6 +186,8 @@ class PoseKalman:
         self.reset(t, np.asarray(z, dtype=float))
         for m in self.models:
             m.p[:, 0, 0] = np.maximum(variance, 1e-12)
+        self.mode[:] = (1.0 - STAY) / (len(self.models) - 1)  # at rest: a first jump is where it is, not a speed
+        self.mode[0] = STAY
 
     def variance(self, t: float | None = None) -> np.ndarray:
         """Mode-weighted position/angle variance per axis (6,) at the last measurement, or predicted to ``t`` [s]."""

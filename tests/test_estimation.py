@@ -290,3 +290,12 @@ def test_the_estimate_error_while_the_camera_sees_the_object_counts_the_ticks_af
     report = errors.report((), [(0.0, False), (0.3, True), (0.65, False)])
     assert report["unoccluded_ticks"] == 4 and report["estimate_unoccluded_rms_m"] == pytest.approx(0.001)
     assert "estimate_unoccluded_rms_m" not in errors.report()  # no camera frames: not reported
+
+
+def test_a_restart_at_rest_takes_a_jump_in_the_next_measurement_for_where_it_is_not_for_a_speed():
+    kf = PoseKalman(SIGMA_POS, SIGMA_ROT)
+    start = np.array([0.5, 0.0, 0.91, 0.0, 0.0, 0.0])
+    kf.start(0.0, start, np.full(6, 0.01**2))  # as a hold ends: 10 mm uncertain, at rest
+    kf.update(1.0 / RATE, start + np.r_[0.01, 0.0, 0.0, 0.0, 0.0, 0.0])  # the camera sees it 10 mm away
+    now = kf.estimate(kf.t)
+    assert np.linalg.norm(kf.estimate(kf.t + 0.5)[:3] - now[:3]) < 1e-3  # no coasting on a made-up speed

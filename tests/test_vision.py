@@ -359,3 +359,15 @@ def test_detections_are_counted_over_the_frames_in_which_the_object_truly_is_in_
     finally:
         source.close()
     assert counts["ok"] == 4 and source.report()["objects"]["cube"]["detected_of_unoccluded"] == 1.0
+
+
+@needs_gl
+def test_a_prediction_too_high_is_fitted_where_the_object_rests() -> None:
+    """A tracked object predicted 7 cm high (its top face taken for the bottom of one standing on it) is found where
+    it rests on the table."""
+    robot, data, frame, model = aimed_frame("box", 0.45, 0.2)
+    truth = data.xpos[robot.model.body("cube").id]
+    prior = np.array([*truth, 0.0, 0.0, 0.2]) + np.array([0.002, -0.002, 0.07, 0.0, 0.0, 0.0])
+    det = Estimator({"cube": model}, seed=1).estimate(frame, {"cube": prior})["cube"]
+    assert det.status == "ok", det
+    assert np.linalg.norm(det.pose[:3] - truth) < 0.002

@@ -58,6 +58,10 @@ MAX_THROUGH = 0.6
 WHOLE = 0.95
 """Share of an object's fitted camera-facing surface inside the image from which an object not tracked yet is taken
 (a view cut by the image's edge fitted a dumbbell 90 deg off at 1.4 mm RMS)."""
+OFF_TABLE = 0.005
+"""A tracked object not held whose predicted bottom is this far [m] from the table plane is also fitted from resting
+on it (the better fit wins): an object predicted high after a partial view (its top face taken for the bottom face of
+one standing on it) is found again where it rests, one standing on another object keeps its own start."""
 INLIER = 0.005
 """A point this near a fitted surface [m] is explained by it (choosing among candidate clusters)."""
 
@@ -217,6 +221,10 @@ class Estimator:
                 pr[2] if pr is not None else centre[2])
             turned = (pr[3], pr[4]) if tilt and pr is not None else ()  # roll and pitch, when fitted
             starts = [np.array([*(pr[:2] if pr is not None else centre[:2]), z0, *turned, y]) for y in yaws]
+            if pr is not None and not tilt and self.plane is not None:  # a prediction off the table: from on it too
+                rest = self._table_z(pr[:2]) - shape.bottom
+                if abs(z0 - rest) > OFF_TABLE:
+                    starts += [np.r_[x0[:2], rest, x0[3:]] for x0 in starts]
             free = self.free[np.linalg.norm(self.free[:, :2] - starts[0][:2], axis=1) < shape.radius + 0.03]
             free = free[:200]
             support = len(pts)  # the cluster's points before subsampling
