@@ -316,3 +316,17 @@ def test_replaced_cube_marker_takes_the_new_shape_and_keeps_its_pad():
     kinds = sorted(int(m.geom_type[g]) for g in geoms)
     assert kinds == sorted([int(mujoco.mjtGeom.mjGEOM_BOX), int(mujoco.mjtGeom.mjGEOM_SPHERE)])  # the flat pad, the ghost
     assert "cube_target_target" not in [m.body(b).name for b in range(m.nbody)]
+
+
+def test_a_push_that_times_out_on_a_tipping_object_says_so():
+    """A narrow box on a grippy table tips over its leading edge under the hand's face rather than slide: the push
+    pauses while it is tilted, and a timeout spent mostly so names the tipping, not only the phase's counters."""
+    from nextage_qp.api import run_task
+
+    result = run_task(ROOT / "configs" / "push_cube.yaml", overrides=[
+        "scene.objects.cube={shape: box, size: [0.037, 0.0165, 0.035]}", "scene.poses.cube.pos=[0.372,-0.024,0.91]",
+        "scene.poses.cube.yaw=0.438", "scene.poses.cube_target.pos=[0.73,-0.049,0.91]", "scene.masses.cube=0.21",
+        "scene.friction_scale.cube=1.8", "phases.0.timeout=20"])
+    assert not result.success
+    assert "timed out after 20 s of simulated time: cube tipped under the tool for" in result.error, result.error
+    assert result.phases[0]["tilt_pauses"] * 0.02 >= 0.25 * 20

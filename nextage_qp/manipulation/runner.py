@@ -180,8 +180,10 @@ class Runner:
                         break
                     if self.sim.time - rec.start_s > spec.timeout:
                         rec.info = dict(phase.info)
+                        cause = phase.stalled()
                         raise PhaseError(f"phase {rec.name!r} ({spec.kind}) timed out after {spec.timeout:g} s "
-                                         f"of simulated time; last state: {_brief(phase.info)}")
+                                         f"of simulated time{': ' + cause if cause else ''}; "
+                                         f"last state: {_brief(phase.info)}")
                 rec.status, rec.duration_s, rec.info = "done", self.sim.time - rec.start_s, dict(phase.info)
             self.current, self._phase = None, None
             end = self.sim.time + self.cfg.timing.settle

@@ -105,6 +105,13 @@ class Phase(ABC):
         """
         return None
 
+    def stalled(self) -> str | None:
+        """What held the phase up, in a few words, when it times out (None, the default: nothing it can name).
+
+        The runner puts it into the timeout's message, e.g. a push whose object kept tipping under the tool.
+        """
+        return None
+
     def held(self, view: View, obj: str, relative_cost: float) -> Clamp:
         """The clamp on ``obj`` that an earlier grasp left, driven with ``relative_cost``; fails without one."""
         grip = view.grip

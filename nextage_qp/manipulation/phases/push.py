@@ -44,6 +44,7 @@ from nextage_qp.manipulation.phases.push_spec import (
     MIN_STEER_SPEED,
     PUSH_ACCEL,
     STEER_GAIN,
+    TIPPING_SHARE,
     VELOCITY_WINDOW,
     PushSpec,
 )
@@ -70,12 +71,19 @@ class Push(Phase):
         self.tool_yaw = yaw_of(rot)
         self.approaches, self.recoveries, self.full, self.contact = 0, 0, False, PushContact(self.spec.frame)
         self.info.update(attempts=0, nudges=0, contact_onsets=0, contact_losses=0)
-        self.raised, self.looking = 0.0, False
+        self.raised, self.looking, self.tilted_s = 0.0, False, 0.0
         obj, tgt, _ = self._planar(view)
         self._approach(view, unit2((tgt - obj)[:2]))
         if self.plan_failed:
             raise PhaseError(f"phase {self.name!r} (push): no approach to {self.spec.object} within "
                              f"{np.degrees(max(self.spec.fan)):.0f} deg of its line to {self.spec.target} is reachable")
+
+    def stalled(self) -> str | None:  # noqa: D102
+        if self.tilted_s < TIPPING_SHARE * self.spec.timeout:
+            return None
+        return (f"{self.spec.object} tipped under the tool for {self.tilted_s:.0f} s of it (tilted over "
+                f"{np.degrees(self.spec.max_tilt):.0f} deg, the push paused): the tool meets it too high to slide it "
+                f"on this table")
 
     def _planar(self, view: View) -> tuple[np.ndarray, np.ndarray, float]:
         obj, tgt = self._felt(view, view.body_pose(self.spec.object).pos), view.body_pose(self.spec.target).pos
@@ -242,6 +250,7 @@ class Push(Phase):
         tilted = float(np.arccos(clamp(float(np.abs(obj_pose.rot[2]).max()), -1.0, 1.0))) > c.max_tilt
         lead = 0.0 if tilted else c.preload  # a tipping object gets no push until it is flat again
         self.info["tilt_pauses"] = self.info.get("tilt_pauses", 0) + int(tilted)
+        self.tilted_s += view.dt * tilted
         along = min(along + self.v * view.dt, -half + lead)
         if self.touched:  # in contact, recentre only near the face's edge (sliding along it drags the object)
             excess = lateral - clamp(lateral, -c.centre_band, c.centre_band)

@@ -42,6 +42,8 @@ LOOK_AGAIN = 2
 """Times the tool moves on by ``ASIDE`` when the camera still does not see the object ``LOOK_S`` after the last move:
 judged on an estimate unseen for seconds, a push may be taken for centimetres off (one coasted 31 mm past the cube
 after a partial view as the hand rose)."""
+TIPPING_SHARE = 0.25
+"""A push that times out having paused this share of its ``timeout`` for a tipping object says so."""
 LOST_GAP = 0.03
 """An object this far [m] beyond the approach gap, or off the tool face, was knocked away: approach it again."""
 
