@@ -819,3 +819,33 @@ def test_a_correction_is_declined_only_when_it_could_not_reach_the_tolerance_and
     assert worth([0.0, 0.0025], diagonal)  # 2.5 mm x sin 45 = 1.8 mm: worth a try
     assert not worth([0.0, 0.003], [0.0, -1.0])  # pushing away cannot help
     assert worth([0.0, 0.006], [0.0, -1.0])  # beyond accept: nothing to lose
+
+
+def test_a_correction_goes_to_the_other_hand_when_it_reaches_the_error_more_squarely():
+    """Far out on the table the left hand pushes an object to its left only at a slant, which leaves the error across
+    the push (towards the robot, where no hand reaches); with ``other_frames`` the right hand, which reaches that side
+    squarely, takes the correction, and its route first lifts the left hand clear and sends it home."""
+    from pathlib import Path
+
+    from nextage_qp.manipulation.config import load_config
+    from nextage_qp.manipulation.phases.push import Push
+    from nextage_qp.manipulation.push_approach import deviation, plan_approach, plan_handover
+    from nextage_qp.manipulation.runner import Runner
+
+    config = Path(__file__).resolve().parents[1] / "configs" / "push_cube.yaml"
+    runner = Runner(load_config(config, ["scene.poses.cube.pos=[0.745,0.025,0.91]"]))
+    view, spec = runner.view, runner.cfg.phases[0]
+    assert spec.other_frames == ("right_tool",)
+    push = Push(spec, "push")
+    push.frame = spec.frame
+    wanted = np.array([np.cos(np.radians(80.0)), np.sin(np.radians(80.0))])
+    left = plan_approach(view, spec, view.commanded_pose("left_tool").pos, wanted, spec.fan, push._target, higher=True)
+    assert left is not None and deviation(left.direction, wanted) > 0.2
+    handover = plan_handover(view, spec, "left_tool", wanted, spec.fan, push._target, True, left)
+    assert handover is not None
+    frame, right = handover
+    assert frame == "right_tool" and deviation(right.direction, wanted) < deviation(left.direction, wanted) - 0.2
+    assert all(w[0].frame == "right_tool" and w[1].frame == "left_tool" for w in right.route.waypoints)
+    top = 0.91 + 0.035
+    assert right.route.waypoints[0][1].pos[2] >= top + spec.clearance - 1e-9  # lifted clear of the object first
+    assert plan_handover(view, spec, "right_tool", wanted, spec.fan, push._target, True, right) is None  # no way back

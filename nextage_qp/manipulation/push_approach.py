@@ -15,6 +15,7 @@ episodes of the push, shapes and faults sweeps did).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
@@ -74,12 +75,15 @@ def routes(view: View, spec, tool: np.ndarray, d: np.ndarray, raise_by: float = 
 
 
 def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: Sequence[float],
-                  target: Callable[[np.ndarray, float], FrameTarget], higher: bool | float = False) -> Approach | None:
+                  target: Callable[[np.ndarray, float], FrameTarget], higher: bool | float = False,
+                  extra: Sequence[tuple[FrameTarget, ...]] = ()) -> Approach | None:
     """The approach closest to the planar direction ``wanted`` within ``fan`` [rad] that the arm reaches, or None.
 
     ``spec`` is the push's spec (frame, object, approach, height, clearance, yaw); ``target(pos, yaw)`` the tool
     target at ``pos`` for a push at ``yaw``. With ``higher`` True, a push out of reach at its height is tried higher
-    (:func:`raises`); a number: the push goes that much higher (as an earlier approach found it had to).
+    (:func:`raises`); a number: the push goes that much higher (as an earlier approach found it had to). ``extra``
+    targets join the route's waypoints (the k-th of them the k-th waypoint, the last all later ones): another frame
+    going home.
     """
     tried = 0
     heights = raises(view, spec) if higher is True else [float(higher)]  # a number: that raise only
@@ -90,7 +94,8 @@ def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: S
                 yaw = float(np.arctan2(d[1], d[0])) + spec.yaw
                 tried += 1
                 for route in routes(view, spec, tool, d, raise_by):
-                    planned = PlannedRoute([(target(p, yaw),) for p in route[1:]])
+                    planned = PlannedRoute([(target(p, yaw), *extra[min(k, len(extra) - 1)]) if extra
+                                            else (target(p, yaw),) for k, p in enumerate(route[1:])])
                     if planned.plan(view, restarts=restarts):
                         return Approach(d, route[0], yaw, planned, float(route[-1][2]), tried, raise_by)
     return None
@@ -105,3 +110,35 @@ def raises(view: View, spec) -> list[float]:
     top = view.extent(spec.object, np.array([0.0, 0.0, 1.0]))
     room = top - FACE_MARGIN - spec.height
     return [0.0] + [k * RAISE_STEP for k in range(1, int(room / RAISE_STEP) + 1)]
+
+
+def deviation(d: np.ndarray, wanted: np.ndarray) -> float:
+    """Angle between two planar unit directions [rad]."""
+    return float(abs(np.arctan2(d[0] * wanted[1] - d[1] * wanted[0], d @ wanted)))
+
+
+def plan_handover(view: View, spec, frame: str, wanted: np.ndarray, fan: Sequence[float],
+                  target: Callable[..., FrameTarget], higher: bool | float,
+                  best: Approach | None) -> tuple[str, Approach] | None:
+    """Another of the push's tools with an approach nearer ``wanted`` than ``best``, and that approach, or None.
+
+    The tools are ``spec.frame`` and ``spec.other_frames``; ``best`` is the plan of the tool ``frame`` pushing now
+    (None: it reaches none); ``target(pos, yaw, frame)`` is a tool's target. Each other tool tries only the deviations
+    of ``fan`` smaller than the best found so far; its route lifts ``frame`` clear of the object, then takes it to where
+    the default posture holds it.
+    """
+    limit = np.inf if best is None else deviation(best.direction, wanted)
+    here = view.commanded_pose(frame).pos  # the tool leaving rises clear of the object first, then goes home
+    top = view.rest_height(spec.object) + view.extent(spec.object, np.array([0.0, 0.0, 1.0]))
+    up = np.array([*here[:2], max(here[2], top + spec.clearance)])
+    home = ((FrameTarget(frame, pos=up),), (FrameTarget(frame, pos=view.pose_at(frame, view.default_posture()).pos),))
+    found = None
+    for other in (spec.frame, *spec.other_frames):
+        nearer = [a for a in fan if a < limit - 1e-6]
+        if other == frame or not nearer:
+            continue
+        plan = plan_approach(view, spec, view.commanded_pose(other).pos, wanted, nearer,
+                             functools.partial(target, frame=other), higher=higher, extra=home)
+        if plan is not None:
+            found, limit = (other, plan), deviation(plan.direction, wanted)
+    return found

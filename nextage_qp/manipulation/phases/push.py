@@ -48,7 +48,7 @@ from nextage_qp.manipulation.phases.push_spec import (
     VELOCITY_WINDOW,
     PushSpec,
 )
-from nextage_qp.manipulation.push_approach import plan_approach
+from nextage_qp.manipulation.push_approach import plan_approach, plan_handover
 from nextage_qp.servo import Command
 
 _X = np.array([1.0, 0.0, 0.0])
@@ -66,10 +66,11 @@ class Push(Phase):
     asides: int  # moves aside made to look again, the object still hidden
 
     def start(self, view: View) -> None:  # noqa: D102
-        pos, rot = view.commanded_pose(self.spec.frame)
+        self.frame = self.spec.frame  # the tool pushing now: a correction may hand over to one of other_frames
+        pos, rot = view.commanded_pose(self.frame)
         self.sp = Setpoint(pos)
         self.tool_yaw = yaw_of(rot)
-        self.approaches, self.recoveries, self.full, self.contact = 0, 0, False, PushContact(self.spec.frame)
+        self.approaches, self.recoveries, self.full, self.contact = 0, 0, False, PushContact(self.frame)
         self.info.update(attempts=0, nudges=0, contact_onsets=0, contact_losses=0)
         self.raised, self.looking, self.tilted_s = 0.0, False, 0.0
         obj, tgt, _ = self._planar(view)
@@ -99,7 +100,7 @@ class Push(Phase):
         if not (self.contact.in_contact and view.unseen_s(c.object) > HIDDEN_S) or self.stage not in ("push", "hold"):
             return obj  # (no contact yet when start() asks, before there is a stage)
         d = np.array([*self.d, 0.0])
-        tool = view.frame_pose(c.frame).pos
+        tool = view.frame_pose(self.frame).pos
         return obj + (float((tool - obj) @ d) + view.extent(c.object, -d)) * d  # the face the tool is on
 
     def _approach(self, view: View, d_goal: np.ndarray, full: bool = False) -> None:
@@ -113,6 +114,14 @@ class Push(Phase):
         fan = c.fan if self.approaches == 1 or full else tuple(a for a in c.fan if a <= c.correction_fan)
         higher: bool | float = True if self.approaches == 1 else self.raised  # later ones at the first one's height
         plan = plan_approach(view, c, self.sp.pos, d_goal, fan, self._target, higher=higher)
+        if self.approaches > 1 and c.other_frames:  # a correction: the tool that reaches nearest the error pushes
+            handover = plan_handover(view, c, self.frame, d_goal, fan, self._target, higher, plan)
+            if handover is not None:
+                self.frame, plan = handover
+                self.contact.frame, self.contact.available = self.frame, True
+                pos, rot = view.commanded_pose(self.frame)
+                self.sp, self.tool_yaw = Setpoint(pos), yaw_of(rot)
+                self.info["handovers"] = self.info.get("handovers", 0) + 1
         self.planned_at = view.body_pose(c.object).pos[:2].copy()
         tried = plan.tried if plan else sum(1 + (a != 0) for a in fan)
         self.info.update(attempts=self.approaches, directions_tried=tried)
@@ -129,12 +138,12 @@ class Push(Phase):
         target = self._target(self.sp.pos.copy(), self.tool_yaw)
         return Command((target,), allow=frozenset({self.spec.object}) if allow else frozenset(), done=done)
 
-    def _target(self, pos: np.ndarray, yaw: float) -> FrameTarget:
-        """The tool at ``pos`` pushing at heading ``yaw``: its whole rotation, or its face normal (``orient``)."""
-        rot = rot_z(yaw) @ self._pitch
+    def _target(self, pos: np.ndarray, yaw: float, frame: str | None = None) -> FrameTarget:
+        """A tool (default: the one pushing) at ``pos`` pushing at ``yaw``: its rotation or face normal (``orient``)."""
+        rot, frame = rot_z(yaw) @ self._pitch, frame or self.frame
         if self.spec.orient == "normal":  # only the face's normal (the frame's x axis) is held; roll about it free
-            return FrameTarget(self.spec.frame, pos=pos, axis=_X, direction=rot[:, 0].copy())
-        return FrameTarget(self.spec.frame, pos=pos, rot=rot)
+            return FrameTarget(frame, pos=pos, axis=_X, direction=rot[:, 0].copy())
+        return FrameTarget(frame, pos=pos, rot=rot)
 
     @functools.cached_property
     def _pitch(self) -> np.ndarray:
@@ -157,7 +166,7 @@ class Push(Phase):
         where the tool takes it.
         """
         felt = self.contact.in_contact if self.contact.available else self.touched  # the wrist's sensor, else geometry
-        return (self.spec.object, self.spec.frame) if self.stage in ("push", "hold") and felt else None
+        return (self.spec.object, self.frame) if self.stage in ("push", "hold") and felt else None
 
     def _transit(self, view: View) -> Command:
         """Lift straight up, then move through the planned joints of the route (the wrist turns once lifted)."""
@@ -166,7 +175,7 @@ class Push(Phase):
         moved = float(np.linalg.norm(obj[:2] - self.planned_at)) > LOST_GAP
         if moved and self.recoveries < c.recoveries:  # knocked away during the transit: plan for where it is now
             self._knocked_away()
-            pos, rot = view.commanded_pose(c.frame)
+            pos, rot = view.commanded_pose(self.frame)
             self.sp.jump(pos)
             self.tool_yaw = yaw_of(rot)
             self._approach(view, unit2((tgt - obj)[:2]), full=True)
@@ -176,7 +185,7 @@ class Push(Phase):
             return self._command(allow=False)
         command = self.planned.step(view)
         if self.planned.done:
-            pos, rot = view.commanded_pose(c.frame)
+            pos, rot = view.commanded_pose(self.frame)
             self.sp.jump(pos)
             self.tool_yaw = yaw_of(rot)
             self.z_bias = 0.0
@@ -228,7 +237,7 @@ class Push(Phase):
         blind = self.blind_m > c.blind or unseen > BLIND_S  # pushed unseen too far or long
         self.blind_stop = not stop and self.touched and blind  # stop and look
         if stop or self.blind_stop:
-            self.sp.jump(np.array([*view.frame_pose(c.frame).pos[:2], self.sp.pos[2]]))  # stop pushing, no shove
+            self.sp.jump(np.array([*view.frame_pose(self.frame).pos[:2], self.sp.pos[2]]))  # stop pushing, no shove
             self.stage, self.hold_from, self.v = "hold", view.t, 0.0
             return self._command(allow=True)
         half = view.extent(c.object, np.array([-d[0], -d[1], 0.0]))  # the face pushed: behind the object (any shape)
@@ -259,7 +268,7 @@ class Push(Phase):
             lateral -= clamp(lateral, -c.push_speed * view.dt, c.push_speed * view.dt)
         # Hold the real tool at the push height: contact forces lift a compliant arm, and a hand sliding up the
         # object's face drags it onto the table (more friction, more force, more lift).
-        rise = view.frame_pose(c.frame).pos[2] - self.push_z
+        rise = view.frame_pose(self.frame).pos[2] - self.push_z
         self.z_bias = clamp(self.z_bias - HEIGHT_GAIN * rise * view.dt, -MAX_HEIGHT_BIAS, MAX_HEIGHT_BIAS)
         self.sp.pos = np.array([*(obj[:2] + along * d + lateral * n), self.push_z + self.z_bias])
         return self._command(allow=True)

@@ -73,7 +73,7 @@ def start_retreat(p: Push, final: bool, view: View | None = None) -> Command:
     back = p.sp.pos - np.array([*p.d, 0.0]) * c.approach
     p.route = [back, back + np.array([0.0, 0.0, c.clearance])]
     if view is not None:
-        p.route.append(_aside(p.route[-1], p.spec.frame, view))
+        p.route.append(_aside(p.route[-1], p.frame, view))
     p.stage, p.leg, p.final, p.seen_from, p.asides = "retreat", 0, final, None, 0
     return p._command(allow=True)
 
@@ -93,7 +93,7 @@ def retreat(p: Push, view: View) -> Command:
                 return p._command(allow=False)
             if p.asides < LOOK_AGAIN:  # the arm still hides it: fold further towards the robot's side, look again
                 p.asides += 1
-                p.route.append(_aside(p.route[-1], c.frame, view))
+                p.route.append(_aside(p.route[-1], p.frame, view))
                 return p._command(allow=False)
         else:
             p.seen_from = view.t if p.seen_from is None else p.seen_from

@@ -55,6 +55,10 @@ class PushSpec(Spec):
     frame: str = name_field("frame", description="Tool frame that pushes: an arm's tool frame of the robot file.")
     object: str = name_field("object", description="Free body to push, e.g. cube.")
     target: str = name_field("place", description="Body marking where the object should end, e.g. cube_target.")
+    other_frames: tuple[str, ...] = name_field(
+        "frame", default=(), description="Other tool frames (e.g. the other arm's) that may take over a correction: "
+        "it is made by the tool that reaches the direction nearest the error (ties: the tool pushing), the other one "
+        "going home.")
     height: float = Field(default=0.0, ge=-0.2, le=0.2, description="Tool height over the object centre [m].")
     approach: float = Field(default=0.04, gt=0, le=0.3, description="Gap behind the object before a push [m].")
     clearance: float = Field(default=0.07, gt=0, le=0.5, description="Height over the object's top in transit [m].")
