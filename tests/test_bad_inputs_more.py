@@ -113,6 +113,8 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
     # where an object goes: a scene body, never one of the robot's links (nor listed among the valid ones)
     ("target a robot link", ["run", PUSH, "--set", "target=WAIST"], {}, 2,
      "push_cube.yaml: target: 'WAIST' is not valid; valid: table, cube, cube_target"),
+    ("push handover to an unknown frame", ["run", PUSH, "--set", "phases.0.other_frames=[nose]"], {}, 2,
+     "phases[0].other_frames[0]: 'nose' is not valid; valid: left_wrist, left_tool,"),
     ("place_at a robot link", ["run", PICK, "--set", "phases[0].place_at=LARM_JOINT5_Link"], {}, 2,
      "phases[0].place_at: 'LARM_JOINT5_Link' is not valid; valid: table, obstacle, box, box_target"),
     # a sweep's base config that is itself wrong is named as the base, a key of its set: as set
