@@ -311,8 +311,12 @@ def test_the_default_push_from_the_head_camera_reaches_its_target() -> None:
     assert 0 < frames["unoccluded_ok"] <= frames["unoccluded"] <= result["estimation"]["camera"]["frames"]
     assert frames["detected_of_unoccluded"] == frames["unoccluded_ok"] / frames["unoccluded"]
     assert frames["detected_of_in_view"] == frames["ok"] / in_view
-    errors = result["estimation"]["objects"]["cube"]  # the estimate while the head sees the cube: nearer the truth
-    assert errors["unoccluded_ticks"] > 0 and errors["estimate_unoccluded_rms_m"] < errors["estimate_rms_m"]
+    # the estimate while the head sees the cube uncovered: within what the push accepts. (Not always nearer the truth
+    # than over the whole run in one run: here 3.33 mm against 3.20 mm, one 30 mm-off fit taken right after a hold
+    # ended; over the push sweep 3.8 mm against 5.3 mm, RMS over episodes.)
+    errors = result["estimation"]["objects"]["cube"]
+    assert 0 < errors["unoccluded_ticks"] < result["sim_time_s"] / 0.02
+    assert errors["estimate_unoccluded_rms_m"] < 0.005
 
 
 def test_a_frame_dump_asked_for_after_the_run_ended_is_reported_not_silently_dropped() -> None:
