@@ -134,10 +134,14 @@ def rotate2(d: np.ndarray, angle: float) -> np.ndarray:
     return np.array([c * d[0] - s * d[1], s * d[0] + c * d[1]])
 
 
+def angle2(d: np.ndarray, goal: np.ndarray) -> float:
+    """Signed angle [rad] from planar direction ``d`` to ``goal`` (counter-clockwise positive)."""
+    return float(np.arctan2(d[0] * goal[1] - d[1] * goal[0], d @ goal))
+
+
 def turn2(d: np.ndarray, goal: np.ndarray, max_angle: float) -> np.ndarray:
     """Planar unit vector ``d`` turned towards ``goal`` by at most ``max_angle`` [rad]."""
-    angle = float(np.arctan2(d[0] * goal[1] - d[1] * goal[0], d @ goal))
-    return rotate2(d, float(np.clip(angle, -max_angle, max_angle)))
+    return rotate2(d, float(np.clip(angle2(d, goal), -max_angle, max_angle)))
 
 
 GeomPart = tuple[int, np.ndarray, np.ndarray, np.ndarray]

@@ -30,6 +30,10 @@ class PushContact:
         self.onsets = self.losses = 0
         self._last_t: float | None = None
 
+    def retarget(self, frame: str) -> None:
+        """Read the sensor of another tool ``frame`` from now on (a push handed over to another arm)."""
+        self.frame, self.available = frame, True
+
     def restart(self) -> None:
         """Forget the last push's contact (a new push starts from none, before its first reading)."""
         self.force, self.in_contact = 0.0, False

@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from nextage_qp.geometry import rotate2
+from nextage_qp.geometry import angle2, rotate2
 from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.context import View
 from nextage_qp.manipulation.route import PlannedRoute
@@ -94,8 +94,8 @@ def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: S
                 yaw = float(np.arctan2(d[1], d[0])) + spec.yaw
                 tried += 1
                 for route in routes(view, spec, tool, d, raise_by):
-                    planned = PlannedRoute([(target(p, yaw), *extra[min(k, len(extra) - 1)]) if extra
-                                            else (target(p, yaw),) for k, p in enumerate(route[1:])])
+                    planned = PlannedRoute([(target(p, yaw), *(extra[min(k, len(extra) - 1)] if extra else ()))
+                                            for k, p in enumerate(route[1:])])
                     if planned.plan(view, restarts=restarts):
                         return Approach(d, route[0], yaw, planned, float(route[-1][2]), tried, raise_by)
     return None
@@ -114,7 +114,7 @@ def raises(view: View, spec) -> list[float]:
 
 def deviation(d: np.ndarray, wanted: np.ndarray) -> float:
     """Angle between two planar unit directions [rad]."""
-    return float(abs(np.arctan2(d[0] * wanted[1] - d[1] * wanted[0], d @ wanted)))
+    return abs(angle2(d, wanted))
 
 
 def plan_handover(view: View, spec, frame: str, wanted: np.ndarray, fan: Sequence[float],

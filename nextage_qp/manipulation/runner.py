@@ -180,7 +180,7 @@ class Runner:
                         break
                     if self.sim.time - rec.start_s > spec.timeout:
                         rec.info = dict(phase.info)
-                        cause = phase.stalled()
+                        cause = phase.stalled(view)
                         raise PhaseError(f"phase {rec.name!r} ({spec.kind}) timed out after {spec.timeout:g} s "
                                          f"of simulated time{': ' + cause if cause else ''}; "
                                          f"last state: {_brief(phase.info)}")

@@ -105,7 +105,7 @@ class Phase(ABC):
         """
         return None
 
-    def stalled(self) -> str | None:
+    def stalled(self, view: View) -> str | None:
         """What held the phase up, in a few words, when it times out (None, the default: nothing it can name).
 
         The runner puts it into the timeout's message, e.g. a push whose object kept tipping under the tool.

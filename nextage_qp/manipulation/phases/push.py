@@ -27,7 +27,7 @@ import functools
 import numpy as np
 
 from nextage_qp.errors import PhaseError
-from nextage_qp.geometry import clamp, rot_z, rotate2, turn2, unit2, yaw_of
+from nextage_qp.geometry import angle2, clamp, rot_z, rotate2, turn2, unit2, yaw_of
 from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.contact import PushContact
 from nextage_qp.manipulation.context import Setpoint, View
@@ -72,17 +72,18 @@ class Push(Phase):
         self.tool_yaw = yaw_of(rot)
         self.approaches, self.recoveries, self.full, self.contact = 0, 0, False, PushContact(self.frame)
         self.info.update(attempts=0, nudges=0, contact_onsets=0, contact_losses=0)
-        self.raised, self.looking, self.tilted_s = 0.0, False, 0.0
+        self.raised, self.looking = 0.0, False
         obj, tgt, _ = self._planar(view)
         self._approach(view, unit2((tgt - obj)[:2]))
         if self.plan_failed:
             raise PhaseError(f"phase {self.name!r} (push): no approach to {self.spec.object} within "
                              f"{np.degrees(max(self.spec.fan)):.0f} deg of its line to {self.spec.target} is reachable")
 
-    def stalled(self) -> str | None:  # noqa: D102
-        if self.tilted_s < TIPPING_SHARE * self.spec.timeout:
+    def stalled(self, view: View) -> str | None:  # noqa: D102
+        tilted_s = self.info.get("tilt_pauses", 0) * view.dt  # ticks the push paused for a tipping object
+        if tilted_s < TIPPING_SHARE * self.spec.timeout:
             return None
-        return (f"{self.spec.object} tipped under the tool for {self.tilted_s:.0f} s of it (tilted over "
+        return (f"{self.spec.object} tipped under the tool for {tilted_s:.0f} s of it (tilted over "
                 f"{np.degrees(self.spec.max_tilt):.0f} deg, the push paused): the tool meets it too high to slide it "
                 f"on this table")
 
@@ -118,9 +119,8 @@ class Push(Phase):
             handover = plan_handover(view, c, self.frame, d_goal, fan, self._target, higher, plan)
             if handover is not None:
                 self.frame, plan = handover
-                self.contact.frame, self.contact.available = self.frame, True
-                pos, rot = view.commanded_pose(self.frame)
-                self.sp, self.tool_yaw = Setpoint(pos), yaw_of(rot)
+                self.contact.retarget(self.frame)
+                self._on_tool(view)
                 self.info["handovers"] = self.info.get("handovers", 0) + 1
         self.planned_at = view.body_pose(c.object).pos[:2].copy()
         tried = plan.tried if plan else sum(1 + (a != 0) for a in fan)
@@ -175,9 +175,7 @@ class Push(Phase):
         moved = float(np.linalg.norm(obj[:2] - self.planned_at)) > LOST_GAP
         if moved and self.recoveries < c.recoveries:  # knocked away during the transit: plan for where it is now
             self._knocked_away()
-            pos, rot = view.commanded_pose(self.frame)
-            self.sp.jump(pos)
-            self.tool_yaw = yaw_of(rot)
+            self._on_tool(view)
             self._approach(view, unit2((tgt - obj)[:2]), full=True)
             return self._command(allow=False) if not self.plan_failed else finish(self, dist)
         if self.lifting:
@@ -185,12 +183,16 @@ class Push(Phase):
             return self._command(allow=False)
         command = self.planned.step(view)
         if self.planned.done:
-            pos, rot = view.commanded_pose(self.frame)
-            self.sp.jump(pos)
-            self.tool_yaw = yaw_of(rot)
+            self._on_tool(view)
             self.z_bias = 0.0
             self._begin_push(touched=False)
         return command
+
+    def _on_tool(self, view: View) -> None:
+        """Put the setpoint and the tool's yaw where the pushing tool is commanded now."""
+        pos, rot = view.commanded_pose(self.frame)
+        self.sp.jump(pos)
+        self.tool_yaw = yaw_of(rot)
 
     def _knocked_away(self) -> None:
         """Count a knock; while the recovery budget lasts, the next approach does not use up a precision attempt."""
@@ -226,7 +228,7 @@ class Push(Phase):
             speed = float(np.linalg.norm(self.obj_v))
             if speed > MIN_STEER_SPEED:  # integral steering: aim the push so the object moves at the target
                 moving = self.obj_v / speed
-                error = float(np.arctan2(moving[0] * bearing[1] - moving[1] * bearing[0], moving @ bearing))
+                error = angle2(moving, bearing)
                 self.bias = clamp(self.bias + STEER_GAIN * error * view.dt, -MAX_BIAS, MAX_BIAS)
             self.d = turn2(self.d, rotate2(bearing, self.bias), c.turn_rate * view.dt)
             self.goal_yaw = float(np.arctan2(self.d[1], self.d[0])) + c.yaw
@@ -259,7 +261,6 @@ class Push(Phase):
         tilted = float(np.arccos(clamp(float(np.abs(obj_pose.rot[2]).max()), -1.0, 1.0))) > c.max_tilt
         lead = 0.0 if tilted else c.preload  # a tipping object gets no push until it is flat again
         self.info["tilt_pauses"] = self.info.get("tilt_pauses", 0) + int(tilted)
-        self.tilted_s += view.dt * tilted
         along = min(along + self.v * view.dt, -half + lead)
         if self.touched:  # in contact, recentre only near the face's edge (sliding along it drags the object)
             excess = lateral - clamp(lateral, -c.centre_band, c.centre_band)
