@@ -178,19 +178,16 @@ class PoseKalman:
             m.p[:, 1, 1] = 2.0 * m.r / dt**2
             m.p[:, 0, 1] = m.p[:, 1, 0] = m.r / dt
             m.pin()
-        self._favour(-1)
-
-    def _favour(self, k: int) -> None:
-        """Weigh model ``k`` at ``STAY`` and the others alike (a fresh track's mode probabilities)."""
         self.mode[:] = (1.0 - STAY) / (len(self.models) - 1)
-        self.mode[k] = STAY
+        self.mode[-1] = STAY
 
     def start(self, t: float, z: np.ndarray, variance: np.ndarray) -> None:
         """Restart at ``z`` taken at ``t`` [s], at rest, with position/angle ``variance`` per axis (6,)."""
         self.reset(t, np.asarray(z, dtype=float))
         for m in self.models:
             m.p[:, 0, 0] = np.maximum(variance, 1e-12)
-        self._favour(0)  # at rest: a first jump is where it is, not a speed
+        self.mode[:] = (1.0 - STAY) / (len(self.models) - 1)  # at rest: a first jump is where it is, not a speed
+        self.mode[0] = STAY
 
     def variance(self, t: float | None = None) -> np.ndarray:
         """Mode-weighted position/angle variance per axis (6,) at the last measurement, or predicted to ``t`` [s]."""
