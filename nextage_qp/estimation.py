@@ -28,13 +28,16 @@ normalised innovation :math:`\sum_i \nu_i^2 / S_i` under the mixture
 the models predict (weighted by their probabilities) exceeds the gate (the 99.9 % point of :math:`\chi^2_6`) is
 rejected as an outlier; after ``reset_after`` rejections in a row the object has really moved, and the filter
 restarts at the last of them, manoeuvring, with the velocity the last two show. A camera's partial view (the hand in
-front of the object) is gated against the resting model alone and never restarts the filter: it errs alike from frame
-to frame, and after a gap in the views a few such fits would otherwise make up a speed.
+front of the object) is gated against the resting model alone and never makes up a speed: after a gap in the views a few
+such fits would. ``PARTIAL_RUN`` rejected partial views in a row that agree with each other (a hand parked beside an
+object it nudged) restart the filter at rest where they put it.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from nextage_qp.motion_models import ConstantVelocity, Resting, outer, wrap
 
 CHI2_6_999 = 22.458
 """99.9 % point of the chi-square distribution with 6 degrees of freedom (the innovation gate)."""
@@ -56,60 +59,9 @@ in half a second and than friction lets a free object slide (v^2 / (2 mu g): 9 m
 coast is a speed that wrong measurements gave the filter (the hand taken for the object as it passes over it)."""
 
 
-def _wrap(angle: np.ndarray) -> np.ndarray:
-    return (angle + np.pi) % (2.0 * np.pi) - np.pi
-
-
-class _CV:
-    """Six decoupled constant-velocity Kalman filters (one per pose axis) with one process noise per axis."""
-
-    def __init__(self, q: np.ndarray, r: np.ndarray) -> None:
-        self.q, self.r = q, r
-        self.x = np.zeros((6, 2))
-        self.p = np.zeros((6, 2, 2))
-
-    def predicted(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """State and covariance ``dt`` [s] ahead."""
-        x = self.x.copy()
-        x[:, 0] += dt * x[:, 1]
-        p, q = self.p, self.q
-        out = np.empty_like(p)
-        out[:, 0, 0] = p[:, 0, 0] + dt * (p[:, 1, 0] + p[:, 0, 1]) + dt * dt * p[:, 1, 1] + q * dt**3 / 3.0
-        out[:, 0, 1] = out[:, 1, 0] = p[:, 0, 1] + dt * p[:, 1, 1] + q * dt**2 / 2.0
-        out[:, 1, 1] = p[:, 1, 1] + q * dt
-        return x, out
-
-    def pin(self) -> None:
-        """Keep the state within the model (a no-op here; the resting model zeroes its velocity)."""
-
-    def update(self, dt: float, z: np.ndarray) -> np.ndarray:
-        """Predict by ``dt`` and apply ``z``; returns each axis's log-likelihood of ``z`` under the prediction (6,)."""
-        x, p = self.predicted(dt)
-        nu = z - x[:, 0]
-        nu[3:] = _wrap(nu[3:])
-        s = p[:, 0, 0] + self.r
-        k = p[:, :, 0] / s[:, None]  # (6, 2): gain of each axis
-        self.x = x + k * nu[:, None]
-        self.p = p - k[:, :, None] * p[:, None, 0, :]  # (I - K H) P
-        return -0.5 * (nu * nu / s + np.log(2.0 * np.pi * s))
-
-
-class _Resting(_CV):
-    """Constant position: zero velocity, the position a random walk of density ``q`` [m^2/s]."""
-
-    def predicted(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """State and covariance ``dt`` [s] ahead: the position waits, its variance grows by ``q dt``."""
-        x = self.x.copy()
-        x[:, 1] = 0.0
-        p = np.zeros_like(self.p)
-        p[:, 0, 0] = self.p[:, 0, 0] + self.q * dt
-        return x, p
-
-    def pin(self) -> None:
-        """Zero the velocity and its covariance."""
-        self.x[:, 1] = 0.0
-        self.p[:, 1, :] = 0.0
-        self.p[:, :, 1] = 0.0
+PARTIAL_RUN = 15
+"""Rejected partial views in a row (a second at 15 Hz) that, agreeing with each other within the gate, restart
+the filter at rest at their mean: the object was moved while the hand hid it, and the hand stays in front of it."""
 
 
 class PoseKalman:
@@ -137,7 +89,7 @@ class PoseKalman:
         floor_pos, floor_rot = 1e-4, 1e-3  # a noiseless camera still gets a small R, so S never vanishes
         r = np.array([max(noise_pos, floor_pos) ** 2] * 3 + [max(noise_rot, floor_rot) ** 2] * 3)
         q = np.array([accel_pos] * 3 + [accel_rot] * 3)
-        self.models = (_Resting(q * STATIC_GAIN, r), _CV(q, r), _CV(q * MANOEUVRE_GAIN, r))
+        self.models = (Resting(q * STATIC_GAIN, r), ConstantVelocity(q, r), ConstantVelocity(q * MANOEUVRE_GAIN, r))
         n = len(self.models)
         self.trans = np.full((n, n), (1.0 - STAY) / (n - 1))
         np.fill_diagonal(self.trans, STAY)
@@ -146,6 +98,7 @@ class PoseKalman:
         self.t: float | None = None
         self.accepted = self.rejected = self.resets = 0
         self._misses: list[tuple[float, np.ndarray]] = []
+        self._partials: list[np.ndarray] = []
 
     @property
     def initialised(self) -> bool:
@@ -161,7 +114,7 @@ class PoseKalman:
             m.p[:, 1, 1] = np.array([0.05**2] * 3 + [0.5**2] * 3)  # objects start (nearly) at rest
             m.pin()
         self.mode[:] = 1.0 / len(self.models)
-        self.t, self._misses = t, []
+        self.t, self._misses, self._partials = t, [], []
 
     def _restart_moving(self) -> None:
         """Restart at the last rejected measurement, manoeuvring, with the velocity of the last two."""
@@ -172,7 +125,7 @@ class PoseKalman:
         if dt <= 0.0:
             return
         v = z1 - z0
-        v[3:] = _wrap(v[3:])
+        v[3:] = wrap(v[3:])
         for m in self.models:
             m.x[:, 1] = v / dt
             m.p[:, 1, 1] = 2.0 * m.r / dt**2
@@ -211,6 +164,11 @@ class PoseKalman:
         if self._nis(dt, z, resting=partial) > self.gate:
             self.rejected += 1
             if partial:
+                self._partials = [*self._partials[1 - PARTIAL_RUN:], z]
+                mean = self._agreed(np.array(self._partials[-PARTIAL_RUN:]))
+                if len(self._partials) >= PARTIAL_RUN and mean is not None:
+                    self.resets += 1
+                    self.start(t, mean, self.models[0].r)
                 return False
             self._misses.append((t, z))
             if len(self._misses) >= self.reset_after:  # not an outlier: the object really is elsewhere
@@ -221,9 +179,17 @@ class PoseKalman:
         logl = np.array([m.update(dt, z) for m in self.models])  # (models, axes)
         w = prior * np.exp(logl - logl.max(axis=0))
         self.mode = w / w.sum(axis=0)
-        self.t, self._misses = t, []
+        self.t, self._misses, self._partials = t, [], []
         self.accepted += 1
         return True
+
+    def _agreed(self, zs: np.ndarray) -> np.ndarray | None:
+        """The mean of the views ``zs`` (n, 6) when each is within the gate of it under the measurement noise."""
+        d = zs - zs[-1]
+        d[:, 3:] = wrap(d[:, 3:])
+        mean = d.mean(axis=0)
+        nu = d - mean
+        return zs[-1] + mean if (np.sum(nu * nu / self.models[0].r, axis=1) <= self.gate).all() else None
 
     def _nis(self, dt: float, z: np.ndarray, resting: bool = False) -> float:
         """Normalised squared innovation of ``z`` under the predicted mixture (models by their prior), or at rest."""
@@ -235,7 +201,7 @@ class PoseKalman:
         mean = sum(wi * x[:, 0] for wi, (x, _) in zip(w, preds, strict=True))
         var = sum(wi * (p[:, 0, 0] + (x[:, 0] - mean) ** 2) for wi, (x, p) in zip(w, preds, strict=True))
         nu = z - mean
-        nu[3:] = _wrap(nu[3:])
+        nu[3:] = wrap(nu[3:])
         return float(np.sum(nu * nu / (var + self.models[0].r)))
 
     def _mix(self) -> np.ndarray:
@@ -249,7 +215,7 @@ class PoseKalman:
         mixed = []
         for j in range(n):
             x0 = sum(weights[i, j][:, None] * xs[i] for i in range(n))
-            p0 = sum(weights[i, j][:, None, None] * (ps[i] + _outer(xs[i] - x0)) for i in range(n))
+            p0 = sum(weights[i, j][:, None, None] * (ps[i] + outer(xs[i] - x0)) for i in range(n))
             mixed.append((x0, p0))
         for m, (x0, p0) in zip(self.models, mixed, strict=True):
             m.x, m.p = x0, p0
@@ -267,8 +233,3 @@ class PoseKalman:
         if shift > COAST_M:
             pose[:3] = last[:3] + (pose[:3] - last[:3]) * (COAST_M / shift)
         return pose
-
-
-def _outer(d: np.ndarray) -> np.ndarray:
-    """Per-axis outer products (6, 2, 2) of state differences (6, 2)."""
-    return d[:, :, None] * d[:, None, :]

@@ -97,6 +97,32 @@ def test_partial_views_confirm_a_resting_object_never_move_it_and_clear_views_st
     np.testing.assert_allclose(kf.estimate(2.5 + 8 / RATE)[:3], moved[:3], atol=0.006)
 
 
+def test_a_run_of_agreeing_partial_views_restarts_the_filter_at_rest_where_they_put_the_object():
+    """A hand parked beside an object it nudged 15 mm covers it in every view: a second of partial views that agree
+    with each other moves the estimate there (at rest: it stays), fewer do not, and partial views that disagree never
+    do."""
+    from nextage_qp.estimation import PARTIAL_RUN
+
+    truth = np.array([0.5, 0.0, 0.92, 0.0, 0.0, 0.3])
+    nudged = truth + np.r_[0.012, 0.009, 0, 0, 0, 0.05]
+    kf, rng = settled(4, truth)
+    t = 2.0
+    for _ in range(PARTIAL_RUN - 1):
+        t += 1 / RATE
+        assert not kf.update(t, measure(rng, nudged), partial=True)
+    assert kf.resets == 0 and np.linalg.norm(kf.estimate(t)[:3] - truth[:3]) < 0.002
+    t += 1 / RATE
+    kf.update(t, measure(rng, nudged), partial=True)
+    assert kf.resets == 1
+    for dt in (0.0, 1.0):  # restarted at rest: where the views put it, not flying on
+        assert np.linalg.norm(kf.estimate(t + dt)[:3] - nudged[:3]) < 0.002
+    assert kf.update(t + 1 / RATE, measure(rng, nudged))  # and the clear views that follow confirm it
+    kf, rng = settled(5, truth)
+    for i in range(5 * PARTIAL_RUN):  # fits 3 cm apart from frame to frame: no restart, however many
+        kf.update(2.0 + i / RATE, measure(rng, truth + np.r_[0.015 * (-1) ** i, 0.03, 0, 0, 0, 0]), partial=True)
+    assert kf.resets == 0 and np.linalg.norm(kf.estimate(2.0 + 5 * PARTIAL_RUN / RATE)[:3] - truth[:3]) < 0.002
+
+
 def test_each_axis_keeps_its_own_model_a_pushed_object_s_height_stays_averaged():
     rng = np.random.default_rng(5)
     kf = PoseKalman(SIGMA_POS, SIGMA_ROT)

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from nextage_qp.errors import UnknownNameError
+from nextage_qp.geometry import Pose
 from nextage_qp.manipulation.context import View
 
 WINDOW = 0.05
@@ -29,6 +32,28 @@ class PushContact:
         self.force, self.in_contact = 0.0, False
         self.onsets = self.losses = 0
         self._last_t: float | None = None
+        self._carried: tuple[np.ndarray, np.ndarray] | None = None  # (carrier position, tool position it moved with)
+
+    def carrier(self, view: View, direction: np.ndarray | None) -> Callable[[], Pose] | None:
+        """The pose that carries a pushed object while the tool pushes along ``direction`` (None: it does not).
+
+        The tool takes the object only as far as it advances along the push: sliding along the object's face or
+        turning, it does not move it (a tool recentred sideways in contact dragged an estimate 11 mm off a cube that
+        stayed put). The pose moves by the tool's advance along ``direction`` since it was last asked, level, never
+        turning.
+        """
+        if direction is None:
+            self._carried = None
+            return None
+        d = np.array([direction[0], direction[1], 0.0])
+
+        def pose() -> Pose:
+            now = view.frame_pose(self.frame).pos
+            at, last = self._carried if self._carried is not None else (now, now)
+            self._carried = (at + float((now - last) @ d) * d, now)
+            return Pose(self._carried[0].copy(), np.eye(3))
+
+        return pose
 
     def retarget(self, frame: str) -> None:
         """Read the sensor of another tool ``frame`` from now on (a push handed over to another arm)."""

@@ -146,10 +146,9 @@ class Runner:
             self.servo.look.point = self._look_point()
         if self.sensors is not None:  # a held object is estimated relative to the first pad, a pushed one the tool
             grip = self.view.grip
-            carried = (grip.object, grip.frames[0]) if grip is not None else (
+            carried = (grip.object, partial(self.view.frame_pose, grip.frames[0])) if grip is not None else (
                 self.current.carrier(self.view) if self.current is not None else None)
-            carrier = partial(self.view.frame_pose, carried[1]) if carried is not None else None
-            self.sensors.carry(carried[0] if carried is not None else None, carrier, pushed=grip is None)
+            self.sensors.carry(*(carried or (None, None)), pushed=grip is None)
         self.servo.step(command, objects)
         self.sim.tick()
         if self.view.grip is not None:

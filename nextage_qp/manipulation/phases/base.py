@@ -8,12 +8,13 @@ subclasses :class:`Phase` and fills two methods, as mink's tasks fill two.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any, ClassVar
 
 from pydantic import BaseModel, Field, model_validator
 
 from nextage_qp.errors import PhaseError
+from nextage_qp.geometry import Pose
 from nextage_qp.manipulation.clamp import Clamp
 from nextage_qp.manipulation.context import Grip, View
 from nextage_qp.servo import Command
@@ -97,11 +98,11 @@ class Phase(ABC):
         """The clamp in force after this phase's start or latest update (default: unchanged)."""
         return current
 
-    def carrier(self, view: View) -> tuple[str, str] | None:
-        """The object this phase moves with one of the robot's frames without clamping it, and that frame.
+    def carrier(self, view: View) -> tuple[str, Callable[[], Pose]] | None:
+        """The object this phase moves with the robot without clamping it, and the pose (asked each tick) moving it.
 
-        E.g. a push in contact that the camera cannot see: the object's pose estimate then follows the frame. None
-        (the default) when there is none. Asked once per control tick, after the phase's update.
+        E.g. a push in contact that the camera cannot see: the object's pose estimate then follows the tool's advance.
+        None (the default) when there is none. Asked once per control tick, after the phase's update.
         """
         return None
 

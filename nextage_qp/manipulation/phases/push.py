@@ -23,11 +23,12 @@ off first and judges once the object is in sight (waiting at most ``LOOK_S``).
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 
 import numpy as np
 
 from nextage_qp.errors import PhaseError
-from nextage_qp.geometry import angle2, clamp, rot_z, rotate2, turn2, unit2, yaw_of
+from nextage_qp.geometry import Pose, angle2, clamp, rot_z, rotate2, turn2, unit2, yaw_of
 from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.contact import PushContact
 from nextage_qp.manipulation.context import Setpoint, View
@@ -159,14 +160,11 @@ class Push(Phase):
             return hold(self, view) if self.stage == "hold" else retreat(self, view)
         return self._transit(view) if self.stage == "transit" else self._push(view)
 
-    def carrier(self, view: View) -> tuple[str, str] | None:
-        """The object and the tool while the wrist feels the push: the object's estimate follows the tool.
-
-        Measurements then correct its pose relative to the tool, and a hand that hides it from the camera leaves it
-        where the tool takes it.
-        """
+    def carrier(self, view: View) -> tuple[str, Callable[[], Pose]] | None:
+        """While the wrist feels the push, the object and the tool's advance along it, which its estimate follows."""
         felt = self.contact.in_contact if self.contact.available else self.touched  # the wrist's sensor, else geometry
-        return (self.spec.object, self.frame) if self.stage in ("push", "hold") and felt else None
+        carrier = self.contact.carrier(view, self.d if self.stage in ("push", "hold") and felt else None)
+        return (self.spec.object, carrier) if carrier is not None else None
 
     def _transit(self, view: View) -> Command:
         """Lift straight up, then move through the planned joints of the route (the wrist turns once lifted)."""
