@@ -151,9 +151,10 @@ class PoseKalman:
         """Apply a measurement ``z`` (x, y, z, roll, pitch, yaw) describing time ``t`` [s]; False if gated out.
 
         ``partial``: a partial view (the hand in front of the object), whose fit errs by more than the camera's noise
-        and alike frame after frame. It may confirm where the filter holds the object, never move it: it is gated
+        and alike frame after frame. It may confirm where the filter holds the object, not move it: it is gated
         against the resting model alone (so noisy fits after a gap in the views cannot make up a speed), and a
-        rejected one does not count towards a restart (nor breaks a run of rejected clear views that does).
+        rejected one does not count towards a restart (nor breaks a run of rejected clear views that does); only
+        ``PARTIAL_RUN`` rejected ones in a row that agree with each other restart the filter, at rest at their mean.
         """
         z = np.asarray(z, dtype=float)
         if self.t is None:

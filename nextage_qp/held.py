@@ -11,8 +11,9 @@ in the pads is a change of the relative pose, which the filter's moving model an
 The carrier frame is the first pad's frame turned by the object's orientation relative to it when the hold
 began, so the relative orientation starts at the identity, far from the roll-pitch-yaw singularity.
 
-A *pushed* object (the tool's contact takes it along, it is not held) rests on the table: only the tool's motion
-along the table carries it (its x, y and turn about the vertical), so a tool that rides up its face or tilts while
+A *pushed* object (the tool's contact takes it along, it is not held) rests on the table: only its carrier's motion
+along the table carries it (x, y and turn about the vertical; a push's carrier advances with the tool along the push
+only, :meth:`~nextage_qp.manipulation.contact.PushContact.carrier`), so a tool that rides up its face or tilts while
 the hand hides it leaves its height, roll and pitch where they were seen; and its relative pose is held at its last
 measurement rather than extrapolated.
 """

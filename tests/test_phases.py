@@ -305,10 +305,10 @@ def test_a_pushed_object_is_carried_only_by_the_tool_s_advance_along_the_push():
     np.testing.assert_allclose(carrier().pos, start, atol=1e-12)
     np.testing.assert_allclose(carrier().rot, np.eye(3))
     view.frames["left_tool"] = pose(0.51, 0.0, 0.92)  # 1 cm along the push (and back across): carried 1 cm
-    np.testing.assert_allclose(carrier().pos, start + [0.01, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(carrier().pos, start + np.array([0.01, 0.0, 0.0]), atol=1e-12)
     turned = contact.carrier(view, np.array([0.0, 1.0]))  # the push turned: the next advance along the new line
     view.frames["left_tool"] = pose(0.52, 0.005, 0.92)
-    np.testing.assert_allclose(turned().pos, start + [0.01, 0.005, 0.0], atol=1e-12)
+    np.testing.assert_allclose(turned().pos, start + np.array([0.01, 0.005, 0.0]), atol=1e-12)
     assert contact.carrier(view, None) is None  # contact lost: the next carry starts afresh at the tool
     np.testing.assert_allclose(contact.carrier(view, np.array([1.0, 0.0]))().pos, [0.52, 0.005, 0.92])
 
