@@ -165,9 +165,9 @@ class PoseKalman:
         if self._nis(dt, z, resting=partial) > self.gate:
             self.rejected += 1
             if partial:
-                self._partials = [*self._partials[1 - PARTIAL_RUN:], z]
-                mean = self._agreed(np.array(self._partials[-PARTIAL_RUN:]))
-                if len(self._partials) >= PARTIAL_RUN and mean is not None:
+                self._partials = [*self._partials[1 - PARTIAL_RUN:], z]  # the last PARTIAL_RUN
+                mean = self._agreed(np.array(self._partials)) if len(self._partials) == PARTIAL_RUN else None
+                if mean is not None:
                     self.resets += 1
                     self.start(t, mean, self.models[0].r)
                 return False
