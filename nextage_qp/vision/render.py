@@ -9,6 +9,8 @@ estimator (:mod:`nextage_qp.vision.estimate`) gets the images, the intrinsics an
 
 from __future__ import annotations
 
+import copy
+
 import mujoco
 import numpy as np
 
@@ -19,6 +21,8 @@ SHOWN_GROUPS = (0, 2)
 debug sites (4+) are the simulator's, not the world's."""
 MAX_RANGE = 3.0
 """Depth beyond this is no return [m]."""
+PLANE_HALF = 1000.0
+"""Half-size [m] of the finite plane a depth camera renders for an infinite one (:func:`finite_planes`)."""
 AWAY = -50.0
 """Height [m] the free objects are moved to in the expected-background model (out of every view)."""
 
@@ -51,6 +55,21 @@ def shown_option() -> mujoco.MjvOption:
     return opt
 
 
+def finite_planes(model: mujoco.MjModel) -> mujoco.MjModel:
+    """A copy of ``model`` for depth rendering: its infinite planes made :data:`PLANE_HALF` wide and one quad each.
+
+    The renderer bakes each plane's grid of quads into its context: an infinite floor (50 mm grid) is drawn out to
+    the far clipping plane in thousands of quads, half of a depth frame's time on a software renderer. A depth image
+    does not see the grid (it lights and textures nothing); within :data:`MAX_RANGE` of a camera less than
+    ``PLANE_HALF - MAX_RANGE`` from the plane's origin it is the same to 2e-7 m (the rasteriser's rounding).
+    """
+    out = copy.copy(model)
+    for i in np.flatnonzero(out.geom_type == mujoco.mjtGeom.mjGEOM_PLANE):
+        if min(out.geom_size[i, 0], out.geom_size[i, 1]) <= 0:
+            out.geom_size[i] = PLANE_HALF
+    return out
+
+
 def render_camera(renderer: mujoco.Renderer, data: mujoco.MjData, cam_id: int, option: mujoco.MjvOption) -> np.ndarray:
     """The image of ``data`` a robot camera takes (``option``: :func:`shown_option`; the renderer's depth mode kept)."""
     renderer.update_scene(data, camera=cam_id, scene_option=option)
@@ -74,7 +93,9 @@ class RobotCamera:
         self.model, self.name, self.spec, self.robot = model, name, spec, robot
         self.cam_id = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, name))
         self.K = spec.intrinsics
-        self.renderer = mujoco.Renderer(model, spec.height, spec.width)
+        self.renderer = mujoco.Renderer(finite_planes(model), spec.height, spec.width)
+        self.renderer.enable_depth_rendering()
+        self._rgb: mujoco.Renderer | None = None  # of the model as it is (the floor's grid lit), on the first RGB
         self.option = shown_option()
         self.rng = np.random.default_rng(seed)
         self.kin = mujoco.MjData(model)  # the robot's own model at its measured joints, objects away
@@ -84,13 +105,11 @@ class RobotCamera:
 
     def _render(self, data: mujoco.MjData, depth: bool) -> np.ndarray:
         if depth:
-            self.renderer.enable_depth_rendering()
-        else:
-            self.renderer.disable_depth_rendering()
-        out = render_camera(self.renderer, data, self.cam_id, self.option)
-        if depth:
-            out = np.where(out < MAX_RANGE, out, np.nan).astype(np.float32)
-        return out
+            out = render_camera(self.renderer, data, self.cam_id, self.option)
+            return np.where(out < MAX_RANGE, out, np.nan).astype(np.float32)
+        if self._rgb is None:
+            self._rgb = mujoco.Renderer(self.model, self.spec.height, self.spec.width)
+        return render_camera(self._rgb, data, self.cam_id, self.option)
 
     def pose(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The camera's pose (position [m], 3x3 rotation) from forward kinematics of the measured joints ``q``."""
@@ -129,5 +148,7 @@ class RobotCamera:
         return self._render(data, depth=False)
 
     def close(self) -> None:
-        """Free the renderer's GL context."""
+        """Free the renderers' GL contexts."""
         self.renderer.close()
+        if self._rgb is not None:
+            self._rgb.close()
