@@ -23,7 +23,15 @@ from nextage_qp.vision.cameras import DepthNoise
 from nextage_qp.vision.estimate import Estimator, Frame
 from nextage_qp.vision.fit import table_plane
 from nextage_qp.vision.pixels import project
-from nextage_qp.vision.render import RobotCamera, render_problem
+from nextage_qp.vision.render import (
+    MAX_RANGE,
+    PLANE_HALF,
+    RobotCamera,
+    finite_planes,
+    render_camera,
+    render_problem,
+    shown_option,
+)
 from nextage_qp.vision.shapes import ShapeModel
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -154,6 +162,26 @@ def test_static_accuracy_default_noise(shape: str) -> None:
     assert err < 0.003, f"{shape} at {dist:.2f} m: {err * 1e3:.2f} mm"
     if shape not in ("cylinder", "capsule"):
         assert yaw_err < np.radians(3.0), f"{shape}: {np.degrees(yaw_err):.2f} deg"
+
+
+@needs_gl
+def test_a_depth_camera_draws_infinite_planes_finite_and_sees_the_same_depth() -> None:
+    _, robot, data, _ = aimed_scene("box", 0.6, 0.0)
+    model = robot.model
+    floors = np.flatnonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE) & (model.geom_size[:, 0] <= 0))
+    assert len(floors)  # the task scene's floor is infinite
+    bounded = finite_planes(model)
+    assert (bounded.geom_size[floors] == PLANE_HALF).all() and (model.geom_size[floors, 0] <= 0).all()
+    cam = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, "head_rgbd"))
+    images = []
+    for m in (model, bounded):
+        renderer = mujoco.Renderer(m, 120, 160)
+        renderer.enable_depth_rendering()
+        images.append(render_camera(renderer, data, cam, shown_option()))
+        renderer.close()
+    seen = images[0] < MAX_RANGE
+    assert seen.mean() > 0.3
+    np.testing.assert_allclose(images[1][seen], images[0][seen], rtol=1e-6, atol=1e-6)  # float32 rounding
 
 
 def test_estimator_never_reads_simulator_state() -> None:

@@ -61,7 +61,7 @@ def finite_planes(model: mujoco.MjModel) -> mujoco.MjModel:
     The renderer bakes each plane's grid of quads into its context: an infinite floor (50 mm grid) is drawn out to
     the far clipping plane in thousands of quads, half of a depth frame's time on a software renderer. A depth image
     does not see the grid (it lights and textures nothing); within :data:`MAX_RANGE` of a camera less than
-    ``PLANE_HALF - MAX_RANGE`` from the plane's origin it is the same to 2e-7 m (the rasteriser's rounding).
+    ``PLANE_HALF - MAX_RANGE`` from the plane's origin it is the same to a micrometre (float32 rounding).
     """
     out = copy.copy(model)
     for i in np.flatnonzero(out.geom_type == mujoco.mjtGeom.mjGEOM_PLANE):
