@@ -27,7 +27,7 @@ import numpy as np
 from nextage_qp.errors import ConfigError
 from nextage_qp.geometry import Pose, pose_vector
 from nextage_qp.vision.config import PerceptionConfig
-from nextage_qp.vision.estimate import PARTLY, Estimator, Frame
+from nextage_qp.vision.estimate import MIN_SUPPORT, PARTLY, Estimator, Frame
 from nextage_qp.vision.render import RobotCamera, render_problem
 from nextage_qp.vision.shapes import ShapeModel
 from nextage_qp.vision.stereo import StereoMatcher, check_pair
@@ -72,7 +72,7 @@ class CameraMeasurer:
         self.symmetry = {n: robot.yaw_symmetry(n) for n in robot.object_names}
         shapes = {n: ShapeModel.of_body(model, n, self.symmetry[n]) for n in robot.object_names}
         self.estimator = Estimator(shapes, seed)
-        kinds = (*STATUSES, "partly_occluded", "unoccluded", "unoccluded_ok")
+        kinds = (*STATUSES, "partly_occluded", "part_fitted", "unoccluded", "unoccluded_ok")
         self.counts = {n: dict.fromkeys(kinds, 0) for n in robot.object_names}
         self.ms: dict[str, list[float]] = {"render": [], "estimate": []}
         self.dumped = cfg.dump is None
@@ -84,7 +84,8 @@ class CameraMeasurer:
         """Per object, each frame's time [s] and whether it was unoccluded in it (as counted: see the module doc)."""
         self.partial: set[str] = set()
         """The objects of the latest frame fitted from a partial view (the robot's model covers more than ``PARTLY``
-        of them): the filter lets such a view confirm an object's pose, not move it (``PoseKalman.update``)."""
+        of them, or the frame shows less than ``MIN_SUPPORT`` of the fitted surface where the fit puts it): the filter
+        lets such a view confirm an object's pose, not move it (``PoseKalman.update``)."""
 
     @property
     def rate_hz(self) -> float:
@@ -117,11 +118,13 @@ class CameraMeasurer:
         detections = self.estimator.estimate(frame, priors, held)
         self.ms["render"].append((t1 - t0) * 1e3)
         self.ms["estimate"].append((time.perf_counter() - t1) * 1e3)
-        self.partial = {name for name, det in detections.items() if det.status == "ok" and det.occluded > PARTLY}
+        self.partial = {name for name, det in detections.items()
+                        if det.status == "ok" and (det.occluded > PARTLY or det.support < MIN_SUPPORT)}
         for name, det in detections.items():
             counts = self.counts[name]
             counts[det.status] += 1
-            counts["partly_occluded"] += int(name in self.partial)
+            counts["partly_occluded"] += int(det.status == "ok" and det.occluded > PARTLY)
+            counts["part_fitted"] += int(det.status == "ok" and det.support < MIN_SUPPORT)
             if truth is not None and name in truth:  # after the estimate: the estimator never sees it
                 share = occlusion(frame, self.estimator.shapes[name], pose_vector(truth[name]), tilt=True)
                 clear = share is not None and share <= PARTLY
@@ -160,7 +163,8 @@ class CameraMeasurer:
     def report(self) -> dict[str, Any]:
         """Frames, per object its frames by outcome, its detection rate, and the median ms per frame.
 
-        ``partly_occluded``: detected though the robot covered more than ``PARTLY`` of it; ``unoccluded``: frames in
+        ``partly_occluded``: detected though the robot covered more than ``PARTLY`` of it; ``part_fitted``: detected
+        by a fit the frame shows less than ``MIN_SUPPORT`` of (both partial views); ``unoccluded``: frames in
         which it was in view and the robot covered at most ``PARTLY`` of it (at its true pose, see the module doc;
         ``unoccluded_ok``: detected in them). ``detected_of_unoccluded`` is the detection rate over those;
         ``detected_of_in_view`` over every frame in which the estimator predicted it in view and covered at most

@@ -20,6 +20,8 @@ if TYPE_CHECKING:
 
 GAP = 0.01
 """A pixel nearer than the model expects by this much [m] shows something the model does not know (an object)."""
+AGREE = 0.01
+"""A pixel whose depth is within this of a fitted surface [m] shows that surface (:func:`supported`)."""
 THROUGH = 0.03
 """Depth [m] beyond a fitted surface at which the camera sees through where the shape would be."""
 
@@ -59,3 +61,27 @@ def occlusion(f: Frame, shape: ShapeModel, prior: np.ndarray, tilt: bool = False
     with np.errstate(invalid="ignore"):
         covered = f.expected[rows[inside], cols[inside]] < z[inside] - GAP
     return float(covered.mean())
+
+
+def supported(f: Frame, shape: ShapeModel, x: np.ndarray) -> float:
+    """Share of the shape's camera-facing surface at a fit's pose ``x`` that the frame shows where the fit puts it.
+
+    Over the samples inside the image with a depth return that the robot's model does not cover, each weighed by the
+    area it shows the camera (the cosine of its normal to the line of sight): those whose pixel's depth is within
+    ``AGREE`` of the fitted surface. A fit to the whole visible object shows most of its surface; a fit to a sliver
+    of it beside a hand the model does not quite cover places the rest on the table or in the air (0 with no sample).
+    """
+    rot = pose_rot(x)
+    pts = shape.samples @ rot.T + x[:3]
+    sight = pts - f.cam_pos
+    cos = -np.einsum("ij,ij->i", shape.normals @ rot.T, sight) / np.linalg.norm(sight, axis=1)
+    rows, cols, z = project(pts, f.K, f.cam_pos, f.cam_rot)
+    h, w = f.depth.shape
+    keep = (cos > 0) & (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+    rows, cols, z, cos = rows[keep], cols[keep], z[keep], cos[keep]
+    depth = f.depth[rows, cols]
+    with np.errstate(invalid="ignore"):
+        weigh = np.where(np.isfinite(depth) & ~(f.expected[rows, cols] < z - GAP), cos, 0.0)
+        agree = np.abs(depth - z) < AGREE
+    total = weigh.sum()
+    return float(weigh[agree].sum() / total) if total > 0 else 0.0
