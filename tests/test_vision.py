@@ -20,7 +20,7 @@ from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import Runner, build_robot
 from nextage_qp.vision import estimate as estimate_module
 from nextage_qp.vision.cameras import DepthNoise
-from nextage_qp.vision.estimate import Estimator, Frame
+from nextage_qp.vision.estimate import MIN_SUPPORT, Estimator, Frame
 from nextage_qp.vision.fit import table_plane
 from nextage_qp.vision.pixels import project
 from nextage_qp.vision.render import (
@@ -33,6 +33,7 @@ from nextage_qp.vision.render import (
     shown_option,
 )
 from nextage_qp.vision.shapes import ShapeModel
+from nextage_qp.vision.visible import supported
 
 ROOT = Path(__file__).resolve().parents[1]
 PUSH = ROOT / "configs" / "push_cube.yaml"
@@ -230,6 +231,21 @@ def test_hand_in_front_is_a_dropout() -> None:
     covered_frame = replace(frame, expected=np.full_like(frame.expected, 0.1))
     covered = Estimator({"cube": shape}).estimate(covered_frame, {"cube": prior})["cube"]
     assert covered.status == "occluded" and covered.pose is None
+
+
+@needs_gl
+@pytest.mark.parametrize("shape", list(SHAPES))
+def test_a_fit_off_the_object_is_not_shown_by_the_frame_and_counts_as_a_partial_view(shape: str) -> None:
+    robot, data, frame, model = aimed_frame(shape, 0.6, -0.4, DepthNoise(), seed=3)
+    det = Estimator({"cube": model}, seed=1).estimate(frame, {"cube": None})["cube"]
+    assert det.status == "ok" and det.support >= MIN_SUPPORT, det
+    truth = np.array([*data.xpos[robot.model.body("cube").id], 0.0, 0.0, -0.4])
+    assert supported(frame, model, truth) >= MIN_SUPPORT
+    # Beside the object by 2.5 cm: a fit to a sliver of it puts the rest of its surface on the table.
+    for offset in ([0.0, 0.025, 0.0], [0.0, -0.025, 0.0], [0.025, 0.0, 0.0]):
+        assert supported(frame, model, truth + np.r_[offset, 0, 0, 0]) < MIN_SUPPORT, offset
+    # Where the robot's model covers the object, the frame says nothing of it.
+    assert supported(replace(frame, expected=np.full_like(frame.expected, 0.1)), model, truth) == 0.0
 
 
 def test_look_at_moves_only_the_head(push_robot) -> None:

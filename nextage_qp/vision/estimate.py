@@ -41,11 +41,11 @@ MAX_OCCLUDED = 0.7
 """Largest share of an object's predicted surface the robot may cover before the view is a dropout."""
 PARTLY = 0.3
 """Share of an object's predicted surface covered by the robot from which a frame counts as occluded."""
-MIN_SUPPORT = 0.85
+MIN_SUPPORT = 0.9
 """Smallest share of a fit's uncovered camera-facing surface that the frame shows there
 (:func:`~nextage_qp.vision.visible.supported`) for a whole view: below, the fit is to part of the object (a sliver
-beside a hand the model does not quite cover fitted 27 mm off at 1.9 mm RMS, 0.63) and is a partial view. Fits
-within 3 mm of the truth show 0.94-0.98 (1st percentile to median over two push episodes from the camera)."""
+beside a hand the model does not quite cover, fitted 27 mm off at 1.9 mm RMS: 0.71) and is a partial view. Fits
+within 3 mm of the truth show 0.97 and more (1st percentile over two push episodes from the camera)."""
 FREE_OFFSET = 0.01
 """Table points seen are moved this far towards the camera to make the free-space points [m]."""
 MAX_POINTS = 400

@@ -22,6 +22,8 @@ GAP = 0.01
 """A pixel nearer than the model expects by this much [m] shows something the model does not know (an object)."""
 AGREE = 0.01
 """A pixel whose depth is within this of a fitted surface [m] shows that surface (:func:`supported`)."""
+_AROUND = np.mgrid[-1:2, -1:2].reshape(2, 1, 9)
+"""Row and column offsets of a pixel's 3 x 3 neighbourhood."""
 THROUGH = 0.03
 """Depth [m] beyond a fitted surface at which the camera sees through where the shape would be."""
 
@@ -66,10 +68,13 @@ def occlusion(f: Frame, shape: ShapeModel, prior: np.ndarray, tilt: bool = False
 def supported(f: Frame, shape: ShapeModel, x: np.ndarray) -> float:
     """Share of the shape's camera-facing surface at a fit's pose ``x`` that the frame shows where the fit puts it.
 
-    Over the samples inside the image with a depth return that the robot's model does not cover, each weighed by the
-    area it shows the camera (the cosine of its normal to the line of sight): those whose pixel's depth is within
-    ``AGREE`` of the fitted surface. A fit to the whole visible object shows most of its surface; a fit to a sliver
-    of it beside a hand the model does not quite cover places the rest on the table or in the air (0 with no sample).
+    Over the samples inside the image that the robot's model does not cover and that nothing hides (the pixel's
+    depth is not nearer than the surface: the object's own parts, a hand), each weighed by the area it shows the
+    camera (the cosine of its normal to the line of sight): those whose pixel's depth is within ``AGREE`` of the
+    fitted surface at the sample's pixel or one of its eight neighbours (a sample on the silhouette may fall a pixel
+    off it), against those where the camera sees beyond it. A fit to the whole visible object shows nearly
+    all of it; a fit to a sliver beside a hand the model does not quite cover places the rest of its surface where
+    the camera sees the table behind (0 with no such sample).
     """
     rot = pose_rot(x)
     pts = shape.samples @ rot.T + x[:3]
@@ -80,8 +85,9 @@ def supported(f: Frame, shape: ShapeModel, x: np.ndarray) -> float:
     keep = (cos > 0) & (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
     rows, cols, z, cos = rows[keep], cols[keep], z[keep], cos[keep]
     depth = f.depth[rows, cols]
+    near = f.depth[np.clip(rows[:, None] + _AROUND[0], 0, h - 1), np.clip(cols[:, None] + _AROUND[1], 0, w - 1)]
     with np.errstate(invalid="ignore"):
-        weigh = np.where(np.isfinite(depth) & ~(f.expected[rows, cols] < z - GAP), cos, 0.0)
-        agree = np.abs(depth - z) < AGREE
+        agree = (np.abs(near - z[:, None]) < AGREE).any(axis=1)  # a pixel off at the silhouette: its neighbours
+        weigh = np.where((agree | (depth > z)) & ~(f.expected[rows, cols] < z - GAP), cos, 0.0)
     total = weigh.sum()
     return float(weigh[agree].sum() / total) if total > 0 else 0.0
