@@ -1,0 +1,105 @@
+"""Wall time of a default task run from the head camera against the same run from the truth, alternately.
+
+    python tools/bench_camera.py [--runs 5] [--task push_cube --task dock_dumbbell] [--against COMMIT]
+
+Each run is a fresh ``nextage-qp run configs/TASK.yaml --json`` (``MUJOCO_GL=egl`` unless set), from the truth
+(``perception.source=truth``, the config's default) and from the camera (``--set perception.source=camera``),
+alternating so that the machine's drift affects both alike; with ``--against``, camera runs of that commit
+(exported with ``git archive``) alternate with them too. Prints every run's wall and simulated time, then per task
+and arm the median and p99 of the wall time and of the wall time per simulated second (a run from the camera
+simulates longer: it stops to look), the camera's median render and estimate time per frame, and the ratios of the
+medians, with the machine and the versions. No test asserts any of it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+ENV = dict(os.environ)  # the runs' environment, before bench_loop's import sets its thread counts
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tools"))
+from bench_loop import machine  # noqa: E402
+
+CAMERA = ["--set", "perception.source=camera"]
+
+
+def export(commit: str, into: Path) -> str:
+    """Export ``commit`` into ``into``; returns its short hash."""
+    short = subprocess.run(["git", "rev-parse", "--short", commit], cwd=ROOT, check=True, capture_output=True,
+                           text=True).stdout.strip()
+    archive = subprocess.run(["git", "archive", commit], cwd=ROOT, check=True, capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(into)], input=archive, check=True)
+    return short
+
+
+def run(tree: Path, task: str, sets: list[str]) -> dict[str, float]:
+    """Wall and simulated time [s], success, and the camera's per-frame medians [ms] of one default run."""
+    env = {**ENV, "PYTHONPATH": str(tree), "MUJOCO_GL": ENV.get("MUJOCO_GL", "egl")}
+    out = subprocess.run([sys.executable, "-m", "nextage_qp.cli", "run", f"configs/{task}.yaml", "--json", *sets],
+                         cwd=tree, env=env, capture_output=True, text=True)
+    if not out.stdout.strip():
+        raise SystemExit(f"{tree}: run {task} {' '.join(sets)} printed nothing: {out.stderr.strip()[-300:]}")
+    r = json.loads(out.stdout)
+    cam = (r.get("estimation") or {}).get("camera") or {}
+    return {"wall": float(r["wall_time_s"]), "sim": float(r["sim_time_s"]), "success": float(bool(r["success"])),
+            "render_ms": float(cam.get("render_ms_median") or np.nan),
+            "estimate_ms": float(cam.get("estimate_ms_median") or np.nan)}
+
+
+def _stat(values: list[float]) -> str:
+    return f"median {np.median(values):.3f}, p99 {np.percentile(values, 99):.3f}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--runs", type=int, default=5, help="alternations (default 5)")
+    ap.add_argument("--task", action="append", help="bundled task config (default: push_cube and dock_dumbbell)")
+    ap.add_argument("--against", help="also time camera runs of this older commit, alternately")
+    args = ap.parse_args()
+    tasks = args.task or ["push_cube", "dock_dumbbell"]
+    print(f"machine: {json.dumps(machine())}; MUJOCO_GL={ENV.get('MUJOCO_GL', 'egl')}")
+    with tempfile.TemporaryDirectory() as old_dir:
+        arms = {"truth": (ROOT, []), "camera": (ROOT, CAMERA)}
+        if args.against:
+            arms[f"camera@{export(args.against, Path(old_dir))}"] = (Path(old_dir), CAMERA)
+        results: dict[tuple[str, str], list[dict[str, float]]] = {}
+        for i in range(args.runs):
+            for task in tasks:
+                for arm, (tree, sets) in arms.items():
+                    r = run(tree, task, sets)
+                    results.setdefault((task, arm), []).append(r)
+                    frame = "" if np.isnan(r["render_ms"]) else \
+                        f", frame: render {r['render_ms']:.1f} ms, estimate {r['estimate_ms']:.1f} ms"
+                    print(f"run {i + 1}: {task} {arm}: wall {r['wall']:.2f} s for {r['sim']:.1f} s simulated "
+                          f"(success {bool(r['success'])}){frame}", flush=True)
+        print()
+        for task in tasks:
+            wall = {arm: [r["wall"] for r in results[(task, arm)]] for arm in arms}
+            per = {arm: [r["wall"] / r["sim"] for r in results[(task, arm)]] for arm in arms}
+            for arm in arms:
+                rs = results[(task, arm)]
+                ms = {k: np.median([r[k] for r in rs]) for k in ("render_ms", "estimate_ms")}
+                frame = "" if arm == "truth" else \
+                    f"; per frame render {ms['render_ms']:.1f} ms, estimate {ms['estimate_ms']:.1f} ms"
+                print(f"{task:14s} {arm:16s} wall [s] {_stat(wall[arm])}; wall per simulated s {_stat(per[arm])}"
+                      f"{frame}; {int(sum(r['success'] for r in rs))}/{len(rs)} succeeded")
+            for arm in arms:
+                if arm != "truth":
+                    print(f"{task:14s} {arm} / truth: wall {np.median(wall[arm]) / np.median(wall['truth']):.2f}, "
+                          f"wall per simulated s {np.median(per[arm]) / np.median(per['truth']):.2f} (medians)")
+            if args.against:
+                old = next(a for a in arms if a.startswith("camera@"))
+                print(f"{task:14s} camera / {old}: wall {np.median(wall['camera']) / np.median(wall[old]):.2f} "
+                      f"(medians)")
+
+
+if __name__ == "__main__":
+    main()
