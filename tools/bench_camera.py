@@ -27,17 +27,9 @@ ENV = dict(os.environ)  # the runs' environment, before bench_loop's import sets
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
 from bench_loop import machine  # noqa: E402
+from bench_rtf_ab import export  # noqa: E402
 
 CAMERA = ["--set", "perception.source=camera"]
-
-
-def export(commit: str, into: Path) -> str:
-    """Export ``commit`` into ``into``; returns its short hash."""
-    short = subprocess.run(["git", "rev-parse", "--short", commit], cwd=ROOT, check=True, capture_output=True,
-                           text=True).stdout.strip()
-    archive = subprocess.run(["git", "archive", commit], cwd=ROOT, check=True, capture_output=True).stdout
-    subprocess.run(["tar", "-x", "-C", str(into)], input=archive, check=True)
-    return short
 
 
 def run(tree: Path, task: str, sets: list[str]) -> dict[str, float]:
