@@ -118,13 +118,16 @@ class CameraMeasurer:
         detections = self.estimator.estimate(frame, priors, held)
         self.ms["render"].append((t1 - t0) * 1e3)
         self.ms["estimate"].append((time.perf_counter() - t1) * 1e3)
-        self.partial = {name for name, det in detections.items()
-                        if det.status == "ok" and (det.occluded > PARTLY or det.support < MIN_SUPPORT)}
+        self.partial = set()
         for name, det in detections.items():
             counts = self.counts[name]
             counts[det.status] += 1
-            counts["partly_occluded"] += int(det.status == "ok" and det.occluded > PARTLY)
-            counts["part_fitted"] += int(det.status == "ok" and det.support < MIN_SUPPORT)
+            fitted = det.status == "ok"
+            covered, part = fitted and det.occluded > PARTLY, fitted and det.support < MIN_SUPPORT
+            counts["partly_occluded"] += int(covered)
+            counts["part_fitted"] += int(part)
+            if covered or part:
+                self.partial.add(name)
             if truth is not None and name in truth:  # after the estimate: the estimator never sees it
                 share = occlusion(frame, self.estimator.shapes[name], pose_vector(truth[name]), tilt=True)
                 clear = share is not None and share <= PARTLY

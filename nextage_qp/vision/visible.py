@@ -29,12 +29,18 @@ THROUGH = 0.03
 
 
 def facing(f: Frame, shape: ShapeModel, pos: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Pixel rows, cols, depth of the shape's camera-facing samples at ``pos``, ``rot``, and which are in view."""
+    """Pixel rows, cols, depth of the shape's camera-facing samples at ``pos``, ``rot``, which are in view, and cosines.
+
+    The cosine of a sample's normal to the line of sight is the area it shows the camera per unit of surface.
+    """
     pts = shape.samples @ rot.T + pos
-    pts = pts[np.einsum("ij,ij->i", shape.normals @ rot.T, pts - f.cam_pos) < 0]  # faces the camera
-    rows, cols, z = project(pts, f.K, f.cam_pos, f.cam_rot)
+    sight = pts - f.cam_pos
+    lean = np.einsum("ij,ij->i", shape.normals @ rot.T, sight)
+    front = lean < 0  # faces the camera
+    rows, cols, z = project(pts[front], f.K, f.cam_pos, f.cam_rot)
     h, w = f.depth.shape
-    return rows, cols, z, (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+    cos = -lean[front] / np.linalg.norm(sight[front], axis=1)
+    return rows, cols, z, (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w), cos
 
 
 def seen(f: Frame, shape: ShapeModel, x: np.ndarray) -> tuple[float, float]:
@@ -43,7 +49,7 @@ def seen(f: Frame, shape: ShapeModel, x: np.ndarray) -> tuple[float, float]:
     Seen through: the frame has depth behind it. A shape where the image shows something farther away (by more than
     ``THROUGH`` [m]) cannot be there; nearer (the robot in front) or no depth say nothing (1 with none in view).
     """
-    rows, cols, z, inside = facing(f, shape, x[:3], pose_rot(x))
+    rows, cols, z, inside, _ = facing(f, shape, x[:3], pose_rot(x))
     if not inside.any():
         return 1.0, 0.0
     with np.errstate(invalid="ignore"):
@@ -57,7 +63,7 @@ def occlusion(f: Frame, shape: ShapeModel, prior: np.ndarray, tilt: bool = False
     From the model alone: the expected depth (robot and static scene) in front of the shape's samples. ``tilt``: at
     the prior's roll and pitch too (else upright).
     """
-    rows, cols, z, inside = facing(f, shape, prior[:3], pose_rot(prior) if tilt else rot_z(prior[5]))
+    rows, cols, z, inside, _ = facing(f, shape, prior[:3], pose_rot(prior) if tilt else rot_z(prior[5]))
     if inside.mean() < 0.5:
         return None
     with np.errstate(invalid="ignore"):
@@ -76,14 +82,9 @@ def supported(f: Frame, shape: ShapeModel, x: np.ndarray) -> float:
     all of it; a fit to a sliver beside a hand the model does not quite cover places the rest of its surface where
     the camera sees the table behind (0 with no such sample).
     """
-    rot = pose_rot(x)
-    pts = shape.samples @ rot.T + x[:3]
-    sight = pts - f.cam_pos
-    cos = -np.einsum("ij,ij->i", shape.normals @ rot.T, sight) / np.linalg.norm(sight, axis=1)
-    rows, cols, z = project(pts, f.K, f.cam_pos, f.cam_rot)
+    rows, cols, z, inside, cos = facing(f, shape, x[:3], pose_rot(x))
+    rows, cols, z, cos = rows[inside], cols[inside], z[inside], cos[inside]
     h, w = f.depth.shape
-    keep = (cos > 0) & (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-    rows, cols, z, cos = rows[keep], cols[keep], z[keep], cos[keep]
     depth = f.depth[rows, cols]
     near = f.depth[np.clip(rows[:, None] + _AROUND[0], 0, h - 1), np.clip(cols[:, None] + _AROUND[1], 0, w - 1)]
     with np.errstate(invalid="ignore"):
