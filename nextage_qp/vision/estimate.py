@@ -24,7 +24,7 @@ from scipy import ndimage
 
 from nextage_qp.geometry import nearest_equivalent
 from nextage_qp.vision.fit import fit, planar_std, residuals, table_plane
-from nextage_qp.vision.pixels import backproject
+from nextage_qp.vision.pixels import backproject, plane_height
 from nextage_qp.vision.shapes import ShapeModel
 from nextage_qp.vision.visible import GAP, occlusion, seen, supported
 
@@ -112,32 +112,35 @@ class Estimator:
     def segment(self, f: Frame) -> list[np.ndarray]:
         """World points of each cluster the model does not explain (largest first)."""
         finite = np.isfinite(f.depth)
-        rows, cols = np.nonzero(finite)
-        pts = backproject(f.depth, f.K, f.cam_pos, f.cam_rot, rows, cols)
-        sub = self.rng.integers(0, len(pts), min(len(pts), 1500)) if len(pts) else np.zeros(0, int)
-        self.plane = table_plane(pts[sub], self.rng) or self.plane
+        found = np.flatnonzero(finite)  # pixels with depth, row-major
+        sub = self.rng.integers(0, len(found), min(len(found), 1500)) if len(found) else np.zeros(0, int)
+        rows, cols = np.divmod(found[sub], f.depth.shape[1])
+        self.plane = table_plane(backproject(f.depth, f.K, f.cam_pos, f.cam_rot, rows, cols), self.rng) or self.plane
         with np.errstate(invalid="ignore"):
             unexplained = finite & ~(f.expected - f.depth < GAP)
-        height = np.full(f.depth.shape, np.inf)
+        height = np.full(f.depth.shape, np.nan)  # NaN without depth: neither on the table nor above it
         if self.plane is not None:
-            height[rows, cols] = pts @ self.plane[0] - self.plane[1]
-        table = np.abs(height) < ABOVE
-        tr, tc = np.nonzero(table)
-        if len(tr) > 4000:
-            pick = self.rng.integers(0, len(tr), 4000)
-            tr, tc = tr[pick], tc[pick]
+            height = plane_height(f.depth, f.K, f.cam_pos, f.cam_rot, *self.plane)
+        with np.errstate(invalid="ignore"):
+            table, above = np.abs(height) < ABOVE, height > ABOVE
+        on = np.flatnonzero(table)
+        if len(on) > 4000:
+            on = on[self.rng.integers(0, len(on), 4000)]
+        tr, tc = np.divmod(on, f.depth.shape[1])
         near = backproject(f.depth, f.K, f.cam_pos, f.cam_rot, tr, tc)
         towards = f.cam_pos - near
         self.free = near + FREE_OFFSET * towards / np.linalg.norm(towards, axis=1, keepdims=True)
-        labels, n = ndimage.label(unexplained & (height > ABOVE), structure=np.ones((3, 3)))
+        labels, n = ndimage.label(unexplained & above, structure=np.ones((3, 3)))
         self.clusters = labels
-        sizes = ndimage.sum_labels(np.ones_like(labels), labels, index=np.arange(1, n + 1))
+        sizes = np.bincount(labels.ravel(), minlength=n + 1)[1:].astype(float)  # as ndimage.sum_labels gives them
+        boxes = ndimage.find_objects(labels)  # each cluster's bounding rows and columns
         out = []
         for k in np.argsort(-sizes):
             if sizes[k] < MIN_PIXELS:
                 break
-            r, c = np.nonzero(labels == k + 1)
-            out.append(backproject(f.depth, f.K, f.cam_pos, f.cam_rot, r, c))
+            rs, cs = boxes[k]
+            r, c = np.nonzero(labels[rs, cs] == k + 1)  # within its box: the same pixels, in the same order
+            out.append(backproject(f.depth, f.K, f.cam_pos, f.cam_rot, r + rs.start, c + cs.start))
         return out
 
     def _table_z(self, xy: np.ndarray) -> float:
