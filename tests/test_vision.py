@@ -22,7 +22,7 @@ from nextage_qp.vision import estimate as estimate_module
 from nextage_qp.vision.cameras import DepthNoise
 from nextage_qp.vision.estimate import MIN_SUPPORT, Estimator, Frame
 from nextage_qp.vision.fit import table_plane
-from nextage_qp.vision.pixels import project
+from nextage_qp.vision.pixels import backproject, plane_height, project
 from nextage_qp.vision.render import (
     MAX_RANGE,
     PLANE_HALF,
@@ -324,6 +324,21 @@ def test_the_table_plane_is_found_among_clutter_with_its_tilt_and_height() -> No
     n, d = found
     assert np.degrees(np.arccos(min(1.0, float(n @ normal)))) < 0.2 and abs(d - 0.9) < 0.001
     assert table_plane(clutter[:2], rng) is None  # fewer than three points: no plane
+
+
+def test_each_pixels_height_over_a_plane_is_that_of_its_back_projected_point() -> None:
+    """plane_height (the whole image at once) against backproject and the plane equation, per pixel; NaN stays NaN."""
+    rng = np.random.default_rng(5)
+    depth = rng.uniform(0.3, 1.5, (24, 32)).astype(np.float32)
+    depth[3, 4] = np.nan
+    K = np.array([[30.0, 0.0, 16.0], [0.0, 30.0, 12.0], [0.0, 0.0, 1.0]])
+    pos, rot = np.array([0.1, -0.2, 1.4]), rot_of(np.array([0.3, -1.1, 0.7]))
+    normal = np.array([0.02, -0.03, 1.0]) / np.linalg.norm([0.02, -0.03, 1.0])
+    height = plane_height(depth, K, pos, rot, normal, 0.9)
+    rows, cols = np.nonzero(np.isfinite(depth))
+    expected = backproject(depth, K, pos, rot, rows, cols) @ normal - 0.9
+    np.testing.assert_allclose(height[rows, cols], expected, rtol=0.0, atol=1e-12)
+    assert np.isnan(height[3, 4]) and np.isfinite(height).sum() == depth.size - 1
 
 
 def test_a_partial_view_that_leaves_the_box_free_to_slide_is_not_a_measurement() -> None:

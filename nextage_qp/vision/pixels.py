@@ -26,7 +26,7 @@ def project(points: np.ndarray, K: np.ndarray, pos: np.ndarray, rot: np.ndarray)
 
 def plane_height(depth: np.ndarray, K: np.ndarray, pos: np.ndarray, rot: np.ndarray, normal: np.ndarray,
                  offset: float) -> np.ndarray:
-    """Height [m] of every pixel's point over the plane ``normal . p = offset`` (H, W); NaN where depth is.
+    """Height [m] of every pixel's point over the plane ``normal . p = offset`` (H, W); NaN where the depth is NaN.
 
     :func:`backproject` of every pixel, dotted with the normal, without forming the points: the camera-frame point
     is ``z (u, v, -1)`` with ``u``, ``v`` per column and per row, so the height is ``pos . n - offset + z (u w_x + v
