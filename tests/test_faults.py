@@ -175,3 +175,17 @@ def test_a_clamp_whose_pads_no_longer_feel_the_object_fails_the_phase():
     clamp.felt = [3.0, 1.0]
     with pytest.raises(PhaseError, match=r"the clamp lost dumbbell: the pads feel 3\.0 N and 1\.0 N of the 20 N"):
         clamp.check_hold()
+
+
+PUSH = ROOT / "configs" / "push_cube.yaml"
+
+
+def test_a_failed_run_from_estimated_poses_says_where_the_object_truly_ends():
+    """The phases judge the poses the robot estimates: a failure from them also names the true planar error."""
+    cfg = load_config(PUSH, [f"faults.object_pose={json.dumps(CAMERA)}", "phases[0].timeout=1"])
+    result = Runner(cfg, str(PUSH)).run()
+    assert not result["success"] and "timed out" in result["error"]
+    true = f"it truly ends {result['object_error_xy_m'] * 1e3:.1f} mm from cube_target in the plane]"
+    assert result["error"].endswith(f"[cube's pose as estimated (simulated perception); {true}")
+    truth = Runner(load_config(PUSH, ["phases[0].timeout=1"]), str(PUSH)).run()
+    assert "timed out" in truth["error"] and "truly" not in truth["error"]  # the truth needs no such note

@@ -31,7 +31,7 @@ from nextage_qp.manipulation.sim_view import SimView
 from nextage_qp.mobile.build import BASE_BODY
 from nextage_qp.mobile.odometry import base_report
 from nextage_qp.object_checks import check_clear
-from nextage_qp.perception_setup import attach_camera, log_estimates, perception_of
+from nextage_qp.perception_setup import attach_camera, log_estimates, perception_of, source_of
 from nextage_qp.robot import Robot, tool_frames
 from nextage_qp.robots.description import load_robot
 from nextage_qp.robots.groups import scene_bodies
@@ -238,7 +238,7 @@ class Runner:
     def summary(self) -> dict[str, Any]:
         """The result record printed by ``nextage-qp run --json``."""
         c = self.cfg
-        return summarize(task=c.task, robot=self.robot, sim=self.sim, monitor=self.monitor, records=self.records,
+        out = summarize(task=c.task, robot=self.robot, sim=self.sim, monitor=self.monitor, records=self.records,
                          obj=c.object, target=c.target, criteria=c.success, error=self.error, wall_s=self.wall_s,
                          extra={"target_clearance_m": self.placement.target_clearance_m,
                                 "estimation": None if self.sensors is None else self.sensors.report(
@@ -246,6 +246,11 @@ class Runner:
                                 "shoves": self.shoves.applied if self.shoves is not None else [],
                                 **({"base": base_report(self.sim.base.log, self.robot.base)}
                                    if self.sim.base is not None and self.robot.base is not None else {})})
+        where, true = source_of(c), out.get("object_error_xy_m")
+        if out.get("error") and where != "truth" and true is not None:  # the phases judged what the robot estimated
+            out["error"] += (f" [{c.object}'s pose as estimated ({where} perception); it truly ends "
+                             f"{true * 1e3:.1f} mm from {c.target} in the plane]")
+        return out
 
 
 def _brief(info: dict[str, Any]) -> str:
