@@ -14,6 +14,7 @@ from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import Runner
 
 ROOT = Path(__file__).resolve().parents[1]
+PUSH = ROOT / "configs" / "push_cube.yaml"
 CAMERA = {"rate_hz": 30, "latency_s": 0.02, "noise_pos_m": 0.002, "noise_rot_rad": 0.0175, "dropout": 0.1}
 JOINTS = {"noise_rad": 0.0005, "noise_rad_s": 0.01}
 
@@ -175,9 +176,6 @@ def test_a_clamp_whose_pads_no_longer_feel_the_object_fails_the_phase():
     clamp.felt = [3.0, 1.0]
     with pytest.raises(PhaseError, match=r"the clamp lost dumbbell: the pads feel 3\.0 N and 1\.0 N of the 20 N"):
         clamp.check_hold()
-
-
-PUSH = ROOT / "configs" / "push_cube.yaml"
 
 
 def test_a_failed_run_from_estimated_poses_says_where_the_object_truly_ends():

@@ -118,9 +118,8 @@ class Estimator:
         self.plane = table_plane(backproject(f.depth, f.K, f.cam_pos, f.cam_rot, rows, cols), self.rng) or self.plane
         with np.errstate(invalid="ignore"):
             unexplained = finite & ~(f.expected - f.depth < GAP)
-        height = np.full(f.depth.shape, np.nan)  # NaN without depth: neither on the table nor above it
-        if self.plane is not None:
-            height = plane_height(f.depth, f.K, f.cam_pos, f.cam_rot, *self.plane)
+        height = (plane_height(f.depth, f.K, f.cam_pos, f.cam_rot, *self.plane) if self.plane is not None
+                  else np.full(f.depth.shape, np.nan))  # NaN without depth (or plane): neither on the table nor above
         with np.errstate(invalid="ignore"):
             table, above = np.abs(height) < ABOVE, height > ABOVE
         on = np.flatnonzero(table)
