@@ -234,6 +234,30 @@ def test_hand_in_front_is_a_dropout() -> None:
 
 
 @needs_gl
+def test_with_a_self_pad_whatever_falls_in_the_robots_padded_silhouette_is_the_robot_never_an_object() -> None:
+    """Stereo cannot measure the robot's plain links: depth there may put a phantom in front of the model. With
+    ``self_pad`` (stereo) the robot's silhouette grown by that many pixels is the robot whatever its depth; without it
+    (rendered depth) only depth in front of the model is an object. A silhouette beyond the pad changes nothing."""
+    from nextage_qp.vision.estimate import GAP, SELF_PAD
+
+    _, _, frame, shape = aimed_frame("box", 0.6, 0.3)
+    with np.errstate(invalid="ignore"):
+        cube = frame.expected - frame.depth >= GAP  # the pixels no model explains: the box
+    behind = replace(frame, expected=np.where(cube, frame.depth + 0.02, frame.expected))  # a link just behind it
+    assert Estimator({"cube": shape}, seed=1).estimate(behind, {"cube": None})["cube"].status == "ok"
+    padded = Estimator({"cube": shape}, seed=1, self_pad=SELF_PAD).estimate(behind, {"cube": None})["cube"]
+    assert padded.pose is None and padded.status == "missing"
+    rows = np.flatnonzero(cube.any(axis=1))
+    away = np.zeros_like(cube)
+    away[rows[-1] + SELF_PAD + 2:] = True  # a link standing below the box in the image, clear of it by more than the pad
+    beside = replace(frame, expected=np.where(away, frame.depth - 0.05, frame.expected))
+    plain = Estimator({"cube": shape}, seed=1).estimate(frame, {"cube": None})["cube"]
+    padded = Estimator({"cube": shape}, seed=1, self_pad=SELF_PAD).estimate(beside, {"cube": None})["cube"]
+    assert plain.status == padded.status == "ok"
+    np.testing.assert_allclose(padded.pose, plain.pose, atol=2e-4)
+
+
+@needs_gl
 @pytest.mark.parametrize("shape", list(SHAPES))
 def test_a_fit_off_the_object_is_not_shown_by_the_frame_and_counts_as_a_partial_view(shape: str) -> None:
     robot, data, frame, model = aimed_frame(shape, 0.6, -0.4, DepthNoise(), seed=3)

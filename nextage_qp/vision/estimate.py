@@ -69,6 +69,9 @@ on it (the better fit wins): an object predicted high after a partial view (its 
 one standing on it) is found again where it rests, one standing on another object keeps its own start."""
 INLIER = 0.005
 """A point this near a fitted surface [m] is explained by it (choosing among candidate clusters)."""
+SELF_PAD = 4
+"""Pixels by which the robot's silhouette (where its model stands above the table) grows when the robot's depth cannot
+be measured (stereo on its plain links): what falls in it is the robot (robot self-filtering), never an object."""
 
 
 @dataclass(frozen=True)
@@ -100,10 +103,11 @@ class Estimator:
     Args:
         shapes: Object name -> its shape model.
         seed: Seed of RANSAC and of the point subsets.
+        self_pad: 0, or ``SELF_PAD``: the robot's silhouette grown by this many pixels is the robot, whatever its depth.
     """
 
-    def __init__(self, shapes: Mapping[str, ShapeModel], seed: int = 0) -> None:
-        self.shapes = dict(shapes)
+    def __init__(self, shapes: Mapping[str, ShapeModel], seed: int = 0, self_pad: int = 0) -> None:
+        self.shapes, self.self_pad = dict(shapes), self_pad
         self.rng = np.random.default_rng(seed)
         self.plane: tuple[np.ndarray, float] | None = None
         self.clusters = np.zeros((0, 0), dtype=int)  # labels of the last frame (0: none), for dumps
@@ -118,6 +122,9 @@ class Estimator:
         self.plane = table_plane(backproject(f.depth, f.K, f.cam_pos, f.cam_rot, rows, cols), self.rng) or self.plane
         with np.errstate(invalid="ignore"):
             unexplained = finite & ~(f.expected - f.depth < GAP)
+            if self.self_pad and self.plane is not None:  # the robot's padded silhouette: the robot
+                body = plane_height(f.expected, f.K, f.cam_pos, f.cam_rot, *self.plane) > ABOVE
+                unexplained &= ~ndimage.binary_dilation(body, np.ones((2 * self.self_pad + 1,) * 2, bool))
         height = (plane_height(f.depth, f.K, f.cam_pos, f.cam_rot, *self.plane) if self.plane is not None
                   else np.full(f.depth.shape, np.nan))  # NaN without depth (or plane): neither on the table nor above
         with np.errstate(invalid="ignore"):

@@ -27,7 +27,7 @@ import numpy as np
 from nextage_qp.errors import ConfigError
 from nextage_qp.geometry import Pose, pose_vector
 from nextage_qp.vision.config import PerceptionConfig
-from nextage_qp.vision.estimate import MIN_SUPPORT, PARTLY, Estimator, Frame
+from nextage_qp.vision.estimate import MIN_SUPPORT, PARTLY, SELF_PAD, Estimator, Frame
 from nextage_qp.vision.render import RobotCamera, render_problem
 from nextage_qp.vision.shapes import ShapeModel
 from nextage_qp.vision.stereo import StereoMatcher, check_pair
@@ -71,7 +71,7 @@ class CameraMeasurer:
             self.right, self.matcher = stereo_pair(model, robot, cams, cfg.stereo, self.camera, seed, source)
         self.symmetry = {n: robot.yaw_symmetry(n) for n in robot.object_names}
         shapes = {n: ShapeModel.of_body(model, n, self.symmetry[n]) for n in robot.object_names}
-        self.estimator = Estimator(shapes, seed)
+        self.estimator = Estimator(shapes, seed, SELF_PAD if stereo else 0)  # stereo cannot measure the plain links
         kinds = (*STATUSES, "partly_occluded", "part_fitted", "unoccluded", "unoccluded_ok")
         self.counts = {n: dict.fromkeys(kinds, 0) for n in robot.object_names}
         self.ms: dict[str, list[float]] = {"render": [], "estimate": []}
