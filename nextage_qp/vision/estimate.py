@@ -70,8 +70,8 @@ one standing on it) is found again where it rests, one standing on another objec
 INLIER = 0.005
 """A point this near a fitted surface [m] is explained by it (choosing among candidate clusters)."""
 SELF_PAD = 4
-"""Pixels by which the robot's silhouette (where its model stands above the table) grows when the robot's depth cannot
-be measured (stereo on its plain links): what falls in it is the robot (robot self-filtering), never an object."""
+"""Pixels by which the model's silhouette (where the robot, or a static obstacle, stands above the table) grows when the
+robot's depth cannot be measured (stereo on its plain links): what falls in it is the model, never an object."""
 
 
 @dataclass(frozen=True)
@@ -103,7 +103,7 @@ class Estimator:
     Args:
         shapes: Object name -> its shape model.
         seed: Seed of RANSAC and of the point subsets.
-        self_pad: 0, or ``SELF_PAD``: the robot's silhouette grown by this many pixels is the robot, whatever its depth.
+        self_pad: 0, or ``SELF_PAD``: the model's silhouette grown by this many pixels is the model, whatever its depth.
     """
 
     def __init__(self, shapes: Mapping[str, ShapeModel], seed: int = 0, self_pad: int = 0) -> None:
@@ -122,7 +122,7 @@ class Estimator:
         self.plane = table_plane(backproject(f.depth, f.K, f.cam_pos, f.cam_rot, rows, cols), self.rng) or self.plane
         with np.errstate(invalid="ignore"):
             unexplained = finite & ~(f.expected - f.depth < GAP)
-            if self.self_pad and self.plane is not None:  # the robot's padded silhouette: the robot
+            if self.self_pad and self.plane is not None:  # the model's padded silhouette: the model
                 body = plane_height(f.expected, f.K, f.cam_pos, f.cam_rot, *self.plane) > ABOVE
                 unexplained &= ~ndimage.binary_dilation(body, np.ones((2 * self.self_pad + 1,) * 2, bool))
         height = (plane_height(f.depth, f.K, f.cam_pos, f.cam_rot, *self.plane) if self.plane is not None
