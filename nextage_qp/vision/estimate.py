@@ -124,7 +124,7 @@ class Estimator:
             unexplained = finite & ~(f.expected - f.depth < GAP)
             if self.self_pad and self.plane is not None:  # the model's padded silhouette: the model
                 body = plane_height(f.expected, f.K, f.cam_pos, f.cam_rot, *self.plane) > ABOVE
-                unexplained &= ~ndimage.binary_dilation(body, np.ones((2 * self.self_pad + 1,) * 2, bool))
+                unexplained &= ~ndimage.maximum_filter(body, 2 * self.self_pad + 1, mode="constant")  # dilated
         height = (plane_height(f.depth, f.K, f.cam_pos, f.cam_rot, *self.plane) if self.plane is not None
                   else np.full(f.depth.shape, np.nan))  # NaN without depth (or plane): neither on the table nor above
         with np.errstate(invalid="ignore"):
