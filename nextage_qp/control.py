@@ -171,8 +171,6 @@ class ActuatorBlock:
         self.cols = None if np.array_equal(cols, np.arange(hi - lo)) else cols
         """Each joint's column in the block (None: the block is in joint order)."""
         self.width = hi - lo
-        self.span = (lo, hi)
-        """The block's first actuator and one past its last."""
 
     def spread(self, ramp: np.ndarray) -> np.ndarray:
         """Controls per substep (n, joints) in the block's order (n, width); actuators not the robot's held."""

@@ -22,7 +22,7 @@ from nextage_qp.per_joint import PerJoint, per_joint  # noqa: F401 (re-exported)
 from nextage_qp.robots.actuation import torque_limits, velocity_limits
 from nextage_qp.robots.description import Arm, RobotDescription, load_robot
 from nextage_qp.robots.groups import check_arm_frames
-from nextage_qp.scene import SceneOverrides, add_force_sensors, add_touch_sensors, compile_spec
+from nextage_qp.scene import SceneOverrides, add_touch_sensors, compile_spec
 
 SCENE_GROUP_BODIES = ("table", "obstacle")
 """Static scene bodies that become collision groups of their own when a scene has them."""
@@ -108,7 +108,6 @@ class Robot:
         spec = functools.partial(compose, desc, scene, overrides)
         composed = spec()
         add_touch_sensors(composed, WATCHED_BODIES)
-        add_force_sensors(composed)
         model = compile_spec(composed, f"scene {str(scene)!r} with robot {desc.name!r}")
         return cls(model, desc, scene=str(scene), overrides=overrides, spec=spec)
 

@@ -96,10 +96,6 @@ def touch_sensor(body: str) -> str:
     return body + TOUCH_SUFFIX
 
 
-FORCE_SUFFIX = "__force"
-"""Name suffix of the actuator-force sensor :func:`add_force_sensors` adds to every named actuator."""
-
-
 _QUIET = ("empty prefix", "Attach conflict")
 """MuJoCo warns on every compile of a spec a robot was attached to with an empty prefix (the robot keeps its
 names), and where the robot model's options differ from the scene's (the scene's are kept, by design: the Z1's
@@ -201,19 +197,6 @@ def apply_overrides(spec: mujoco.MjSpec, overrides: SceneOverrides, source: str 
         from nextage_qp.friction import scale_friction
 
         scale_friction(spec, scaled)
-
-
-def add_force_sensors(spec: mujoco.MjSpec) -> None:
-    """An actuator-force sensor on every named actuator of the spec (``name`` + :data:`FORCE_SUFFIX`).
-
-    With them, one call of MuJoCo's rollout steps a whole control period and still reports every physics step's
-    actuator forces (:class:`~nextage_qp.substeps.Substeps`). Sensors change nothing in the dynamics.
-    """
-    taken = {s.name for s in spec.sensors}
-    for act in spec.actuators:
-        if act.name and act.name + FORCE_SUFFIX not in taken:
-            spec.add_sensor(name=act.name + FORCE_SUFFIX, type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
-                            objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=act.name)
 
 
 def add_touch_sensors(spec: mujoco.MjSpec, bodies: tuple[str, ...]) -> None:

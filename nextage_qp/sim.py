@@ -20,6 +20,7 @@ stops the loop with a :class:`~nextage_qp.errors.SimulationError` naming the tim
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 
 import mujoco
@@ -32,7 +33,6 @@ from nextage_qp.mobile.odometry import BaseTrack
 from nextage_qp.recorder import FrameRows, Recorder, StageTimer
 from nextage_qp.robot import Robot
 from nextage_qp.sensors import Measurement, PerfectSensors, Pose, Sensors, SensorWatch, WrenchSensor
-from nextage_qp.substeps import Substeps
 from nextage_qp.timing import Timing
 from nextage_qp.trajectory import JointTrajectory, RefState, TrajectoryLimits, cap_velocity
 
@@ -70,8 +70,7 @@ class Simulation:
         hooks: Functions called as ``hook(sim)`` after every tick (e.g. to measure clearances).
         substep_hooks: Functions called as ``hook(sim)`` at every physics step, after its contacts.
         timer: A :class:`StageTimer` to profile the loop, or None.
-        physics_s: Wall time inside MuJoCo's stepping since the last :meth:`reset` [s]: every rollout call or
-            ``mj_step`` call, timed where it is made (:class:`~nextage_qp.substeps.Substeps`).
+        physics_s: Wall time inside ``mj_step`` since the last :meth:`reset` [s] (every call timed where it is made).
         base: A mobile robot's base (:class:`~nextage_qp.mobile.base.BaseTrack`), or None.
     """
 
@@ -118,8 +117,7 @@ class Simulation:
         self._bad_warnings = [self.data.warning[w] for w in _BAD]  # views into the data
         self.base = BaseTrack(robot.base) if robot.base is not None else None
         self._fractions = np.arange(self.n_substeps) / self.n_substeps
-        self.substeps = Substeps(self.model, self.data, self._act, self.n_substeps)
-        """The physics steps of a tick (one MuJoCo rollout where it can), with each step's forces and sensor data."""
+        self._force = np.zeros((self.n_substeps, self._act.width))
         self._raw: RefState | None = None
         self._step = 0
         self.physics_s = 0.0
@@ -198,7 +196,7 @@ class Simulation:
             SimulationError: The state became NaN or a joint exceeded ``max_speed``.
             TrajectoryError: Ruckig rejected the target.
         """
-        d, timer, n = self.data, self.timer, self.n_substeps
+        m, d, timer, n = self.model, self.data, self.timer, self.n_substeps
         if timer:
             timer.start()
         raw = self._raw
@@ -224,14 +222,30 @@ class Simulation:
         self.recorder.record(self.time, q, qd, start.q, start.qd, None, self._frame_poses(), self._object_rows())
         if timer:
             timer.lap("pd+record")
-        hooked = bool(self.substep_hooks)
-        physics = self.substeps.run(ramp, self._after_substep if hooked else None)
-        if not hooked:
+        ctrl, act_force, force, hooks = self._act.ctrl, self._act.force, self._force, self.substep_hooks
+        clock, step, physics = time.perf_counter, mujoco.mj_step, 0.0
+        if hooks:
+            for k in range(n):
+                ctrl[:] = ramp[k]
+                t0 = clock()
+                step(m, d)
+                physics += clock() - t0
+                force[k] = act_force
+                self._step += 1
+                for hook in tuple(hooks):
+                    hook(self)
+        else:
+            for k in range(n):
+                ctrl[:] = ramp[k]
+                t0 = clock()
+                step(m, d)
+                physics += clock() - t0
+                force[k] = act_force
             self._step += n
         self.physics_s += physics
         if timer:
             timer.lap("physics")
-        force = self._act.joint_order(self.substeps.force)
+        force = self._act.joint_order(force)
         self.pd.count(force)
         self.recorder.set_last("tau", force[0])
         self._check()
@@ -240,11 +254,6 @@ class Simulation:
             hook(self)
         if timer:
             timer.lap("measure+hooks")
-
-    def _after_substep(self) -> None:
-        self._step += 1
-        for hook in tuple(self.substep_hooks):
-            hook(self)
 
     def run(self, duration: float) -> None:
         """Tick until ``duration`` [s] more of simulated time has passed."""

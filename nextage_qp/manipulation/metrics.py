@@ -80,24 +80,30 @@ class OutcomeMonitor:
     def attach(self, sim: Simulation) -> None:
         """Register the monitor's hooks with a simulation.
 
-        Steps touching the obstacle are counted from its contact sensor's reading at every physics step
-        (:attr:`~nextage_qp.sim.Simulation.substeps`), after each tick. A model without that sensor gets a hook on
-        MuJoCo's contact list at every physics step instead, while something is within the watched clearance of the
-        obstacle (:meth:`on_tick` adds and removes it).
+        The contact hook runs at every physics step only while something is within the watched clearance of the
+        obstacle (:meth:`on_tick` adds and removes it), so the physics loop carries no hook the rest of the time.
         """
         sim.hooks.append(self.on_tick)
-        if self.obstacle is not None and self._touch is None:
+        if self.obstacle is not None:
             sim.substep_hooks.append(self.on_substep)
 
     def on_substep(self, sim: Simulation) -> None:
-        """Hook run at every physics step of a model without the obstacle's contact sensor: count touching steps.
+        """Hook run at every physics step: count the steps in which anything touches the obstacle.
 
         Skipped while the last tick found every mover farther than the watched clearance from the obstacle
         (``CONTACT_WATCH``, or ``CONTACT_WATCH_SPEED`` times the control period: nothing here moves that far
-        within one control period).
+        within one control period). Reads the obstacle's contact sensor where the model has one
+        (:func:`~nextage_qp.scene.touch_sensor`), else MuJoCo's contact list.
         """
         d = sim.data
-        if not self._watch or d.ncon == 0:
+        if not self._watch:
+            return
+        if self._touch is not None:
+            found, dist = d.sensordata[self._touch]
+            if found > 0 and dist < 0:
+                self.obstacle_contacts += 1
+            return
+        if d.ncon == 0:
             return
         geoms = d.contact.geom[: d.ncon]
         touching = self._is_obstacle[geoms]
@@ -107,14 +113,10 @@ class OutcomeMonitor:
     def on_tick(self, sim: Simulation) -> None:
         """Hook run by the simulation after every control tick: minimum clearance to the obstacle.
 
-        Also counts the tick's steps that touched the obstacle (from its contact sensor), or decides whether the
-        next tick's physics steps need the contact-list hook (:meth:`on_substep`).
+        Also decides whether the next tick's physics steps need the contact count (:meth:`on_substep`).
         """
         if self.obstacle is None:
             return
-        if self._touch is not None:  # the contact sensor at each step of the tick: (found, nearest distance)
-            rows = sim.substeps.sensordata[:, self._touch]
-            self.obstacle_contacts += int(np.count_nonzero((rows[:, 0] > 0) & (rows[:, 1] < 0)))
         d, m = sim.data, self.model
         best = self.min_clearance if self.min_clearance is not None else 1.0
         # Bounding spheres first (vectorised): only pairs whose spheres come within the best clearance so far
@@ -135,8 +137,6 @@ class OutcomeMonitor:
             cut = max(best, watch)
         self.min_clearance = best
         self._watch = nearest < watch
-        if self._touch is not None:
-            return
         hooked = self.on_substep in sim.substep_hooks
         if self._watch and not hooked:
             sim.substep_hooks.append(self.on_substep)
