@@ -6,7 +6,8 @@ approaches again along the error, up to ``attempts`` approaches, and with nothin
 ``accept`` ends the phase, a larger one fails it. A push the camera could not see (the hand hid the object) is judged
 after backing off, once the object is in sight again (the tool first moves towards the robot's side, ``ASIDE``, which
 folds the arm out of the camera's line of sight; still hidden after ``LOOK_S``, it moves on as far again, up to
-``LOOK_AGAIN`` times, and then judges on the estimate it has).
+``LOOK_AGAIN`` times, and then judges on the estimate it has). With ``look_to_judge`` every push is judged so, never
+with the hand beside the object (a push judged short is then approached again rather than nudged).
 """
 
 from __future__ import annotations
@@ -30,7 +31,8 @@ def hold(p: Push, view: View) -> Command:
     c = p.spec
     if view.t - p.hold_from < c.settle:
         return p._command(allow=True)
-    if view.unseen_s(c.object) > HIDDEN_S:  # the hand hides it from the camera: back off and look, then judge
+    hidden = view.unseen_s(c.object) > HIDDEN_S
+    if hidden or (c.look_to_judge and not p.blind_stop):  # hidden (or told to look): back off and look, then judge
         p.looking = True
         return start_retreat(p, final=False, view=view)
     if p.blind_stop:  # stopped to look, and the camera sees it: push on, steering from what it sees

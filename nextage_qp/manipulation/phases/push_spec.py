@@ -92,6 +92,10 @@ class PushSpec(Spec):
     blind: float = Field(default=0.12, gt=0, le=5.0,
                          description="Longest push no camera sees (the hand hides the object) [m]: it then stops, "
                                      "looks, and goes on from where the object is (not a new attempt).")
+    look_to_judge: bool = Field(
+        default=False, description="Judge every push only after backing off and seeing the object clear of the hand "
+                                   "(as a push the hand hid is judged): for a camera whose view of the object is "
+                                   "unreliable beside the hand (stereo depth smears the hand's edge into it).")
     correction_fan: float = Field(default=0.53, ge=0, le=1.6,
                                   description="Largest deviation from the error's direction for a correction [rad].")
     fan: tuple[float, ...] = Field(
