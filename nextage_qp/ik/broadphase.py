@@ -7,13 +7,17 @@ Two bounds, both exact (a pair is never closer than its bound):
   from it. A pair whose bound stays above what the caller cares about needs no narrow phase.
 * **Bounding spheres**: the centres' distance less both bounding radii.
 
-(Gathers use ``take``: several times faster than fancy indexing on arrays this small.)
+The per-step test of every pair (:meth:`PairBounds.near_reach`) and :meth:`PairBounds.remember` are compiled loops
+(:mod:`nextage_qp.ik.kernels`); elsewhere gathers use ``take``, several times faster than fancy indexing on arrays
+this small.
 """
 
 from __future__ import annotations
 
 import mujoco
 import numpy as np
+
+from nextage_qp.ik import kernels
 
 
 class PairBounds:
@@ -39,6 +43,9 @@ class PairBounds:
         # Per pair: the bound last stored plus both geoms' travel at that moment (-inf: none).
         self._base = np.full(len(geom1), -np.inf)
         self._exact, self._exact_any = np.zeros(len(geom1), dtype=bool), False
+        n = len(geom1)
+        self._out_idx, self._out_lower, self._out_reach = np.empty(n, dtype=np.int64), np.empty(n), np.empty(n)
+        self._no_step = np.zeros(0)
 
     @property
     def exact(self) -> np.ndarray:
@@ -76,24 +83,32 @@ class PairBounds:
         travel = self.update(data)
         return np.maximum(self._base - travel.take(self.geom1) - travel.take(self.geom2), self.sphere_gaps(data))
 
-    def near(self, data: mujoco.MjData, within: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Pairs whose bound is below ``within`` [m] (per pair), with that bound: travel first, then spheres.
+    def near_reach(self, data: mujoco.MjData, within: np.ndarray, lever: np.ndarray, step: np.ndarray | None,
+                   gain: float, minimum: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+        """Pairs whose bound is below ``within`` [m] (per pair) and that can bind within a step of the box.
 
-        A pair the spheres rule out is not stored (:meth:`remember`): its travel bound stays as it was, and next time
-        the spheres rule it out again if they did now (the spheres' gap shrinks no faster than the travel grows).
+        Adds every geom's motion to its travel (as :meth:`update`), then tests the travel bound first and the
+        spheres after it (compiled: :func:`~nextage_qp.ik.kernels.near_pairs`). A pair the spheres rule out is not
+        stored (:meth:`remember`): its travel bound stays as it was, and next time the spheres rule it out again if
+        they did now (their gap shrinks no faster than the travel grows). Then the reach bound: ``lever`` (pairs,
+        nv) is how far each dof's step brings a pair's geoms together [m per rad], ``step`` (nv,) the box's step
+        bound [rad] (None: no reach test); a pair with ``gain * (bound - minimum) > lever @ step`` could never bind.
+
+        Returns the pairs left, their bounds, their reach (``lever @ step``) and how many the reach bound dropped
+        (arrays overwritten by the next call).
         """
-        travel = self.update(data)
-        lower = self._base - travel[self.geom1] - travel[self.geom2]
-        idx = (lower < within).nonzero()[0]
-        if not idx.size:
-            return idx, lower[idx]
-        sphere = self.sphere_gaps(data, idx)
-        near = sphere < within[idx]
-        return idx[near], np.maximum(lower[idx], sphere)[near]
+        n, slack, moved = kernels.near_pairs(
+            data.geom_xpos, data.geom_xmat, self._last_pos, self._last_mat, self._travel, self._rbound_chord,
+            self._first, self._base, self.geom1, self.geom2, self._rsum, within, lever,
+            self._no_step if step is None else step, gain, minimum, step is not None, self._out_idx,
+            self._out_lower, self._out_reach)
+        self._first = False
+        if moved and self._exact_any:
+            self._exact[:], self._exact_any = False, False
+        return self._out_idx[:n], self._out_lower[:n], self._out_reach[:n], slack
 
     def remember(self, pairs: np.ndarray, lower: np.ndarray, *, exact: bool = False) -> None:
         """Store lower bounds [m] of ``pairs`` at the configuration last seen (``exact``: their distances)."""
-        travel = self._travel
-        self._base[pairs] = lower + travel.take(self.geom1.take(pairs)) + travel.take(self.geom2.take(pairs))
+        kernels.remember(self._base, self._travel, self.geom1, self.geom2, pairs, lower, self._exact, exact)
         if exact and pairs.size:
-            self._exact[pairs], self._exact_any = True, True
+            self._exact_any = True

@@ -26,6 +26,7 @@ from mink.limits.collision_avoidance_limit import (
 )
 from mink.limits.limit import Constraint
 
+from nextage_qp.ik import kernels
 from nextage_qp.ik.broadphase import PairBounds
 from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.ik.model import lever_bounds, moved_by_a_joint
@@ -101,7 +102,11 @@ class ActiveCollisionLimit(mink.Limit):
         # Per active pair of one call: the point Jacobians of its two witness points (geom2's, then geom1's).
         self._jacs = np.zeros((len(keys), 2, 3, model.nv))
         self._jac_slots = [(j[0], j[1]) for j in self._jacs]  # views made once
-        self._zero1 = [True] * len(keys)  # per slot: geom1's Jacobian is zeros
+        self._zero1 = np.ones(len(keys), dtype=bool)  # per slot: geom1's Jacobian is zeros
+        self._model_at, self._body_at = model._address, np.array(self._body, dtype=np.int64)
+        self._dists = np.empty(len(keys))  # per near pair of one call: its distance [m]
+        self._out = (np.empty(len(keys), dtype=np.int64), np.empty(len(keys)), np.empty(len(keys)))  # rows' pairs,
+        # distances and bounds of a compiled call
         self.enabled = np.ones(len(keys), dtype=bool)
         """Pairs watched at the next call (see :meth:`allow`)."""
         self._watch_within = self.detection_distance.copy()
@@ -113,6 +118,7 @@ class ActiveCollisionLimit(mink.Limit):
         """Narrow-phase distance queries made at the last call."""
         self.slack = 0
         """Pairs not ruled out by the travel and sphere bounds that could not bind within the box (no row)."""
+        kernels.warm_up(model.nv, box is not None)
 
     def allow(self, geoms: np.ndarray) -> None:
         """Let the given geoms touch: pairs with a geom in ``geoms`` (a boolean mask over geoms) get no row.
@@ -164,39 +170,46 @@ class ActiveCollisionLimit(mink.Limit):
 
     def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> Constraint:
         """Rows of the pairs that can bind only; an inactive constraint when there are none."""
-        model, data = self.model, configuration.data
-        bounds: list[float] = []
-        self.active, self.slack = [], 0
-        self._active_pairs = active_pairs = []
-        near, lower = self.bounds.near(data, self._watch_within)
+        data = configuration.data
         # Reach bound: how far the two geoms can approach in one step of the box (each joint at most its speed
         # limit times dt); a pair whose gap bound exceeds it cannot bind. Checked on the distance's lower bound
         # first (no narrow phase), then on it.
-        reach: list[float] | None = None
-        if self.box is not None and near.size:
-            step = self.box.step_bound(dt)
-            if self._lever_inf:
-                with np.errstate(invalid="ignore"):  # inf lever x 0 step (non-hinge dof): NaN, never prunes
-                    pair_reach = self._pair_lever.take(near, axis=0) @ step
-            else:
-                pair_reach = self._pair_lever.take(near, axis=0) @ step
-            cannot = self.gain * (lower - self.min_distance.take(near)) > pair_reach
-            self.slack = int(np.count_nonzero(cannot))
-            near, reach = near[~cannot], pair_reach[~cannot].tolist()
+        step = self.box.step_bound(dt) if self.box is not None else None
+        near, _, reach, self.slack = self.bounds.near_reach(data, self._watch_within, self._pair_lever, step,
+                                                             self.gain, self.min_distance)
+        self.queries = len(near)
+        if kernels.NATIVE:  # the loop below, compiled
+            k, slack = kernels.narrow_rows(
+                kernels.GEOM_DISTANCE, kernels.JAC, self._model_at, data._address, near, reach, step is not None,
+                self.geom1, self.geom2, self.detection_distance, self.min_distance, self.bounds.exact, self._kept,
+                self._body_at, self.gain, self.margin, self._jacs, self._zero1, self._dists, *self._out)
+            pairs, h = self._out[0][:k].tolist(), self._out[2][:k].copy()
+            self.active, self.slack = list(zip(pairs, self._out[1][:k].tolist(), strict=True)), self.slack + slack
+        else:
+            pairs, h = self._narrow(data, near.tolist(), reach.tolist() if step is not None else None)
+        self._active_pairs = pairs
+        self.bounds.remember(near, self._dists[: len(near)], exact=True)
+        if not pairs:
+            return Constraint()
+        return Constraint(G=self._rows(len(pairs)), h=h)
+
+    def _narrow(self, data: mujoco.MjData, near: list[int], reach: list[float] | None) -> tuple[list[int], np.ndarray]:
+        """The narrow phase of the ``near`` pairs and their witness points' Jacobians: the rows' pairs and bounds."""
+        model, bounds, pairs = self.model, list[float](), list[int]()
+        self.active = []
         geom1, geom2, detect, minimum = self._lists
         gain, margin, distance = self.gain, self.margin, mujoco.mj_geomDistance
-        self.queries = len(near)
-        dists: list[float] = []
+        dists = self._dists
         body, jacs, jac, zero1 = self._body, self._jac_slots, mujoco.mj_jac, self._zero1
         exact, kept, kept_fromto, points = self.bounds.exact, self._kept, self._kept_fromto, self._kept_points
-        for k, idx in enumerate(near.tolist()):
+        for k, idx in enumerate(near):
             g1, g2, dmax = geom1[idx], geom2[idx], detect[idx]
             if exact[idx]:  # measured here already (by the collision-safe step that led here, or a call here)
                 dist = float(kept[idx, 0])
             else:
                 dist = distance(model, data, g1, g2, dmax + margin, kept_fromto[idx])
                 kept[idx, 0] = dist
-            dists.append(dist)
+            dists[k] = dist
             if dist >= dmax:
                 continue
             gap = dist - minimum[idx]
@@ -216,16 +229,13 @@ class ActiveCollisionLimit(mink.Limit):
             if b1 >= 0:
                 jac(model, data, jac1, None, start, b1)
                 zero1[slot] = False
-            elif not zero1[slot]:  # a side no joint moves: zeros (the slot keeps them until a moving side writes it)
+            elif zero1[slot] == 0:  # a side no joint moves: zeros (the slot keeps them until a moving side writes it)
                 jac1.fill(0.0)
                 zero1[slot] = True
             bounds.append(bound)
             self.active.append((idx, dist))
-            active_pairs.append(idx)
-        self.bounds.remember(near, np.array(dists), exact=True)
-        if not bounds:
-            return Constraint()
-        return Constraint(G=self._rows(len(bounds)), h=np.array(bounds))
+            pairs.append(idx)
+        return pairs, np.array(bounds)
 
     def _rows(self, k: int) -> np.ndarray:
         r"""The rows :math:`s\,n^T (J_2(p_2) - J_1(p_1))` of the ``k`` pairs in :attr:`active`, in one product.
