@@ -58,3 +58,26 @@ def test_an_ik_step_compiles_nothing(robot: Robot) -> None:
         q = q + 0.004 * ik.step(q, [FrameTarget("left_wrist", pos=goal)], 0.004)
     assert ik.collision is not None and ik.collision.queries > 0
     assert {k: len(getattr(kernels, k).signatures) for k in before} == before
+
+
+def test_compiled_obstacle_clearance_is_the_python_loops(robot: Robot) -> None:
+    """The outcome monitor's clearance: the same smallest distances, and the argument types warmed up."""
+    import mujoco
+
+    from nextage_qp.manipulation.metrics import OutcomeMonitor
+
+    monitor = OutcomeMonitor(robot, "dumbbell")
+    kernels.warm_up(robot.model.nv, True)
+    signatures = len(kernels.clearance.signatures)
+    model, data = robot.model, mujoco.MjData(robot.model)
+    rng, near = np.random.default_rng(11), 0
+    for _ in range(300):
+        robot.set_q(data, rng.uniform(robot.lower, robot.upper))
+        mujoco.mj_kinematics(model, data)
+        best = float(rng.uniform(0.0, 0.2))
+        args = (monitor._pair1, monitor._pair2, monitor._pair_rsum, best, 0.04, np.zeros(6))
+        compiled = kernels.clearance(kernels.GEOM_DISTANCE, model._address, data._address, data.geom_xpos, *args)
+        assert compiled == kernels.clearance_python(model, data, *args)
+        near += compiled[1] < 0.04
+    assert near > 10, near
+    assert len(kernels.clearance.signatures) == signatures

@@ -216,4 +216,52 @@ def warm_up(nv: int, box: bool) -> None:
     if NATIVE:
         narrow_rows(GEOM_DISTANCE, JAC, 0, 0, i0, f0, box, i0, i0, f0, f0, b0, np.zeros((0, 7)), i0, 0.5, 0.05,
                     np.zeros((0, 2, 3, nv)), b0, f0, i0, f0, f0)
+        clearance(GEOM_DISTANCE, 0, 0, np.zeros((1, 3)), i0, i0, f0, 1.0, 0.04, np.zeros(6))  # OutcomeMonitor's
     _warm.add((nv, box))
+
+
+@njit(cache=True)
+def clearance(fn_distance, m, d, xpos, pair1, pair2, rsum, best, watch, fromto):  # pragma: no cover - compiled
+    """Smallest distance of the pairs below ``max(best, watch)``, nearest bounding spheres first: (best, nearest).
+
+    ``best``: the smallest found so far (it only shrinks), ``nearest``: this call's smallest, capped at ``watch``.
+    A pair whose spheres' gap exceeds the current cut cannot lower either.
+    """
+    gap = np.empty(pair1.shape[0])
+    for k in range(pair1.shape[0]):
+        a = pair1[k]
+        b = pair2[k]
+        dx = xpos[a, 0] - xpos[b, 0]
+        dy = xpos[a, 1] - xpos[b, 1]
+        dz = xpos[a, 2] - xpos[b, 2]
+        gap[k] = np.sqrt(dx * dx + dy * dy + dz * dz) - rsum[k]
+    cut = max(best, watch)
+    nearest = watch
+    at = np.uint64(fromto.ctypes.data)
+    for k in np.argsort(gap):
+        if gap[k] > cut:
+            break
+        dist = _geom_distance(fn_distance, m, d, pair1[k], pair2[k], cut, at)
+        best = min(best, dist)
+        nearest = min(nearest, dist)
+        cut = max(best, watch)
+    return best, nearest
+
+
+def clearance_python(model: mujoco.MjModel, data: mujoco.MjData, pair1: np.ndarray, pair2: np.ndarray,
+                     rsum: np.ndarray, best: float, watch: float, fromto: np.ndarray) -> tuple[float, float]:
+    """:func:`clearance` in Python (where MuJoCo's shared library was not found)."""
+    pos = data.geom_xpos
+    delta = pos.take(pair1, axis=0) - pos.take(pair2, axis=0)
+    gap = np.sqrt(np.vecdot(delta, delta)) - rsum
+    cut = max(best, watch)
+    nearest = watch
+    close = np.flatnonzero(gap <= cut)
+    first, second, gaps = pair1.tolist(), pair2.tolist(), gap.tolist()
+    for k in close[np.argsort(gap.take(close))].tolist():
+        if gaps[k] > cut:
+            break
+        dist = mujoco.mj_geomDistance(model, data, first[k], second[k], cut, fromto)
+        best, nearest = min(best, dist), min(nearest, dist)
+        cut = max(best, watch)
+    return best, nearest

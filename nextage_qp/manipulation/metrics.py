@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.geometry import wrap
+from nextage_qp.ik import kernels
 from nextage_qp.manipulation.config import SuccessCriteria
 from nextage_qp.manipulation.context import Grip
 from nextage_qp.robot import Robot
@@ -65,9 +66,8 @@ class OutcomeMonitor:
         self._is_obstacle[list(self.obstacle or ())] = True
         self.movers = tuple(sorted({g for k in (*robot.robot_groups, obj) for g in groups.get(k, ())}))
         pairs = np.array([(og, g) for og in (self.obstacle or ()) for g in self.movers], dtype=int).reshape(-1, 2)
-        self._pair1, self._pair2 = pairs[:, 0], pairs[:, 1]
+        self._pair1, self._pair2 = pairs[:, 0].copy(), pairs[:, 1].copy()
         self._pair_rsum = m.geom_rbound[self._pair1] + m.geom_rbound[self._pair2]
-        self._pairs1, self._pairs2 = self._pair1.tolist(), self._pair2.tolist()
         self.min_clearance: float | None = None
         self.obstacle_contacts = 0
         self.dropped = False
@@ -119,22 +119,15 @@ class OutcomeMonitor:
             return
         d, m = sim.data, self.model
         best = self.min_clearance if self.min_clearance is not None else 1.0
-        # Bounding spheres first (vectorised): only pairs whose spheres come within the best clearance so far
-        # (or within the watched clearance) need the narrow phase, nearest first so the bound tightens early.
-        pos = d.geom_xpos
-        delta = pos.take(self._pair1, axis=0) - pos.take(self._pair2, axis=0)
-        gap = np.sqrt(np.vecdot(delta, delta)) - self._pair_rsum
         watch = max(CONTACT_WATCH, CONTACT_WATCH_SPEED * sim.ctrl_dt)
-        cut = max(best, watch)
-        nearest = watch
-        close = np.flatnonzero(gap <= cut)
-        distance, pair1, pair2, gaps = mujoco.mj_geomDistance, self._pairs1, self._pairs2, gap.tolist()
-        for k in close[np.argsort(gap.take(close))].tolist():
-            if gaps[k] > cut:
-                break
-            dist = distance(m, d, pair1[k], pair2[k], cut, self._fromto)
-            best, nearest = min(best, dist), min(nearest, dist)
-            cut = max(best, watch)
+        # Bounding spheres first: only pairs whose spheres come within the best clearance so far (or within the
+        # watched clearance) need the narrow phase, nearest first so the bound tightens early (compiled).
+        if kernels.NATIVE:
+            best, nearest = kernels.clearance(kernels.GEOM_DISTANCE, m._address, d._address, d.geom_xpos, self._pair1,
+                                              self._pair2, self._pair_rsum, best, watch, self._fromto)
+        else:
+            best, nearest = kernels.clearance_python(m, d, self._pair1, self._pair2, self._pair_rsum, best, watch,
+                                                     self._fromto)
         self.min_clearance = best
         self._watch = nearest < watch
         hooked = self.on_substep in sim.substep_hooks
