@@ -99,7 +99,7 @@ class PDController:
 
     def count(self, force: np.ndarray) -> None:
         """Count physics steps' applied actuator forces [N·m], (15,) or (steps, 15), in the saturation counters."""
-        force = np.atleast_2d(force)
+        force = force if force.ndim == 2 else np.atleast_2d(force)
         self.ticks += force.shape[0]
         sat = np.abs(force) >= self._saturated
         if sat.any():

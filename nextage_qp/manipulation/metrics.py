@@ -151,7 +151,8 @@ class OutcomeMonitor:
 
 
 def _midpoint(d: mujoco.MjData, frames: list[tuple[str, int]]) -> np.ndarray:  # of frames as Robot.frame names them
-    return 0.5 * np.sum([d.site_xpos[fid] if kind == "site" else d.xpos[fid] for kind, fid in frames], axis=0)
+    a, b = (d.site_xpos[fid] if kind == "site" else d.xpos[fid] for kind, fid in frames)  # the clamp's two pads
+    return 0.5 * (a + b)
 
 
 class ObjectState(NamedTuple):

@@ -89,6 +89,7 @@ class Place(Phase):
         self.goal = np.array([tgt[0], tgt[1], self.rest + c.hover])
         self.goal_yaw, self.posture = self._reachable_yaw(view, yaw_of(trot))
         self.posture_from, self.t0 = view.default_posture(), view.t
+        self._blended: np.ndarray | None = None  # the posture target once the blend is over
         self.legs = [np.array([obj[0], obj[1], carry]), np.array([tgt[0], tgt[1], carry]), self.goal]
         self.leg, self.stage = 0, "transit"
         self.samples: list[tuple[np.ndarray, float]] = []
@@ -148,7 +149,10 @@ class Place(Phase):
         self.info["stage"] = self.stage  # a timeout names the stage it ended in
         targets, relative = self.clamp.targets(view, self.sp.pos, self.yaw)
         blend = clamp((view.t - self.t0) / BLEND, 0.0, 1.0)
-        posture = self.posture_from + blend * blend * (3.0 - 2.0 * blend) * (self.posture - self.posture_from)
+        posture = self._blended if blend == 1.0 and self._blended is not None else \
+            self.posture_from + blend * blend * (3.0 - 2.0 * blend) * (self.posture - self.posture_from)
+        if blend == 1.0:  # the same array from now on: the IK keeps its posture target instead of setting it anew
+            self._blended = posture
         return Command(targets, (relative,), allow=frozenset({c.object}), posture=posture, done=done)
 
     def _check_stall(self, view: View) -> None:
