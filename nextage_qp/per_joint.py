@@ -13,6 +13,20 @@ PerJoint = float | tuple[float, ...] | dict[str, float]
 """A per-joint setting: one value for every joint, a list in joint order, or ``{joint: value}``."""
 
 
+def within_range(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, names: Sequence[str], where: str) -> np.ndarray:
+    """``q`` itself when every joint is finite and within ``[lower, upper]`` (to 1e-6 rad).
+
+    Raises:
+        ConfigError: One line naming the first joint outside its range (or not finite), its value and the range.
+    """
+    bad = np.flatnonzero(~((q >= lower - 1e-6) & (q <= upper + 1e-6)))  # NaN fails both
+    if bad.size:
+        i = int(bad[0])
+        raise ConfigError(f"{where}: joint {names[i]} at {q[i]:.4g} rad is outside its range [{lower[i]:.4g}, "
+                          f"{upper[i]:.4g}] (a robot file's angles are in radians unless it says angle: degree)")
+    return q
+
+
 def per_joint(value: PerJoint, default: float, names: Sequence[str]) -> np.ndarray:
     """The per-joint array of a setting; joints a mapping leaves out get ``default`` (one meaning everywhere).
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from nextage_qp.errors import ConfigError, UnknownFrameError, UnknownJointError, UnknownNameError
 from nextage_qp.mobile.base import BASE_BODY, MobileBase
-from nextage_qp.per_joint import PerJoint, per_joint  # noqa: F401 (re-exported)
+from nextage_qp.per_joint import PerJoint, per_joint, within_range  # noqa: F401 (re-exported)
 from nextage_qp.robots.actuation import torque_limits, velocity_limits
 from nextage_qp.robots.description import Arm, RobotDescription, load_robot
 from nextage_qp.robots.groups import check_arm_frames
@@ -207,14 +207,14 @@ class Robot:
         if name == "zero" and name not in keys:  # built in: every joint at 0, clipped into its range
             return np.clip(np.zeros(self.nq), self.lower, self.upper)
         if name not in keys:
-            raise UnknownNameError("keyframe", name, [*keys, "zero"])
-        key = keys[name]
+            raise UnknownNameError("keyframe", name, [*keys, *(("zero",) if "zero" not in keys else ())])
+        key, where = keys[name], f"{self.description.source}: keyframes.{name}"
         if isinstance(key, str):  # the model's own keyframe
             kid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_KEY, name)
             if kid < 0:
-                raise ConfigError(f"{self.description.source}: keyframes.{name}: the model has no keyframe {name!r}")
-            return self.model.key_qpos[kid, self.qpos_idx].copy()
-        return self.q_from_names(key)
+                raise ConfigError(f"{where}: the model has no keyframe {name!r}")
+        q = self.model.key_qpos[kid, self.qpos_idx].copy() if isinstance(key, str) else self.q_from_names(key)
+        return within_range(q, self.lower, self.upper, self._names, where)
 
     def q_from_names(self, values: Mapping[str, float], base: np.ndarray | None = None) -> np.ndarray:
         """A q vector from ``{joint name: angle [rad]}`` on top of ``base`` (default: zeros)."""

@@ -108,7 +108,7 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
     Raises:
         InfeasibleError: The target rest pose overlaps an obstacle or is not over the table, or the start pose
             overlaps the robot, an obstacle or the table (one line with the word "overlaps" and the depth) or is
-            not over the table.
+            not over the table, or below its top.
     """
     m = robot.model
     data = mujoco.MjData(m)
@@ -118,7 +118,7 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
     groups = robot.collision_geoms()
     obj_geoms = list(groups.get(obj, ()))
     obstacles = list(groups.get("obstacle", ()))
-    _, table = table_top(robot, data)
+    top, table = table_top(robot, data)
     others = [g for g in range(m.ngeom) if (m.geom_contype[g] or m.geom_conaffinity[g]) and g not in obj_geoms]
     dist, geom = _closest(robot, data, obj_geoms, others)
     if dist < -1e-3:  # resting contact allows a little penetration
@@ -128,6 +128,9 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
     if not _over_table(robot, data, table, start[:2]):
         raise InfeasibleError(f"{source}: scene.poses.{obj}: {obj} starts at ({start[0]:.3f}, {start[1]:.3f}), not "
                               "over the table; move it onto the table top")
+    if start[2] < top:  # under the table (its top slab would have overlapped it otherwise)
+        raise InfeasibleError(f"{source}: scene.poses.{obj}: {obj} starts at height {start[2]:.3f} m, below the table "
+                              f"top at {top:.3f} m; put it on the table top")
     rest = data.xpos[tid].copy()
     rest[2] = rest_height(robot, data, obj, target)
     tyaw = float(np.arctan2(data.xmat[tid][3], data.xmat[tid][0]))

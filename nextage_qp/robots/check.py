@@ -100,18 +100,22 @@ def home_qpos(model: mujoco.MjModel, desc: RobotDescription) -> tuple[np.ndarray
     """The full ``qpos`` of the robot file's ``home`` (its joints not named are 0), and what is wrong with it."""
     key = desc.keyframes.get("home")
     qpos = model.qpos0.copy()
+    problems: list[Finding] = []
     if isinstance(key, str):
         kid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "home")
         if kid < 0:
             return qpos, [Finding("problem", "home", "keyframes.home: model, but the model has no keyframe 'home'",
                                   "give home as joint -> value, or run robot init for a pose free of contact")]
-        return model.key_qpos[kid].copy(), []
-    problems = []
-    for name in desc.joints:
-        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
-        if j >= 0:
-            qpos[model.jnt_qposadr[j]] = 0.0
-    for name, value in (key or {}).items():
+        qpos = model.key_qpos[kid].copy()
+        values = {name: float(qpos[model.jnt_qposadr[j]]) for name in desc.joints
+                  if (j := mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)) >= 0}
+    else:
+        for name in desc.joints:
+            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+            if j >= 0:
+                qpos[model.jnt_qposadr[j]] = 0.0
+        values = dict(key or {})
+    for name, value in values.items():
         j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
         if j < 0 or name not in desc.joints:
             problems.append(Finding("problem", "home", f"keyframes.home.{name}: not a joint of the robot",
@@ -119,7 +123,7 @@ def home_qpos(model: mujoco.MjModel, desc: RobotDescription) -> tuple[np.ndarray
             continue
         qpos[model.jnt_qposadr[j]] = value
         lo, hi = model.jnt_range[j]
-        if model.jnt_limited[j] and not lo - 1e-9 <= value <= hi + 1e-9:
+        if not np.isfinite(value) or (model.jnt_limited[j] and not lo - 1e-9 <= value <= hi + 1e-9):
             problems.append(Finding("problem", "home", f"keyframes.home.{name}: {value:g} is outside the range "
                                     f"[{lo:.4g}, {hi:.4g}]", "choose a value in range"))
     return qpos, problems

@@ -123,7 +123,11 @@ def compose(desc: RobotDescription, scene: str | Path, overrides: SceneOverrides
         frame = parent.worldbody.add_frame(pos=list(desc.mount.pos),
                                            quat=[np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
     with quiet_prefix_warning():  # an empty prefix: the robot keeps its own names
-        parent.attach(child, frame=frame, prefix="")
+        try:
+            parent.attach(child, frame=frame, prefix="")
+        except ValueError as exc:  # e.g. a keyframe whose qpos does not fit the model
+            raise ConfigError(f"{desc.source}: {desc.model.name} cannot be placed in {scene}: "
+                              f"{str(exc).removeprefix('Error: ').splitlines()[0]}") from None
     if desc.base is not None:
         add_base_actuators(parent, desc.base)
         for name in robot_bodies:  # the base carries the robot: its own feet no longer stand on the floor

@@ -55,14 +55,14 @@ def hold(p: Push, view: View) -> Command:
     return finish(p, err)
 
 
-def finish(p: Push, err: float) -> Command:
-    """Nothing left to try: accept the error within ``accept`` (retreat and end) or fail."""
+def finish(p: Push, err: float, cause: str = "") -> Command:
+    """Nothing left to try: accept the error within ``accept`` (retreat and end) or fail (saying why: ``cause``)."""
     c = p.spec
     if err <= c.accept:
         return start_retreat(p, final=True)
     raise PhaseError(f"phase {p.name!r} (push): {c.object} is still {err * 1e3:.1f} mm from {c.target} "
                      f"after {p.approaches} approaches (tolerance {c.tolerance * 1e3:g} mm, accepted "
-                     f"{c.accept * 1e3:g} mm)")
+                     f"{c.accept * 1e3:g} mm){cause or f': all {c.attempts} attempts used'}")
 
 
 def start_retreat(p: Push, final: bool, view: View | None = None) -> Command:
@@ -124,7 +124,7 @@ def retreat(p: Push, view: View) -> Command:
     if p.plan_failed:  # no reachable side to correct from
         p.info["unreachable_corrections"] = p.info.get("unreachable_corrections", 0) + 1
         _, _, err = p._planar(view)
-        return finish(p, err)
+        return finish(p, err, f": no side to push it from towards {p.spec.target} is within the robot's reach")
     if not _worth_it(p, view):  # an accepted error, and a correction that could not reach the tolerance: keep it
         p.info["declined_corrections"] = p.info.get("declined_corrections", 0) + 1
         p.stage, p.final, p.approaches = "retreat", True, p.approaches - 1
