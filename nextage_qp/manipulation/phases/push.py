@@ -78,7 +78,9 @@ class Push(Phase):
         self._approach(view, unit2((tgt - obj)[:2]))
         if self.plan_failed:
             raise PhaseError(f"phase {self.name!r} (push): no approach to {self.spec.object} within "
-                             f"{np.degrees(max(self.spec.fan)):.0f} deg of its line to {self.spec.target} is reachable")
+                             f"{np.degrees(max(self.spec.fan)):.0f} deg of its line to {self.spec.target} is reachable "
+                             f"by {self.frame} (out of the arm's reach at the push height, or a tool point inside the "
+                             "hand, which then collides with the object: docs/robots.md)")
 
     def stalled(self, view: View) -> str | None:  # noqa: D102
         tilted_s = self.info.get("tilt_pauses", 0) * view.dt  # ticks the push paused for a tipping object
