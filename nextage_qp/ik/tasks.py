@@ -29,7 +29,7 @@ class TaskCache:
         self.frame = frame
         self._frame_tasks: dict[str, mink.FrameTask] = {}
         self._axis_tasks: dict[str, mink.AxisAlignTask] = {}
-        self._axis_inputs: dict[str, tuple[np.ndarray, np.ndarray, float]] = {}  # axis, direction, cost last set
+        self._axis_inputs: dict[str, tuple[list[float], list[float], float]] = {}  # axis, direction, cost last set
         self._relative_tasks: dict[tuple[str, str], mink.RelativeFrameTask] = {}
 
     def frames(self, targets: Sequence[FrameTarget], data: mujoco.MjData) -> list[mink.Task]:
@@ -66,12 +66,12 @@ class TaskCache:
                 # mink's setters validate and normalise: only when the inputs changed (a planner's descent asks the
                 # same target every step)
                 last, direction = self._axis_inputs.get(frame.name), np.asarray(target.direction)
-                if last is None or last[2] != ocost or not (np.array_equal(last[0], target.axis)
-                                                            and np.array_equal(last[1], direction)):
+                axis, aim = np.asarray(target.axis).tolist(), direction.tolist()  # lists: cheaper to compare
+                if last is None or last[2] != ocost or last[0] != axis or last[1] != aim:
                     axis_task.set_axis(target.axis)
                     axis_task.set_cost(ocost)
                     axis_task.set_target(direction)
-                    self._axis_inputs[frame.name] = (np.array(target.axis), direction.copy(), ocost)
+                    self._axis_inputs[frame.name] = (axis, aim, ocost)
                 tasks.append(axis_task)
         return tasks
 
