@@ -56,20 +56,24 @@ class SweepStore:
         except OSError as exc:
             raise ConfigError(f"--out {out}: cannot create the directory ({exc.strerror})") from None
         header_path = out / "sweep.json"
-        if header_path.is_file():
-            old = json.loads(header_path.read_text())
-            if not resume and self.episodes_path.is_file() and self.episodes_path.stat().st_size:
+        records = self.episodes_path.is_file() and self.episodes_path.stat().st_size > 0
+        if header_path.exists():
+            old = _header(out, header_path)
+            if not resume and records:
                 raise ConfigError(f"--out {out}: already holds episodes of a sweep; pass --resume to continue it, "
                                   "or choose another --out")
             mismatch = [k for k in ("seed", "fingerprint") if old.get(k) != self.header[k]]
             if resume and mismatch:
                 raise ConfigError(f"--resume: {out} holds a sweep with another {' and '.join(mismatch)} "
                                   f"(seed {old.get('seed')}, sweep {old.get('sweep')}); it cannot be continued")
+        elif records:  # episodes without the header that says which sweep they belong to: never overwritten
+            raise ConfigError(f"--out {out}: holds {self.episodes_path} but no sweep.json, so it cannot be verified "
+                              "to be this sweep's; choose another --out, or remove the file")
         if resume:
             self.done = self._read()
-        elif self.episodes_path.exists():
-            self.episodes_path.unlink()
         try:
+            if not resume and self.episodes_path.exists():
+                self.episodes_path.unlink()
             header_path.write_text(json.dumps(self.header, indent=2) + "\n")
             self._file = self.episodes_path.open("a")
         except OSError as exc:
@@ -101,6 +105,20 @@ class SweepStore:
     def close(self) -> None:
         """Close the episodes file."""
         self._file.close()
+
+
+def _header(out: Path, path: Path) -> dict[str, Any]:
+    """The ``sweep.json`` of an earlier run; a file this tool did not write is refused, and left as it is."""
+    try:
+        doc = json.loads(path.read_text())
+    except OSError as exc:
+        raise ConfigError(f"--out {out}: cannot read {path} ({exc.strerror or exc})") from None
+    except ValueError:  # not JSON, or not UTF-8
+        doc = None
+    if not isinstance(doc, dict) or not {"seed", "fingerprint"} <= doc.keys():
+        raise ConfigError(f"--out {out}: {path} is not a sweep record this tool wrote (a JSON object with the "
+                          "sweep's seed and fingerprint); choose another --out, or remove the file")
+    return doc
 
 
 def _plain(x: Any) -> Any:

@@ -34,6 +34,7 @@ from nextage_qp.yaml_file import STRICT, read_yaml_mapping, validate
 Number = Annotated[float, Field(allow_inf_nan=False)]
 OBJECTIVES = {"sweep": ("failures_then_p95_error",), "steps": ("settling_time",)}
 SAMPLERS = ("tpe", "cmaes")
+PARAM_KEYS = ("float", "log", "int", "choice", "also")
 
 
 class _Strict(BaseModel):
@@ -52,6 +53,14 @@ class Param(_Strict):
     integer: tuple[int, int] | None = Field(default=None, alias="int")
     choice: list[Any] | None = Field(default=None, min_length=1)
     also: list[str] = Field(default_factory=list)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _known_keys(cls, doc: Any) -> Any:  # the names a file writes (float, int), not the fields behind them
+        unknown = [k for k in doc if k not in PARAM_KEYS] if isinstance(doc, dict) else []
+        if unknown:
+            raise ValueError(f"unknown key {unknown[0]!r}; valid: {', '.join(PARAM_KEYS)}")
+        return doc
 
     @model_validator(mode="after")
     def _one_kind(self) -> Param:

@@ -50,6 +50,9 @@ class SweepEvaluator:
 
     def base_value(self, key: str) -> Any:
         """The key's value in the sweep's base config (with the sweep's ``set:``)."""
+        if key == "seed":
+            raise ConfigError("space.seed: the sweep sets each episode's run seed itself; tune a task-config key "
+                              "(e.g. ik.posture_cost), not the seed")
         if key in self.spec.distributions:
             raise ConfigError(f"space.{key}: the sweep randomises this key; tune keys the sweep leaves fixed")
         return lookup(self.spec.base, key.split("."), lambda msg: ConfigError(f"space.{key}: {msg}"))

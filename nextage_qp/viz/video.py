@@ -6,6 +6,7 @@ top right corner, with each object's latest fitted pose drawn over it (:class:`H
 
 from __future__ import annotations
 
+import queue
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -114,8 +115,8 @@ def video_process(path: str, fps: int, size: tuple[int, int], camera: str, frame
             count += 1
         writer.close()
         status.send(("done", count))
-    except Exception as exc:
-        status.send(("error", f"{type(exc).__name__}: {exc}"))
+    except Exception as exc:  # the first line only: ffmpeg's command and output follow it
+        status.send(("error", f"{type(exc).__name__}: {(str(exc).strip().splitlines() or [''])[0]}"))
 
 
 class VideoRecorder:
@@ -136,7 +137,11 @@ class VideoRecorder:
 
         if camera is None:  # the workspace's camera; a mobile robot is followed
             camera = f"{FOLLOW}{BASE_BODY}" if runner.robot.base is not None else "workspace"
-        path.parent.mkdir(parents=True, exist_ok=True)
+        try:  # an existing file the encoder could not replace (read-only, immutable, not ours): say so before the run
+            path.open("r+b").close() if path.exists() else path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ConfigError(f"--video {path}: cannot write the file ({exc.strerror or exc}: read-only or no "
+                              "permission); give another path") from None
         ctx = multiprocessing.get_context("spawn")
         self.frames = ctx.Queue(self.QUEUE)
         self.status, child = ctx.Pipe(duplex=False)
@@ -152,6 +157,7 @@ class VideoRecorder:
             self.process.join(timeout=5.0)
             raise ConfigError(message)
         self.period, self.next_t = 1.0 / fps, 0.0
+        self.error: str | None = None
         self.starts = marker_starts(runner)
 
     def _wait(self, timeout: float) -> tuple[str, Any]:
@@ -165,7 +171,10 @@ class VideoRecorder:
             if time.monotonic() > end:
                 self.process.kill()
                 return "error", f"--video: the renderer did not answer within {timeout:.0f} s"
-        kind, value = self.status.recv()
+        try:
+            kind, value = self.status.recv()
+        except EOFError:  # the process died without a report
+            return "error", f"--video: the renderer process exited with code {self.process.exitcode}"
         return str(kind), value
 
     def on_tick(self, runner: Runner, phase: Any) -> None:
@@ -175,11 +184,21 @@ class VideoRecorder:
         self.next_t += self.period
         d = runner.sim.data
         poses = dict(self.measurer.poses) if self.measurer is not None else {}
-        self.frames.put((d.qpos.copy(), d.mocap_pos.copy(), d.mocap_quat.copy(), marker_points(runner, self.starts),
-                         poses))
+        state = (d.qpos.copy(), d.mocap_pos.copy(), d.mocap_quat.copy(), marker_points(runner, self.starts), poses)
+        while self.error is None:  # a full queue waits for the renderer, unless it has stopped with an error
+            try:
+                self.frames.put(state, timeout=1.0)
+                return
+            except queue.Full:
+                if self.status.poll() or not self.process.is_alive():
+                    self.error = str(self._wait(1.0)[1])
+                    self.frames.cancel_join_thread()  # frames left in the pipe are never read: do not wait at exit
 
     def close(self) -> int:
         """Finish the file; returns the number of frames written, raises OSError if the video could not be made."""
+        if self.error is not None:  # the renderer stopped during the run (its queue may be full: do not wait)
+            self.process.kill()
+            raise OSError(self.error)
         self.frames.put(None)
         kind, value = self._wait(600.0)
         self.process.join(timeout=10.0)
