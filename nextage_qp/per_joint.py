@@ -27,7 +27,7 @@ def within_range(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, names: Seq
     return q
 
 
-def per_joint(value: PerJoint, default: float, names: Sequence[str]) -> np.ndarray:
+def per_joint(value: PerJoint, default: float, names: Sequence[str], where: str = "") -> np.ndarray:
     """The per-joint array of a setting; joints a mapping leaves out get ``default`` (one meaning everywhere).
 
     Raises:
@@ -42,7 +42,8 @@ def per_joint(value: PerJoint, default: float, names: Sequence[str]) -> np.ndarr
         return out
     arr = np.broadcast_to(np.asarray(value, dtype=float), (len(names),)) if np.ndim(value) == 0 else np.asarray(value)
     if arr.shape != (len(names),):
-        raise ConfigError(f"a per-joint list needs {len(names)} values, got {len(arr)}")
+        raise ConfigError(f"{where + ': ' if where else ''}a per-joint list needs {len(names)} values (one per joint: "
+                          f"{', '.join(names[:3])}, ...), got {len(arr)}")
     return np.array(arr, dtype=float)
 
 

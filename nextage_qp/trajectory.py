@@ -66,7 +66,7 @@ class TrajectoryLimits(BaseModel):
             ConfigError: A list of the wrong length or a mapping with a joint not in ``names``.
         """
         defaults = type(self).model_fields
-        v, a, j = (per_joint(getattr(self, f), float(defaults[f].default), names)
+        v, a, j = (per_joint(getattr(self, f), float(defaults[f].default), names, f"trajectory.{f}")
                    for f in ("max_velocity", "max_acceleration", "max_jerk"))
         return v, a, j
 

@@ -82,7 +82,7 @@ class QPIK(OfflineSolver):
         self._posture_goal: np.ndarray | None = None  # the array last given to the posture task by step()
         self.default_posture = q_posture
         default = float(IKConfig.model_fields["velocity_limit"].default)
-        vmax = per_joint(config.velocity_limit, default, robot.joint_names)
+        vmax = per_joint(config.velocity_limit, default, robot.joint_names, "ik.velocity_limit")
         margin = np.minimum(config.limit_margin, 0.45 * (robot.upper - robot.lower))
         lower, upper = robot.lower + margin, robot.upper - margin
         if robot.base is not None:  # no bounds on where the base goes; its speed bounded per world axis
