@@ -329,6 +329,15 @@ def test_init_unwritable_path(tmp_path, capsys):
     assert code == 2 and len(err.strip().splitlines()) == 1 and "cannot write" in err
 
 
+def test_init_out_folder_or_yaml_only(tmp_path, capsys):
+    """--out a folder: NAME.yaml in it; a path that is not .yaml: one line, nothing written."""
+    (tmp_path / "d").mkdir()
+    assert cli(capsys, "robot", "init", str(TWO_ARMS), "--out", str(tmp_path / "d"))[0] == 0
+    assert [p.suffix for p in (tmp_path / "d").iterdir()] == [".yaml"]
+    code, _, err = cli(capsys, "robot", "init", str(TWO_ARMS), "--out", str(tmp_path / "r.txt"))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and ".yaml" in err and not (tmp_path / "r.txt").exists()
+
+
 def test_init_model_keyframe_and_urdf(tmp_path, capsys):
     model = model_variant(tmp_path, "</worldbody>", '</worldbody><keyframe><key name="home" qpos="0 0 -0.5 0.5 0.65 '
                           '0 -0.5 -0.5 -0.65 0"/></keyframe>')

@@ -10,6 +10,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from nextage_qp.commands.common import help_text, out_console, print_json
+from nextage_qp.errors import ConfigError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,8 +23,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                                         "mount of a model, and write a robot file to review.")
     init.add_argument("model", metavar="MODEL", help="an MJCF (.xml) or URDF (.urdf) file")
     init.add_argument("--out", metavar="FILE", type=Path,
-                      help="robot file to write (default: NAME.yaml here, NAME the model's stem, or its folder's "
-                           "name for robot.xml / model.xml)")
+                      help="robot file to write, .yaml, or a folder to write NAME.yaml in (default: NAME.yaml here, "
+                           "NAME the model's stem, or its folder's name for robot.xml / model.xml)")
     init.add_argument("--angle", choices=("radian", "degree"),
                       help="the model's angle unit where it states none (default: radian when its ranges say so)")
     init.add_argument("--force", action="store_true", help="overwrite --out if it exists")
@@ -45,8 +46,10 @@ def run_init(args: argparse.Namespace) -> int:
     model = Path(args.model)
     found = survey(model.resolve() if model.is_file() else model, angle=args.angle)
     out = args.out if args.out is not None else Path(f"{found.name}.yaml")
-    if out.suffix.lower() not in (".yaml", ".yml"):
-        out = out.with_name(out.name + ".yaml")
+    if out.is_dir():  # a folder: the draft goes into it, named after the robot
+        out = out / f"{found.name}.yaml"
+    elif out.suffix.lower() not in (".yaml", ".yml"):
+        raise ConfigError(f"--out {out}: a robot file is YAML: give a path ending in .yaml (or .yml), or a folder")
     if out.exists() and not args.force:  # before the draft's slower parts
         write_draft("", out)
     text = draft_text(found, out)
