@@ -24,7 +24,7 @@ from collections.abc import Mapping
 import mujoco
 import numpy as np
 
-from nextage_qp.errors import UnknownFrameError
+from nextage_qp.errors import InfeasibleError, UnknownFrameError
 from nextage_qp.geometry import Pose
 from nextage_qp.robot import Robot
 
@@ -61,6 +61,51 @@ class Kinematics:
         if kind == "site":
             return Pose(self.data.site_xpos[fid].copy(), self.data.site_xmat[fid].reshape(3, 3).copy())
         return Pose(self.data.xpos[fid].copy(), self.data.xmat[fid].reshape(3, 3).copy())
+
+    def reach(self, frame: str, q: np.ndarray) -> tuple[np.ndarray, float, str | None]:
+        """A sphere the frame's origin never leaves, whatever the joints: centre, radius [m], the joint at the centre.
+
+        The centre is the anchor of the first joint (from the root) that moves the frame; each hinge or ball joint
+        keeps the distance from its anchor to the next one's, each slide joint adds its travel (an unlimited slide or a
+        free joint: an infinite radius). A frame no joint moves: its origin and radius 0 (joint None).
+        """
+        kind, fid = self.robot.frame(frame)
+        self._update(np.asarray(q, dtype=float))
+        m, d = self.robot.model, self.data
+        body = fid if kind == "body" else int(m.site_bodyid[fid])
+        point = (d.site_xpos if kind == "site" else d.xpos)[fid].copy()
+        joints: list[int] = []
+        while body > 0:
+            joints[:0] = range(int(m.body_jntadr[body]), int(m.body_jntadr[body] + m.body_jntnum[body]))
+            body = int(m.body_parentid[body])
+        if not joints:
+            return point, 0.0, None
+        radius, at = 0.0, d.xanchor[joints[0]]
+        for j in joints:
+            kind_j = m.jnt_type[j]
+            if kind_j == mujoco.mjtJoint.mjJNT_FREE or (kind_j == mujoco.mjtJoint.mjJNT_SLIDE and not m.jnt_limited[j]):
+                return point, float("inf"), m.joint(j).name
+            radius += float(np.linalg.norm(d.xanchor[j] - at))
+            radius += float(np.ptp(m.jnt_range[j])) if kind_j == mujoco.mjtJoint.mjJNT_SLIDE else 0.0
+            at = d.xanchor[j]
+        return d.xanchor[joints[0]].copy(), radius + float(np.linalg.norm(point - at)), m.joint(joints[0]).name
+
+    def check_reach(self, frame: str, pos: np.ndarray, q: np.ndarray, where: str) -> None:
+        """Refuse a target position no joint configuration can bring the frame's origin to (:meth:`reach`).
+
+        Raises:
+            InfeasibleError: One line: how far the target is from the sphere's centre, and the radius.
+        """
+        centre, radius, joint = self.reach(frame, q)
+        dist = float(np.linalg.norm(np.asarray(pos, dtype=float) - centre))
+        if dist <= radius + 1e-3:
+            return
+        at = ", ".join(f"{x:.3f}" for x in centre)
+        if joint is None:
+            raise InfeasibleError(f"{where}: {frame} is moved by no joint of the robot; it stays at ({at}), "
+                                  f"{dist:.3f} m from the target")
+        raise InfeasibleError(f"{where}: out of reach: {dist:.3f} m from {joint} at ({at}), and {frame} reaches at "
+                              f"most {radius:.3f} m from there")
 
     def jacobian(self, frame: str, q: np.ndarray) -> np.ndarray:
         """The 6 x n world-frame Jacobian ``[J_v; J_w]`` of a frame's origin over the robot's n joints.

@@ -123,3 +123,18 @@ def test_pose_quaternion_is_unit_and_matches_rotation(robot):
     mat = np.empty(9)
     mujoco.mju_quat2Mat(mat, pose.quat)
     np.testing.assert_allclose(mat.reshape(3, 3), pose.rot, atol=1e-12)
+
+
+@pytest.mark.parametrize(("scene", "robot_name"), [("push_cube", None), ("push_cube", "yumi")])
+def test_reach_sphere_holds_every_configuration(scene, robot_name) -> None:
+    """No configuration takes a frame's origin out of its reach sphere, and the sphere is not loose by much."""
+    from nextage_qp.robot import Robot
+
+    robot = Robot.from_scene(scene, robot=robot_name)
+    kin, rng = Kinematics(robot), np.random.default_rng(2)
+    for frame in (robot.arms[0].wrist, robot.arms[1].tool):
+        centre, radius, joint = kin.reach(frame, robot.keyframe_q("home"))
+        assert joint is not None and np.isfinite(radius)
+        far = max(float(np.linalg.norm(kin.fk(frame, rng.uniform(robot.lower, robot.upper)).pos - centre))
+                  for _ in range(500))
+        assert 0.7 * radius < far <= radius + 1e-9, (frame, far, radius)

@@ -12,6 +12,7 @@ from nextage_qp.commands.common import COORD, add_scene_arg, number, out_console
 from nextage_qp.errors import ConfigError
 from nextage_qp.ik import QPIK, FrameTarget, IKConfig, IKResult
 from nextage_qp.ik.baselines import dls_ik, lm_ik, pinv_ik
+from nextage_qp.kinematics import Kinematics
 from nextage_qp.robot import Robot
 
 
@@ -75,6 +76,10 @@ def run(args: argparse.Namespace) -> int:
     if args.start not in ("home", "zero"):
         raise ConfigError(f"--from {args.start!r}: expected home or zero")
     q0 = robot.keyframe_q(args.start)
+    kin = Kinematics(robot)
+    for t in targets:
+        if t.pos is not None:
+            kin.check_reach(t.frame, t.pos, q0, f"--pos{'2' if t is not targets[0] else ''} for {t.frame}")
     result: IKResult
     if args.method == "qp":
         result = QPIK(robot, _config(args.solver)).solve(targets, q0)

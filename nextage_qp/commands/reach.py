@@ -9,6 +9,7 @@ import numpy as np
 
 from nextage_qp.commands.common import COORD, add_sim_args, help_text, number, print_outcome, scene_robot, sim_gains
 from nextage_qp.experiments.reach import run_reach
+from nextage_qp.kinematics import Kinematics
 from nextage_qp.trajectory import TrajectoryLimits
 
 REACHED_M = 0.002
@@ -26,6 +27,8 @@ def _run(args: argparse.Namespace) -> int:
         max_velocity=args.max_velocity, max_acceleration=args.max_acceleration, max_jerk=args.max_jerk
     )
     args.frame = args.frame or robot.arms[0].wrist
+    Kinematics(robot).check_reach(args.frame, np.asarray(args.pos, dtype=float), robot.keyframe_q("home"),
+                                  f"--pos for {args.frame}")
     res, sim = run_reach(
         robot,
         args.frame,
