@@ -183,6 +183,15 @@ def test_robot_check_finds_what_the_commands_refuse(tmp_path, capsys, case):
     assert [f["message"] for f in found if f["level"] == "problem"] == [message]
 
 
+def test_robot_check_loads_the_file_as_the_commands_do(tmp_path, capsys):
+    """A torque limit of a joint the robot lacks: the commands refuse it, so robot check names it."""
+    path = tmp_path / "r.yaml"
+    path.write_text(robot("gains_dir:", "torque_limits: {NOSUCH_JOINT: 5}\ngains_dir:")["r.yaml"])
+    assert main(["robot", "check", str(path), "--json"]) == 1
+    found = [f["message"] for f in json.loads(capsys.readouterr().out)["findings"] if f["level"] == "problem"]
+    assert len(found) == 1 and "torque_limits: ['NOSUCH_JOINT'] are not robot joints" in found[0], found
+
+
 @pytest.mark.slow
 def test_a_run_whose_phases_complete_but_a_criterion_fails_says_which(capsys):
     """Exit 1 with one line naming the unmet criterion, its value and its limit (the phases all completed)."""

@@ -91,9 +91,27 @@ def check_robot(ref: str | Path) -> CheckReport:
     home, home_problem = home_qpos(model, desc)
     found += home_problem + physics_checks.self_contact(model, home) + physics_checks.gravity_load(model, desc, home)
     found += checks.reach(model, desc) + checks.left_out(model, desc) + physics_checks.actuators(model, desc)
+    if Path(ref).suffix.lower() not in (".xml", ".urdf") and not any(f.level == "problem" for f in found):
+        found += _as_the_commands_load_it(ref)
     report = CheckReport(desc.source, str(desc.model), findings=found)
     _tables(report, model, desc)
     return report
+
+
+def _as_the_commands_load_it(ref: str | Path) -> list[Finding]:
+    """What the commands refuse of the robot file in a task scene: its gains, limits and keyframes as they load them."""
+    from nextage_qp.errors import ConfigError
+    from nextage_qp.gains import robot_gains
+    from nextage_qp.robot import Robot
+
+    try:
+        robot = Robot.from_scene("scene", robot=str(ref))
+        robot_gains(robot)
+        for name in robot.description.keyframes:
+            robot.keyframe_q(name)
+    except ConfigError as exc:
+        return [Finding("problem", "load", str(exc), "the commands refuse the robot file so: fix what it names")]
+    return []
 
 
 def home_qpos(model: mujoco.MjModel, desc: RobotDescription) -> tuple[np.ndarray, list[Finding]]:
