@@ -113,6 +113,9 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
      "--pos for table: table is moved by no joint of the robot"),
     ("reach target out of reach", ["reach", "--pos", "3", "3", "3"], {}, 2,
      "--pos for left_wrist: out of reach: 4.642 m from CHEST_JOINT0"),
+    ("push target out of every hand's reach", ["run", PUSH, "--set", "scene.poses.cube_target.pos=[1.45,1.0,0.91]"],
+     {}, 2, "target: cube at the target (1.450, 1.000) is out of every hand's reach (left_tool, the nearest, reaches "
+     "at most 1.061 m from CHEST_JOINT0; the target is 0.712 m beyond)"),
     ("object under the table", ["run", PUSH, "--set", "scene.poses.cube.pos=[0.33,0,0.5]"], {}, 2,
      "scene.poses.cube: cube starts at height 0.500 m, below the table top at 0.875 m"),
     ("robot frame named as a model site", ["info", "--robot", "{tmp}/r.yaml"],

@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError, InfeasibleError
+from nextage_qp.kinematics import Kinematics
 from nextage_qp.robot import Robot
 
 OVERLAP_TOLERANCE = 1e-4
@@ -137,6 +138,7 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
     if not _over_table(robot, data, table, rest[:2]):
         raise InfeasibleError(f"{source}: target: {obj} at the target ({rest[0]:.3f}, {rest[1]:.3f}) is not over the "
                           "table; move the target onto the table top")
+    _within_reach(robot, start_q, obj_geoms, rest, source, obj)
     adr = robot.object_qpos_slice(obj)
     data.qpos[adr] = [*rest, np.cos(tyaw / 2), 0.0, 0.0, np.sin(tyaw / 2)]
     mujoco.mj_forward(m, data)
@@ -148,6 +150,24 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
                               f"{np.degrees(tyaw):.1f} deg) overlaps {_name(m, geom)} by {-clearance * 1e3:.1f} mm; "
                               "no placement there is possible")
     return Placement(rest, clearance)
+
+
+def _within_reach(robot: Robot, q: np.ndarray, obj_geoms: list[int], rest: np.ndarray, source: str, obj: str) -> None:
+    """Refuse a target no hand can come near: beyond every arm frame's reach sphere by more than the object's extent.
+
+    The spheres are :meth:`~nextage_qp.kinematics.Kinematics.reach`'s (a mobile base's frames reach anywhere).
+    """
+    m, kin = robot.model, Kinematics(robot)
+    extent = max((float(np.linalg.norm(m.geom_pos[g]) + m.geom_rbound[g]) for g in obj_geoms), default=0.0)
+    gaps = []
+    for frame in dict.fromkeys(f for arm in robot.arms for f in (arm.tool, arm.pad, arm.wrist)):
+        centre, radius, joint = kin.reach(frame, q)
+        gaps.append((float(np.linalg.norm(rest - centre)) - radius, frame, radius, joint))
+    gap, frame, radius, joint = min(gaps, default=(0.0, "", 0.0, None))
+    if gap > extent + 1e-3:
+        raise InfeasibleError(f"{source}: target: {obj} at the target ({rest[0]:.3f}, {rest[1]:.3f}) is out of every "
+                              f"hand's reach ({frame}, the nearest, reaches at most {radius:.3f} m from {joint}; the "
+                              f"target is {gap:.3f} m beyond); move the target closer to the robot")
 
 
 def _name(m: mujoco.MjModel, geom: int) -> str:
