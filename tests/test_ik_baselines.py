@@ -86,5 +86,13 @@ def test_cli_errors_exit_2(argv: list[str], message: str, capsys: pytest.Capture
 
 
 def test_cli_unreachable_exits_1(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["ik", "--frame", "left_wrist", "--pos", "2", "0", "1", "--json"]) == 1
+    """Within the wrist's reach sphere but out of its reach (above the head): solved, not converged, exit 1."""
+    assert main(["ik", "--frame", "left_wrist", "--pos", "0", "0", "2.05", "--json"]) == 1
     assert json.loads(capsys.readouterr().out)["converged"] is False
+
+
+def test_cli_beyond_the_reach_sphere_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
+    """Beyond every configuration's reach: refused before solving, one line, exit 2."""
+    assert main(["ik", "--frame", "left_wrist", "--pos", "2", "0", "1", "--json"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "out of reach: 2.003 m from CHEST_JOINT0" in err[0], err
