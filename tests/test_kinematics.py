@@ -1,3 +1,5 @@
+import importlib.util
+
 import numpy as np
 import pytest
 from tests_support import NEXTAGE_JOINTS as JOINT_NAMES
@@ -125,7 +127,11 @@ def test_pose_quaternion_is_unit_and_matches_rotation(robot):
     np.testing.assert_allclose(mat.reshape(3, 3), pose.rot, atol=1e-12)
 
 
-@pytest.mark.parametrize(("scene", "robot_name"), [("push_cube", None), ("push_cube", "yumi")])
+@pytest.mark.parametrize(("scene", "robot_name"), [
+    ("push_cube", None),
+    pytest.param("push_cube", "yumi", marks=pytest.mark.skipif(importlib.util.find_spec("robosuite_models") is None,
+                                                               reason="robosuite_models is not installed")),
+])
 def test_reach_sphere_holds_every_configuration(scene, robot_name) -> None:
     """No configuration takes a frame's origin out of its reach sphere, and the sphere is not loose by much."""
     from nextage_qp.robot import Robot
