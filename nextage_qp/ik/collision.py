@@ -229,7 +229,7 @@ class ActiveCollisionLimit(mink.Limit):
             if b1 >= 0:
                 jac(model, data, jac1, None, start, b1)
                 zero1[slot] = False
-            elif zero1[slot] == 0:  # a side no joint moves: zeros (the slot keeps them until a moving side writes it)
+            elif not zero1[slot]:  # a side no joint moves: zeros (the slot keeps them until a moving side writes it)
                 jac1.fill(0.0)
                 zero1[slot] = True
             bounds.append(bound)
