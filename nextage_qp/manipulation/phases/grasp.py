@@ -21,6 +21,7 @@ r"""``grasp``: clamp an object between two pads and squeeze it to a measured for
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from itertools import chain
 
 import numpy as np
@@ -69,7 +70,7 @@ class Grasp(Phase):
         self.place_q: np.ndarray | None = None
         self.route = PlannedRoute([])
         self.shift = 0.0
-        self.placements: dict[tuple[float, ...], list[tuple[list[np.ndarray], np.ndarray]]] = {}
+        self.placements: dict[tuple[float, ...], list[tuple[list[np.ndarray], np.ndarray] | None]] = {}
         found = None
         # the clamp's default height over the object's origin (the middle of its widest part), found once
         self.base = c.height if c.height is not None else view.grip_geometry(c.object, np.array([0.0, 1.0, 0.0]))[0]
@@ -86,7 +87,7 @@ class Grasp(Phase):
             if found and (c.place_at is None or self._placement_found()):  # else: higher, if it may
                 break
         # checked before anything moves: no grip reaches the placement (at any height tried; or at the height found)
-        placed = any(self.placements.values()) if found is None else self._placement_found()
+        placed = any(any(tried) for tried in self.placements.values()) if found is None else self._placement_found()
         if c.place_at is not None and not placed:
             raise refusal(view)(f"phase {self.name!r} (grasp): the clamp cannot reach {c.place_at}'s pose with "
                              f"{c.object} at any of its equivalent yaws, at the faces' centre or up to "
@@ -108,7 +109,7 @@ class Grasp(Phase):
     def _placement_found(self) -> bool:
         """Whether a grip at the current clamp height reaches the placement too."""
         at = (round(self.height, 6), round(self.half, 6))
-        return any(grips for key, grips in self.placements.items() if key[1:] == at)
+        return any(any(tried) for key, tried in self.placements.items() if key[1:] == at)
 
     def _raises(self, view: View) -> list[float]:
         """How far above its default height the clamp may go [m], in the order tried.
@@ -173,36 +174,32 @@ class Grasp(Phase):
             for f, p in zip(self.frames, poses, strict=True)
         )
 
-    def _placements(self, view: View, shift: float) -> list[tuple[list[np.ndarray], np.ndarray]]:
-        """Grips with which the clamp, ``shift`` along the faces, also reaches ``place_at``, computed once per shift.
+    def _placements(self, view: View, shift: float) -> Iterator[tuple[list[np.ndarray], np.ndarray]]:
+        """Grips with which the clamp, ``shift`` along the faces, also reaches ``place_at`` (none without it).
 
         Each is (pad rotations in the clamp frame, joints), one per equivalent yaw of the object there that the
-        planner reaches; empty without ``place_at``.
+        planner reaches. Each yaw is solved once per shift, height and half-width, and only when asked for: a route
+        found with the first grip ends the search (:attr:`placements` keeps the yaws tried, None: out of reach).
         """
         c = self.spec
         if c.place_at is None:
-            return []
-        key = (round(shift, 6), round(self.height, 6), round(self.half, 6))
-        if key in self.placements:
-            return self.placements[key]
+            return
+        height, half = self.height, self.half
+        tried = self.placements.setdefault((round(shift, 6), round(height, 6), round(half, 6)), [])
         tgt, trot = view.body_pose(c.place_at)
         sym = view.yaw_symmetry(c.object) or ROUND_HEADINGS  # a round object: headings this far apart
-        centre = np.array([tgt[0], tgt[1], view.rest_height(c.object, c.place_at) + self.height])
-        out: list[tuple[list[np.ndarray], np.ndarray]] = []
+        centre = np.array([tgt[0], tgt[1], view.rest_height(c.object, c.place_at) + height])
         for k in range(max(1, round(2 * np.pi / sym))):
-            rz = rot_z(yaw_of(trot) + k * sym)
-            points = [centre + rz @ np.array([shift, s * self.half, 0.0]) for s in SIDES]
-            q = view.plan(
-                [
-                    FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=rz[:, 1])
-                    for f, p in zip(self.frames, points, strict=True)
-                ],
-                allow=frozenset({c.object}),
-            )
-            if q is not None:
-                out.append(([rz.T @ view.pose_at(f, q).rot for f in self.frames], q))
-        self.placements[key] = out
-        return out
+            if k == len(tried):
+                rz = rot_z(yaw_of(trot) + k * sym)
+                points = [centre + rz @ np.array([shift, s * half, 0.0]) for s in SIDES]
+                targets = [FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=rz[:, 1])
+                           for f, p in zip(self.frames, points, strict=True)]
+                q = view.plan(targets, allow=frozenset({c.object}))
+                tried.append(None if q is None else ([rz.T @ view.pose_at(f, q).rot for f in self.frames], q))
+            grip = tried[k]
+            if grip is not None:
+                yield grip
 
     def _targets(self, points: list[np.ndarray]) -> tuple[FrameTarget, ...]:
         """Pad targets at ``points``.
