@@ -905,3 +905,40 @@ def test_a_correction_goes_to_the_other_hand_when_it_reaches_the_error_more_squa
     top = 0.91 + 0.035
     assert right.route.waypoints[0][1].pos[2] >= top + spec.clearance - 1e-9  # lifted clear of the object first
     assert plan_handover(view, spec, "right_tool", wanted, spec.fan, push._target, True, right) is None  # no way back
+
+
+def test_a_push_tool_without_a_force_torque_sensor_reports_relying_on_geometry():
+    """A tool whose hand has a wrist sensor feels the push (onsets counted); one without reports it felt nothing and
+    that the push went on geometry alone (``wrist_sensor`` false in the phase's info), not a silent 0 onsets."""
+    from nextage_qp.errors import UnknownNameError
+    from nextage_qp.manipulation.contact import PushContact
+
+    class NoSensorView(ScriptedView):
+        def wrench(self, site):
+            raise UnknownNameError("force/torque site", site, ("right_wrist",))
+
+    felt = ScriptedView(bodies={}, commanded={}, forces={"left_tool": np.array([-3.0, 0.0, 0.0])})
+    contact = PushContact("left_tool")
+    for k in range(20):
+        felt.t = k * felt.dt
+        contact.update(felt, np.array([1.0, 0.0]))
+    assert contact.available and contact.in_contact and contact.onsets == 1
+    blind = PushContact("left_tool")
+    assert blind.update(NoSensorView(bodies={}, commanded={}), np.array([1.0, 0.0])) is False
+    assert not blind.available and blind.onsets == 0
+
+
+def test_a_scripted_push_without_a_wrist_sensor_still_pushes_and_says_so():
+    from nextage_qp.errors import UnknownNameError
+
+    for sensed in (True, False):
+        view = push_view()
+        if not sensed:
+            def no_sensor(site):
+                raise UnknownNameError("force/torque site", site, ())
+            view.wrench = no_sensor
+        phase = make("push", frame="left_tool", object="cube", target="cube_target")
+        phase.start(view)
+        cmd = run_until_done(phase, view, each=pushed_along_the_tool_face(view))
+        assert cmd.done and phase.info["object_error_xy_m"] <= 0.002
+        assert phase.info["wrist_sensor"] is sensed

@@ -251,9 +251,9 @@ class Push(Phase):
             self.next_d, self.full = unit2((tgt - obj)[:2]), True
             return start_retreat(self, final=False) if self.approaches < c.attempts else finish(self, dist)
         wanted = clamp(c.push_speed * (remaining + gap) / c.slow_down, c.creep_speed, c.push_speed)
-        felt = self.contact.update(view, d)  # read every tick: _felt needs the contact's state
+        felt, k = self.contact.update(view, d), self.contact  # read every tick: _felt needs the contact's state
         self.touched = self.touched or gap < 1e-3 or felt  # geometry or the wrist's sensor
-        self.info.update(contact_onsets=self.contact.onsets, contact_losses=self.contact.losses)
+        self.info.update(contact_onsets=k.onsets, contact_losses=k.losses, wrist_sensor=k.available)  # else geometry
         if not self.touched:
             wanted = min(wanted, max(c.creep_speed, gap / GAP_TIME))  # touch the object slowly
         self.v = min(wanted, self.v + PUSH_ACCEL * view.dt)
