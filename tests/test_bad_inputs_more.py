@@ -75,6 +75,12 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
      2, "phases[0].speed: Input should be less than or equal to 1"),
     ("move yaw huge", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool, yaw: 1e9}]}"], {}, 2,
      "phases[0].targets[0].yaw: Input should be less than or equal to 7"),
+    ("wait timeout under its duration", ["run", PUSH, "--set", "phases[0]={kind: wait, duration: 3, timeout: 2}"], {}, 2,
+     "phases[0]: timeout (2 s) must exceed duration (3 s)"),
+    ("collision pair under its minimum at the start", ["run", PUSH, "--set", "ik.collision_pairs=[{a: left_arm, "
+                                                      "b: left_forearm, min_distance: 0.09, detection_distance: 0.12}]"],
+     {}, 2, "ik.collision_pairs: LARM_JOINT3_Link/geom60<->LARM_wrist is 83.5 mm apart at the start pose, under its "
+            "min_distance of 90.0 mm"),
     ("move one frame twice", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool}, "
                                                     "{frame: left_tool, offset: [0, 0, 0.2]}]}"], {}, 2,
      "phases[0]: targets: two targets for frame 'left_tool'"),
@@ -215,3 +221,23 @@ def test_an_invalid_mujoco_gl_is_one_line_and_exit_2():
                          cwd=ROOT, timeout=120)
     lines = out.stderr.strip().splitlines()
     assert out.returncode == 2 and len(lines) == 1 and "MUJOCO_GL='bogus'" in lines[0] and "valid: egl" in lines[0]
+
+
+def test_a_wait_longer_than_the_default_timeout_runs_its_course():
+    from nextage_qp.manipulation.config import load_config
+
+    cfg = load_config(PUSH, ["phases=[{kind: wait, duration: 12}]"])
+    assert cfg.phases[0].timeout >= 12.0 + 1.0 - 1e-9  # the default 10 s stretched to cover it
+    assert load_config(PUSH, ["phases=[{kind: wait, duration: 2}]"]).phases[0].timeout == 10.0
+
+
+def test_a_phase_that_times_out_names_the_collision_pairs_that_held_the_ik():
+    """A move into the table: the hand stops at its pair's minimum distance, and the timeout says which pair held."""
+    from nextage_qp.manipulation.config import load_config
+    from nextage_qp.manipulation.runner import Runner
+
+    cfg = load_config(PUSH, ["phases=[{kind: move, targets: [{frame: left_tool, relative_to: cube, "
+                             "offset: [0, 0, -0.08]}], timeout: 3}]"])
+    result = Runner(cfg, PUSH).run()
+    assert not result["success"] and "timed out after 3 s" in result["error"]
+    assert re.search(r"; held by ik\.collision_pairs: \S+ at -?[0-9.]+ mm \(min [0-9.]+\)", result["error"])

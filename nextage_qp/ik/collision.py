@@ -249,12 +249,12 @@ class ActiveCollisionLimit(mink.Limit):
         jacs = self._jacs[:k]
         return np.matmul(normal[:, None, :], jacs[:, 0] - jacs[:, 1])[:, 0]
 
-    def violated(self, model: mujoco.MjModel) -> list[str]:
-        """One line per pair at or below its minimum distance at the last call."""
+    def violated(self, model: mujoco.MjModel, slack: float = 0.0) -> list[str]:
+        """One line per pair at or below its minimum distance (plus ``slack`` [m]) at the last call."""
         return [
-            f"collision pair {self.pair_name(model, idx)} at {dist * 1000:.1f} mm"
+            f"collision pair {self.pair_name(model, idx)} at {dist * 1e3:.1f} mm (min {self.min_distance[idx] * 1e3:g})"
             for idx, dist in self.active
-            if dist <= self.min_distance[idx]
+            if dist <= self.min_distance[idx] + slack
         ]
 
     def pair_name(self, model: mujoco.MjModel, idx: int) -> str:

@@ -26,7 +26,7 @@ from nextage_qp.manipulation.config import ManipulationConfig
 from nextage_qp.manipulation.joint_checks import check_angles
 from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, summarize
 from nextage_qp.manipulation.phases import Phase, build, names_in
-from nextage_qp.manipulation.placement import Placement, check_placement
+from nextage_qp.manipulation.placement import Placement, check_placement, check_start_clearance
 from nextage_qp.manipulation.sim_view import SimView
 from nextage_qp.mobile.build import BASE_BODY
 from nextage_qp.mobile.odometry import base_report
@@ -42,6 +42,8 @@ from nextage_qp.sim import Simulation
 TickCallback = Callable[["Runner", Phase | None], None]
 SEARCH_S = 3.0
 """With a camera, how long [s] the run waits, still, for every object to be seen before its first phase."""
+HELD_SLACK = 1e-3
+"""A timed-out phase names the collision pairs within this [m] of their minimum distance (what may have held it)."""
 
 
 def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
@@ -124,6 +126,7 @@ class Runner:
         else:
             self.placement = check_placement(self.robot, cfg.object, cfg.target, q0, source)
         self.sim.reset(q0)
+        check_start_clearance(self.ik, q0, self.sim.object_poses(), source)
         self.servo = Servo(self.ik, self.sim, q0)
         self.camera = None if self.sensors is None else self.sensors.measurer
         if self.camera is not None and cfg.perception.look_at:
@@ -180,9 +183,12 @@ class Runner:
                     if self.sim.time - rec.start_s > spec.timeout:
                         rec.info = dict(phase.info)
                         cause = phase.stalled(view)
+                        held = self.ik.collision.violated(self.ik.model, HELD_SLACK) if self.ik.collision else []
+                        held = ["; held by ik.collision_pairs: " + ", ".join(h[15:] for h in held[:3])] if held else []
                         raise PhaseError(f"phase {rec.name!r} ({spec.kind}) timed out after {spec.timeout:g} s "
                                          f"of simulated time{': ' + cause if cause else ''}; "
-                                         f"last state: {_brief(phase.info)}")
+                                         f"last state: {_brief(phase.info)}"
+                                         f"{''.join(held)}")
                 rec.status, rec.duration_s, rec.info = "done", self.sim.time - rec.start_s, dict(phase.info)
             self.current, self._phase = None, None
             end = self.sim.time + self.cfg.timing.settle

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from nextage_qp.manipulation.context import View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec
@@ -16,6 +16,18 @@ class WaitSpec(Spec):
 
     kind: Literal["wait"]
     duration: float = Field(gt=0, le=MAX_SECONDS, description="[s]")
+
+    @model_validator(mode="after")
+    def _covered(self) -> WaitSpec:
+        """Stretch the default timeout to cover the duration (plus 1 s); refuse a timeout set shorter.
+
+        A wait whose timeout ends first could only time out.
+        """
+        if "timeout" not in self.model_fields_set:
+            object.__setattr__(self, "timeout", max(self.timeout, self.duration + 1.0))  # frozen model
+        elif self.timeout <= self.duration:
+            raise ValueError(f"timeout ({self.timeout:g} s) must exceed duration ({self.duration:g} s)")
+        return self
 
 
 class Wait(Phase):
