@@ -81,6 +81,10 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
                                                       "b: left_forearm, min_distance: 0.09, detection_distance: 0.12}]"],
      {}, 2, "ik.collision_pairs: LARM_JOINT3_Link/geom60<->LARM_wrist is 83.5 mm apart at the start pose, under its "
             "min_distance of 90.0 mm"),
+    ("run --log whose summary is a folder", ["run", PUSH, "--log", "{tmp}/d.npz"], {"d.json/x": ""}, 2,
+     "its summary {tmp}/d.json is a directory; give --log another name"),
+    ("run --robot unknown", ["run", PUSH, "--robot", "nope"], {}, 2,
+     "push_cube.yaml: robot: robot 'nope' not found; bundled robots: aloha, "),
     ("move one frame twice", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool}, "
                                                     "{frame: left_tool, offset: [0, 0, 0.2]}]}"], {}, 2,
      "phases[0]: targets: two targets for frame 'left_tool'"),
@@ -157,6 +161,7 @@ def test_bad_input_is_refused_with_one_line_naming_it(tmp_path, monkeypatch, cap
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("COLUMNS", "400")
     for name, content in files.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / name).write_text(content)
     subs = {"{tmp}": str(tmp_path), "{root}": str(ROOT)}
 
@@ -241,3 +246,24 @@ def test_a_phase_that_times_out_names_the_collision_pairs_that_held_the_ik():
     result = Runner(cfg, PUSH).run()
     assert not result["success"] and "timed out after 3 s" in result["error"]
     assert re.search(r"; held by ik\.collision_pairs: \S+ at -?[0-9.]+ mm \(min [0-9.]+\)", result["error"])
+
+
+def test_run_log_summary_into_the_file_stdout_goes_to_is_refused(tmp_path):
+    """``run --json --log run.npz > run.json`` would write the summary and the result into one file: refused."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "run.json"
+    with out.open("w") as stdout:
+        done = subprocess.run([sys.executable, "-m", "nextage_qp.cli", "run", PUSH, "--json", "--log",
+                               str(tmp_path / "run.npz")], stdout=stdout, stderr=subprocess.PIPE, text=True,
+                              timeout=120, check=False)
+    assert done.returncode == 2 and "is the file standard output goes to" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and not (tmp_path / "run.npz").exists()
+
+
+def test_run_robot_is_the_same_as_set_robot():
+    from nextage_qp.cli import build_parser
+
+    args = build_parser().parse_args(["run", PUSH, "--robot", "nextage"])
+    assert args.robot == "nextage"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -14,6 +15,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from nextage_qp.commands.common import PLAIN_PROGRESS_S, PLOT_SUFFIXES, SEED, out_console, output_file, print_json
+from nextage_qp.errors import ConfigError
 from nextage_qp.manipulation.config import jitter_overrides, load_config
 from nextage_qp.manipulation.runner import Runner
 from nextage_qp.sweep.episode import unmet_criteria
@@ -27,6 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="override a config key, e.g. --set scene.poses.cube.pos=[0.35,0.02,0.91] (repeatable)")
     p.add_argument("--seed", type=SEED, default=None,
                    help="jitter object start and target by up to 2 cm and 10 deg with this seed")
+    p.add_argument("--robot", metavar="FILE|NAME", help="run the task on this robot (the same as --set robot=...)")
     p.add_argument("--json", action="store_true", help="print one JSON result object on stdout")
     p.add_argument("--log", type=output_file(".npz"), metavar="NPZ",
                    help="write the recorded signals (.npz) and a .json summary")
@@ -43,7 +46,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the config; exit 0 on success, 1 when the task failed (outputs are written either way)."""
-    overrides = jitter_overrides(args.config, args.seed, args.overrides) if args.seed is not None else args.overrides
+    overrides = [*args.overrides, *([f"robot={args.robot}"] if args.robot else [])]
+    overrides = jitter_overrides(args.config, args.seed, overrides) if args.seed is not None else overrides
+    if args.log:
+        _check_log_summary(args.log)
     cfg = load_config(args.config, overrides)
     runner = Runner(cfg, args.config)
     err = Console(stderr=True)
@@ -110,6 +116,25 @@ def run(args: argparse.Namespace) -> int:
     elif not result["success"]:  # every phase done, a criterion not met: say which
         print(f"nextage-qp run: failed: {unmet_criteria(result)}", file=sys.stderr)
     return 0 if result["success"] else 1
+
+
+def _check_log_summary(log: Path) -> None:
+    """Refuse a ``--log`` whose summary (the same name, ``.json``) is a folder or the file standard output goes to.
+
+    Raises:
+        ConfigError: Naming the summary's path (``--log run.npz --json > run.json`` would write both into one file).
+    """
+    summary = log.with_suffix(".json")
+    if summary.is_dir():
+        raise ConfigError(f"--log {log}: its summary {summary} is a directory; give --log another name")
+    try:
+        out = os.fstat(sys.stdout.fileno())
+        same = summary.exists() and os.path.samestat(out, summary.stat())
+    except (OSError, ValueError, AttributeError):  # no real standard output (captured): nothing to clash with
+        same = False
+    if same:
+        raise ConfigError(f"--log {log}: its summary {summary} is the file standard output goes to; give --log "
+                          "another name or send the output elsewhere")
 
 
 def _write_outputs(runner: Runner, args: argparse.Namespace, video: Any,
