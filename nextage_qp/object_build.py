@@ -109,8 +109,12 @@ def declare_objects(spec: mujoco.MjSpec, objects: Mapping[str, ObjectDecl], sour
             raise ConfigError(f"scene.objects.{name}: {name!r} is a fixed body of the scene {source}, not an "
                               "object; choose another name")
         if body is None:
-            body = spec.worldbody.add_body(name=name, pos=[0.5, 0.0, 1.0])
-            body.add_freejoint(name=f"{name}_joint")
+            try:
+                body = spec.worldbody.add_body(name=name, pos=[0.5, 0.0, 1.0])
+                body.add_freejoint(name=f"{name}_joint")
+            except ValueError as exc:  # MuJoCo: "repeated name 'world' in body"; a robot's link, the world
+                raise ConfigError(f"scene.objects.{name}: {name!r} is taken in the scene {source} "
+                                  f"({' '.join(str(exc).split())}); choose another name") from None
         marker = next((b for b in spec.worldbody.bodies if b.name == f"{name}_target"), None)
         if marker is None and decl.marker:
             marker = spec.worldbody.add_body(name=f"{name}_target", pos=[0.5, 0.0, 1.0])

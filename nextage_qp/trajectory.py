@@ -27,6 +27,9 @@ from nextage_qp.robot import PerJoint, per_joint
 from nextage_qp.yaml_file import STRICT
 
 _OK = (ruckig.Result.Working, ruckig.Result.Finished)
+MIN_LIMIT = 0.01
+"""Smallest velocity, acceleration and jerk bound [rad/s, /s², /s³]: below it a reference across a joint's range
+takes longer than Ruckig computes (its ``ErrorTrajectoryDuration``)."""
 NUDGE = 1e-12  # [rad] a target moves for Ruckig to solve a step it failed on numerically (JointTrajectory._nudged)
 
 
@@ -53,8 +56,8 @@ class TrajectoryLimits(BaseModel):
     @classmethod
     def _check(cls, value: PerJoint) -> PerJoint:
         values = value.values() if isinstance(value, dict) else np.atleast_1d(value)
-        if any(not (np.isfinite(v) and v > 0) for v in values):
-            raise ValueError(f"every limit must be finite and > 0, got {value}")
+        if any(not (np.isfinite(v) and v >= MIN_LIMIT) for v in values):
+            raise ValueError(f"every limit must be finite and >= {MIN_LIMIT:g}, got {value}")
         return value
 
     def arrays(self, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -85,8 +85,8 @@ def number(lo: float, hi: float, *, lo_open: bool = False, integer: bool = False
 
 COORD = number(-10.0, 10.0)
 """A world coordinate or a direction component [m]: finite, within 10 m of the origin."""
-SECONDS = number(0.0, 3600.0, lo_open=True)
-"""A simulated duration [s]: positive, at most an hour."""
+SECONDS = number(0.01, 3600.0)
+"""A simulated duration [s]: at least 10 ms (a few control ticks), at most an hour."""
 SEED = number(0, 2**32 - 1, integer=True)
 """A random seed: an integer in [0, 2^32)."""
 

@@ -79,7 +79,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--pos", type=COORD, nargs=3, required=True, metavar=("X", "Y", "Z"), help="target [m], world")
     p.add_argument("--axis", type=COORD, nargs=3, metavar=("AX", "AY", "AZ"), help="tool axis in the frame")
     p.add_argument("--direction", type=COORD, nargs=3, metavar=("DX", "DY", "DZ"), help="world direction for --axis")
-    p.add_argument("--max-velocity", type=number(0, 100, lo_open=True), default=1.0,
+    p.add_argument("--max-velocity", type=number(0.01, 100), default=1.0,
                    help="reference velocity limit [rad/s], in (0, 100]")
     p.add_argument("--max-acceleration", type=number(0, 1e4, lo_open=True), default=4.0,
                    help="reference acceleration limit [rad/s^2], in (0, 1e4]")

@@ -143,6 +143,10 @@ def _read_extended(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
         ConfigError: The file, or the one it extends, cannot be read, or the files extend each other in a circle.
     """
     doc = read_yaml_mapping(path, "a robot file (a mapping with name, model, arms)")
+    if "phases" in doc or "randomize" in doc:
+        what = "task config (it has phases)" if "phases" in doc else "sweep file (it has randomize)"
+        raise ConfigError(f"{path}: this is a {what}, not a robot file: give a robot file (name, model, arms; "
+                          "e.g. robots/nextage.yaml) or a bundled robot's name")
     parent = doc.pop("extends", None)
     if parent is None:
         return doc

@@ -149,6 +149,10 @@ class SweepSpec:
         if not self.path.is_file():
             raise ConfigError(f"{self.path}: no such sweep file")
         doc = read_yaml_mapping(self.path, "a mapping with keys 'base' and 'randomize'")
+        if "base" not in doc and "phases" in doc:
+            raise ConfigError(f"{self.path}: this is a task config (it has phases), not a sweep file: give a sweep "
+                              "file (base: TASK.yaml, randomize: ...; e.g. configs/sweeps/push_cube.yaml), or run "
+                              "the task with nextage-qp run")
         self.file = validate(SweepFile, doc, str(self.path))
         self.base_path = (self.path.parent / self.file.base).resolve()
         if not self.base_path.is_file():
