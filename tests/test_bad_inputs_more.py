@@ -77,10 +77,6 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
      "phases[0].targets[0].yaw: Input should be less than or equal to 7"),
     ("wait timeout under its duration", ["run", PUSH, "--set", "phases[0]={kind: wait, duration: 3, timeout: 2}"], {}, 2,
      "phases[0]: timeout (2 s) must exceed duration (3 s)"),
-    ("collision pair under its minimum at the start", ["run", PUSH, "--set", "ik.collision_pairs=[{a: left_arm, "
-                                                      "b: left_forearm, min_distance: 0.09, detection_distance: 0.12}]"],
-     {}, 2, "ik.collision_pairs: LARM_JOINT3_Link/geom60<->LARM_wrist is 83.5 mm apart at the start pose, under its "
-            "min_distance of 90.0 mm"),
     ("run --log whose summary is a folder", ["run", PUSH, "--log", "{tmp}/d.npz"], {"d.json/x": ""}, 2,
      "its summary {tmp}/d.json is a directory; give --log another name"),
     ("run --robot unknown", ["run", PUSH, "--robot", "nope"], {}, 2,

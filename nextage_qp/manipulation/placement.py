@@ -10,8 +10,7 @@ distance is the target's clearance, reported with the result.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
@@ -19,10 +18,6 @@ import numpy as np
 from nextage_qp.errors import ConfigError, InfeasibleError
 from nextage_qp.kinematics import Kinematics
 from nextage_qp.robot import Robot
-
-if TYPE_CHECKING:
-    from nextage_qp.geometry import Pose
-    from nextage_qp.ik import QPIK
 
 OVERLAP_TOLERANCE = 1e-4
 """Penetration [m] below which two geoms count as touching, not overlapping."""
@@ -179,31 +174,3 @@ def _name(m: mujoco.MjModel, geom: int) -> str:
     body = m.body(int(m.geom_bodyid[geom])).name
     return body if not m.geom(geom).name or m.geom(geom).name == body else f"{body} ({m.geom(geom).name})"
 
-
-def check_start_clearance(ik: QPIK, q0: np.ndarray, objects: Mapping[str, Pose], source: str) -> None:
-    """Refuse a watched collision pair (``ik.collision_pairs``) that starts under its minimum distance.
-
-    The IK lets no such pair come closer, so a pair that cannot open either (two parts of one arm touching at the
-    start pose, as groups that share bodies give) holds the arm where it is, and the run could only time out.
-
-    Raises:
-        ConfigError: Such a pair, the nearest first: its geoms, distance and minimum.
-    """
-    limit = ik.collision
-    if limit is None:
-        return
-    poses = {}
-    for name, pose in objects.items():
-        quat = np.empty(4)
-        mujoco.mju_mat2Quat(quat, np.ascontiguousarray(pose.rot, dtype=float).reshape(9))
-        poses[name] = (np.asarray(pose.pos, dtype=float), quat)
-    ik.set_object_poses(poses)
-    ik.load(q0)
-    dists = limit.measure(ik.configuration.data, np.arange(len(limit.min_distance)))
-    short = np.flatnonzero(dists < limit.min_distance - OVERLAP_TOLERANCE)
-    if short.size:
-        i = int(short[np.argmin(dists[short] - limit.min_distance[short])])
-        raise ConfigError(f"{source}: ik.collision_pairs: {limit.pair_name(ik.model, i)} is {dists[i] * 1e3:.1f} mm "
-                          f"apart at the start pose, under its min_distance of {limit.min_distance[i] * 1e3:.1f} mm, "
-                          "so the IK would hold it there: pair groups whose bodies do not touch at the start (not "
-                          "two parts of one arm), or lower min_distance")

@@ -26,7 +26,7 @@ from nextage_qp.manipulation.config import ManipulationConfig
 from nextage_qp.manipulation.joint_checks import check_angles
 from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, summarize
 from nextage_qp.manipulation.phases import Phase, build, names_in
-from nextage_qp.manipulation.placement import Placement, check_placement, check_start_clearance
+from nextage_qp.manipulation.placement import Placement, check_placement
 from nextage_qp.manipulation.sim_view import SimView
 from nextage_qp.mobile.build import BASE_BODY
 from nextage_qp.mobile.odometry import base_report
@@ -126,7 +126,6 @@ class Runner:
         else:
             self.placement = check_placement(self.robot, cfg.object, cfg.target, q0, source)
         self.sim.reset(q0)
-        check_start_clearance(self.ik, q0, self.sim.object_poses(), source)
         self.servo = Servo(self.ik, self.sim, q0)
         self.camera = None if self.sensors is None else self.sensors.measurer
         if self.camera is not None and cfg.perception.look_at:
