@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from nextage_qp.errors import ConfigError
 from nextage_qp.manipulation.config import ManipulationConfig, load_config
 from nextage_qp.manipulation.phases import Phase, Spec, register, unregister
 from nextage_qp.robot import Robot
@@ -138,7 +139,16 @@ def load_task(path: str | Path, *, overrides: Sequence[str] = ()) -> Task:
     Raises:
         ConfigError: The file is missing or invalid, or an override names a key the config does not have.
     """
-    return Task(load_config(path, list(overrides)), str(path))
+    return Task(load_config(path, _overrides(overrides)), str(path))
+
+
+def _overrides(overrides: Sequence[str]) -> list[str]:
+    """``overrides`` as a list of ``KEY=VALUE`` strings (a lone string is one override, not its characters)."""
+    items = [overrides] if isinstance(overrides, str) else list(overrides)
+    bad = [o for o in items if not isinstance(o, str)]
+    if bad:
+        raise ConfigError(f"overrides: {bad[0]!r} is not a 'KEY=VALUE' string")
+    return items
 
 
 def run_task(path: str | Path, *, overrides: Sequence[str] = (), on_tick: Callable[[Tick], None] | None = None
@@ -175,7 +185,11 @@ def run_sweep(path: str | Path, episodes: int, *, seed: int = 0, workers: int | 
     from nextage_qp.sweep.store import SweepStore, default_folder
     from nextage_qp.sweep.summary import write_summary
 
-    spec = SweepSpec(path, list(overrides))
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ConfigError(f"episodes: {episodes!r} must be a whole number >= 1")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
+        raise ConfigError(f"seed: {seed!r} must be a whole number in [0, 2**32)")
+    spec = SweepSpec(path, _overrides(overrides))
     folder = Path(out) if out is not None else default_folder(spec, seed)
     store = SweepStore(folder, spec, seed, resume=False)
     tasks = plan(spec, seed, range(episodes))

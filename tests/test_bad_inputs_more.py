@@ -282,3 +282,19 @@ def test_run_robot_is_the_same_as_set_robot():
 
     args = build_parser().parse_args(["run", PUSH, "--robot", "nextage"])
     assert args.robot == "nextage"
+
+
+def test_the_python_api_refuses_bad_arguments_in_one_line():
+    """The API's own arguments: a lone override string, a non-string override, episodes and seeds out of range."""
+    import nextage_qp as nq
+    from nextage_qp.errors import ConfigError
+
+    task = nq.load_task("push_cube", overrides="scene.poses.cube.yaw=0.3")  # one override, not its characters
+    assert abs(task.config.scene.poses["cube"].yaw - 0.3) < 1e-12
+    with pytest.raises(ConfigError, match=r"overrides: None is not a 'KEY=VALUE' string"):
+        nq.load_task("push_cube", overrides=[None])  # type: ignore[list-item]
+    for episodes in (0, -3, 1.5, True):
+        with pytest.raises(ConfigError, match=r"episodes: .* must be a whole number >= 1"):
+            nq.run_sweep(SWEEP, episodes)  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match=r"seed: -1 must be a whole number"):
+        nq.run_sweep(SWEEP, 1, seed=-1)
