@@ -100,6 +100,10 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
     ("step-response shorter than a tick", ["step-response", "--joint", "LARM_JOINT0", "--target-deg", "10",
                                            "--duration", "0.0005"], {}, 2,
      "argument --duration: expected a finite number in [0.01, 3600], got '0.0005'"),
+    ("place without a grasp", ["run", PUSH, "--set", "phases=[{kind: place, object: cube, target: cube_target}]"], {},
+     2, "push_cube.yaml: phases[0]: place needs 'cube' clamped by an earlier grasp phase"),
+    ("release after the clamp let go", ["run", PICK, "--set", "phases[1]={kind: release, object: box}"], {}, 2,
+     "pick_place_box.yaml: phases[2]: release needs 'box' clamped by an earlier grasp phase"),
     ("move one frame twice", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool}, "
                                                     "{frame: left_tool, offset: [0, 0, 0.2]}]}"], {}, 2,
      "phases[0]: targets: two targets for frame 'left_tool'"),

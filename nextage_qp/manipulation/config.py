@@ -114,6 +114,17 @@ class ManipulationConfig(_Strict):
                              "name the body that marks its target")
         return self
 
+    @model_validator(mode="after")
+    def _grips_come_first(self) -> ManipulationConfig:
+        held: str | None = None
+        for i, phase in enumerate(self.phases):
+            obj = getattr(phase, "object", None)
+            if phase.grip == "needs" and obj != held:
+                raise ValueError(f"phases[{i}]: {phase.kind} needs {obj!r} clamped by an earlier grasp phase"
+                                 f"{f' (the clamp holds {held!r} then)' if held else ''}")
+            held = obj if phase.grip == "makes" else None if phase.kind == "release" else held
+        return self
+
     def phase_name(self, index: int) -> str:
         """The phase's name, or ``kind[index]`` when it has none."""
         phase: Any = self.phases[index]

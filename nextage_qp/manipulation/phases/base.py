@@ -28,6 +28,10 @@ class Spec(BaseModel):
 
     model_config = STRICT
 
+    grip: ClassVar[str | None] = None
+    """How the phase uses the clamp: ``"makes"`` one (grasp), ``"needs"`` one on its object from an earlier phase
+    (carry, place, release), or None."""
+
     kind: str
     name: str | None = Field(default=None, description="Label in progress and results (default: kind + index).")
     timeout: float = Field(default=10.0, gt=0, le=MAX_SECONDS, description="Simulated time before the phase fails [s].")

@@ -35,6 +35,8 @@ class Waypoint(BaseModel):
 class CarrySpec(Spec):
     """Move a clamped object through waypoints while the pads keep their relative pose."""
 
+    grip = "needs"
+
     kind: Literal["carry"]
     object: str = name_field("object")
     waypoints: list[Waypoint] = Field(min_length=1)

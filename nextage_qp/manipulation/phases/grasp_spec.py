@@ -30,6 +30,8 @@ GRIP_MARGIN = 0.015
 class GraspSpec(Spec):
     """Clamp an object between two pad frames and squeeze it to a measured force."""
 
+    grip = "makes"
+
     kind: Literal["grasp"]
     object: str = name_field("object")
     frames: tuple[str, str] | None = name_field(

@@ -51,6 +51,8 @@ would swing the arms through the null space at once, and their lag would open th
 class PlaceSpec(Spec):
     """Carry a clamped object over the obstacles and set it down on a target body's pose."""
 
+    grip = "needs"
+
     kind: Literal["place"]
     object: str = name_field("object")
     target: str = name_field("place", description="Body whose x, y and yaw the object should take.")

@@ -28,6 +28,8 @@ MAX_EASE_TRAVEL = 0.005
 class ReleaseSpec(Spec):
     """Open the pads away from the object along the clamp axis, then retreat upwards."""
 
+    grip = "needs"
+
     kind: Literal["release"]
     object: str = name_field("object")
     gap: float = Field(default=0.05, gt=0, le=0.3, description="How far the pads back away from the object [m].")
