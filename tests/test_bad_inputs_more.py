@@ -302,3 +302,33 @@ def test_the_python_api_refuses_bad_arguments_in_one_line():
             nq.run_sweep(SWEEP, episodes)  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match=r"seed: -1 must be a whole number"):
         nq.run_sweep(SWEEP, 1, seed=-1)
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")
+def test_a_json_result_that_cannot_be_written_is_one_line_and_exit_2():
+    import subprocess
+    import sys
+
+    with open("/dev/full", "w") as full:
+        done = subprocess.run([sys.executable, "-m", "nextage_qp.cli", "fk", "left_tool", "--json"], stdout=full,
+                              stderr=subprocess.PIPE, text=True, timeout=120, check=False)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.strip() == ("nextage-qp fk: error: standard output: cannot write the JSON result "
+                                   "(No space left on device)")
+
+
+def test_a_sweep_record_that_cannot_be_written_is_one_line(tmp_path, monkeypatch):
+    """A full disk under a sweep's --out: a ConfigError naming the folder and --resume, not a traceback."""
+    from nextage_qp.errors import ConfigError
+    from nextage_qp.sweep import store as store_module
+
+    class Full:
+        def write(self, text):
+            raise OSError(28, "No space left on device")
+
+    s = object.__new__(store_module.SweepStore)
+    s.out, s.done, s._file = tmp_path, {}, Full()
+    episode = type("E", (), {"index": 7, "to_json": lambda self: {}})()
+    with pytest.raises(ConfigError, match=r"cannot write episode 7's record \(No space left on device\); free space "
+                                          r"and run again with --resume"):
+        s.add(episode)

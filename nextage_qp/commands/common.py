@@ -171,8 +171,17 @@ def print_outcome(out: dict[str, Any], as_json: bool, keys: tuple[str, ...] | No
 
 
 def print_json(obj: Any) -> None:
-    """Print one strict JSON object: numpy values converted, NaN and infinities written as null."""
-    print(dumps(obj))
+    """Print one strict JSON object: numpy values converted, NaN and infinities written as null.
+
+    Raises:
+        ConfigError: Standard output cannot be written (a full disk; a reader that left raises BrokenPipeError).
+    """
+    try:
+        print(dumps(obj), flush=True)
+    except BrokenPipeError:
+        raise
+    except OSError as exc:
+        raise ConfigError(f"standard output: cannot write the JSON result ({exc.strerror or exc})") from None
 
 
 def add_backend_args(parser: argparse.ArgumentParser, workers_help: str) -> None:

@@ -98,9 +98,13 @@ class SweepStore:
     def add(self, episode: Episode) -> None:
         """Append one finished episode and flush it to disk."""
         self.done[episode.index] = episode
-        self._file.write(json.dumps(episode.to_json(), default=_plain) + "\n")
-        self._file.flush()
-        os.fsync(self._file.fileno())
+        try:
+            self._file.write(json.dumps(episode.to_json(), default=_plain) + "\n")
+            self._file.flush()
+            os.fsync(self._file.fileno())
+        except OSError as exc:  # a full disk: the episodes kept so far stay, --resume goes on from them
+            raise ConfigError(f"--out {self.out}: cannot write episode {episode.index}'s record "
+                              f"({exc.strerror or exc}); free space and run again with --resume") from None
 
     def close(self) -> None:
         """Close the episodes file."""
