@@ -104,6 +104,10 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
      2, "push_cube.yaml: phases[0]: place needs 'cube' clamped by an earlier grasp phase"),
     ("release after the clamp let go", ["run", PICK, "--set", "phases[1]={kind: release, object: box}"], {}, 2,
      "pick_place_box.yaml: phases[2]: release needs 'box' clamped by an earlier grasp phase"),
+    ("ik one frame twice", ["ik", "--frame", "left_tool", "--pos", "0.3", "0", "1", "--frame2", "left_tool", "--pos2",
+                            "0.3", "0.1", "1"], {}, 2, "--frame2 'left_tool' is --frame itself; give two different"),
+    ("fk one joint twice", ["fk", "left_tool", "--q", "LARM_JOINT0=0.1", "--q", "LARM_JOINT0=0.2"], {}, 2,
+     "--q 'LARM_JOINT0=0.2': LARM_JOINT0 is given twice; give each joint once"),
     ("move one frame twice", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool}, "
                                                     "{frame: left_tool, offset: [0, 0, 0.2]}]}"], {}, 2,
      "phases[0]: targets: two targets for frame 'left_tool'"),

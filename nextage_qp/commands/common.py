@@ -43,6 +43,8 @@ def parse_joint_assignments(robot: Robot, items: list[str], base: np.ndarray) ->
     values: dict[str, float] = {}
     for item in items:
         name, sep, value = item.partition("=")
+        if name in values:
+            raise ConfigError(f"--q {item!r}: {name} is given twice; give each joint once")
         try:
             if not sep:
                 raise ValueError

@@ -14,7 +14,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``fk`` subcommand."""
     p = sub.add_parser("fk", help="forward kinematics of a body or site")
     p.add_argument("frame", help="body or site name of the scene (nextage-qp info lists the sites)")
-    p.add_argument("--q", nargs="+", default=[], metavar="NAME=RAD", help="joint angles on top of the keyframe")
+    p.add_argument("--q", nargs="+", action="extend", default=[], metavar="NAME=RAD",
+                   help="joint angles on top of the keyframe (repeatable)")
     p.add_argument("--keyframe", default="zero", help="base configuration: home or zero (default: zero)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     add_scene_arg(p)

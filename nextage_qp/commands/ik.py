@@ -70,6 +70,9 @@ def run(args: argparse.Namespace) -> int:
     if args.frame2 is not None:
         if args.pos2 is None:
             raise ConfigError("--frame2 needs --pos2 X Y Z")
+        if args.frame2 == args.frame:
+            raise ConfigError(f"--frame2 {args.frame2!r} is --frame itself; give two different frames (one frame "
+                              "has one pose)")
         targets.append(_target(args.frame2, args.pos2, args.axis2, args.dir2, args.quat2, "2"))
     elif args.pos2 is not None:
         raise ConfigError("--pos2 needs --frame2 FRAME")
