@@ -336,3 +336,15 @@ def test_a_sweep_record_that_cannot_be_written_is_one_line(tmp_path, monkeypatch
     with pytest.raises(ConfigError, match=r"cannot write episode 7's record \(No space left on device\); free space "
                                           r"and run again with --resume"):
         s.add(episode)
+
+
+def test_a_sweep_in_which_no_episode_ran_exits_1_saying_so(tmp_path, capsys, monkeypatch):
+    """Every episode refused (objects placed 4-5 m off the table): the summary is written, and the exit code and one
+    line say that nothing was measured (a script would read 0 as a measured sweep)."""
+    monkeypatch.setenv("COLUMNS", "200")
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text(f"base: {PUSH}\nrandomize: {{scene.poses.cube.pos: {{offset: [[4, 4, 0], [5, 5, 0]]}}}}\n")
+    assert main(["sweep", str(sweep), "--n", "2", "--workers", "1", "--out", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err
+    assert "nextage-qp sweep: error: no episode ran to its end (2 refused, 0 errors" in err
+    assert (tmp_path / "out" / "summary.json").is_file()

@@ -115,7 +115,10 @@ class _Progress:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the sweep; exit 0 when every episode has a record (whatever its outcome), 130 when interrupted."""
+    """Run the sweep; exit 0 when every episode has a record (whatever its outcome), 130 when interrupted.
+
+    Exit 1 when no episode ran to its end (every one refused or an error): nothing was measured.
+    """
     check_backend_args(args)
     indices = _indices(args)
     spec = SweepSpec(args.sweep, args.overrides)
@@ -150,6 +153,11 @@ def run(args: argparse.Namespace) -> int:
     if failed:  # the records and the summary above are kept; only these files are missing
         print(f"nextage-qp sweep: error: {'; '.join(failed)}", file=sys.stderr)
         return 2
+    statuses = [e.status for e in episodes]
+    if statuses and all(s in ("refused", "error") for s in statuses):  # nothing measured: say so to a script too
+        print(f"nextage-qp sweep: error: no episode ran to its end ({statuses.count('refused')} refused, "
+              f"{statuses.count('error')} errors; the summary above says why)", file=sys.stderr)
+        return 1
     return 0
 
 
