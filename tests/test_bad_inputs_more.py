@@ -108,6 +108,8 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
                             "0.3", "0.1", "1"], {}, 2, "--frame2 'left_tool' is --frame itself; give two different"),
     ("fk one joint twice", ["fk", "left_tool", "--q", "LARM_JOINT0=0.1", "--q", "LARM_JOINT0=0.2"], {}, 2,
      "--q 'LARM_JOINT0=0.2': LARM_JOINT0 is given twice; give each joint once"),
+    ("robot file keyframe with an unknown joint", ["run", PUSH, "--robot", "{tmp}/r.yaml"],
+     robot("  home: model", "  home: {FOO: 0.1}"), 2, "{tmp}/r.yaml: keyframes.home: unknown joint 'FOO'; valid: "),
     ("move one frame twice", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool}, "
                                                     "{frame: left_tool, offset: [0, 0, 0.2]}]}"], {}, 2,
      "phases[0]: targets: two targets for frame 'left_tool'"),

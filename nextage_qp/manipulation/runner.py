@@ -72,6 +72,11 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
         if str(exc).startswith("scene.objects"):  # a declaration's error: name the config it is in
             raise ConfigError(f"{source}: {exc}") from None
         raise
+    for key in robot.description.keyframes:  # the robot file's own names: its error, not the task config's
+        try:
+            robot.keyframe_q(key)
+        except UnknownNameError as exc:
+            raise ConfigError(f"{robot.description.source}: keyframes.{key}: {exc}") from None
     check_names(cfg, robot, source)
     check_angles(cfg, robot, source)
     check_clear(robot, source)
