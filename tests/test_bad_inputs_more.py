@@ -110,6 +110,10 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
      "--q 'LARM_JOINT0=0.2': LARM_JOINT0 is given twice; give each joint once"),
     ("robot file keyframe with an unknown joint", ["run", PUSH, "--robot", "{tmp}/r.yaml"],
      robot("  home: model", "  home: {FOO: 0.1}"), 2, "{tmp}/r.yaml: keyframes.home: unknown joint 'FOO'; valid: "),
+    ("frame unknown, the arm's tool a body", ["run", PUSH, "--robot", "{tmp}/r.yaml", "--set", "phases.0.frame=nope"],
+     robot("    tool: right_tool", "    tool: RARM_JOINT5_Link"), 2,
+     "phases[0].frame: 'nope' is not valid; valid: left_wrist, left_tool, left_pad, left_palm, right_wrist, right_tool, "
+     "right_pad, right_palm, RARM_JOINT5_Link"),
     ("move one frame twice", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool}, "
                                                     "{frame: left_tool, offset: [0, 0, 0.2]}]}"], {}, 2,
      "phases[0]: targets: two targets for frame 'left_tool'"),

@@ -91,7 +91,9 @@ def check_names(cfg: ManipulationConfig, robot: Robot, source: str) -> None:
     """
     bodies = sorted(robot.body_names)
     objects = (*robot.object_names, *((BASE_BODY,) if robot.base is not None else ()))  # a base parks, judged
-    valid = {"frame": robot.site_names, "object": objects, "body": bodies, "place": scene_bodies(robot),
+    arm_frames = [f for arm in robot.arms for f in (arm.tool, arm.pad, arm.wrist)]  # a body's name too, often
+    frames = list(dict.fromkeys([*robot.site_names, *arm_frames]))
+    valid = {"frame": frames, "object": objects, "body": bodies, "place": scene_bodies(robot),
              "reference": ["world", *bodies], "joint": robot.joint_names}
     accepted = {**valid, "frame": robot.frame_names}
     for key, kind, name in names_in(cfg, ""):
