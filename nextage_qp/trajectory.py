@@ -27,9 +27,7 @@ from nextage_qp.robot import PerJoint, per_joint
 from nextage_qp.yaml_file import STRICT
 
 _OK = (ruckig.Result.Working, ruckig.Result.Finished)
-MIN_LIMIT = 0.01
-"""Smallest velocity, acceleration and jerk bound [rad/s, /s², /s³]: below it a reference across a joint's range
-takes longer than Ruckig computes (its ``ErrorTrajectoryDuration``)."""
+MIN_LIMIT = 0.01  # smallest bound: below it a reference takes longer than Ruckig computes (ErrorTrajectoryDuration)
 NUDGE = 1e-12  # [rad] a target moves for Ruckig to solve a step it failed on numerically (JointTrajectory._nudged)
 
 
@@ -37,11 +35,10 @@ class TrajectoryLimits(BaseModel):
     """Kinematic bounds of the joint references, scalar (every joint) or per joint.
 
     A per-joint value is a list in the robot's joint order or a mapping ``{joint: value}`` (joints left out take
-    the default of the field); the names and the list's length are checked against the robot
-    (:meth:`arrays`).
+    the default of the field); the names and the list's length are checked against the robot (:meth:`arrays`).
 
     Attributes:
-        max_velocity: [rad/s]; the URDF's joint velocity limit is 1.0.
+        max_velocity: [rad/s]; the URDF's joint velocity limit is 1.0. Every bound is at least ``MIN_LIMIT``.
         max_acceleration: [rad/s²].
         max_jerk: [rad/s³].
     """
