@@ -114,6 +114,9 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
      robot("    tool: right_tool", "    tool: RARM_JOINT5_Link"), 2,
      "phases[0].frame: 'nope' is not valid; valid: left_wrist, left_tool, left_pad, left_palm, right_wrist, right_tool, "
      "right_pad, right_palm, RARM_JOINT5_Link"),
+    ("robot model a folder", ["robot", "check", "{tmp}/r.yaml"],
+     robot("nextage/nextage.xml", "nextage"), 2, "model: '" + str(ROOT) + "/robots/nextage' is a folder; name the "
+                                                  "model file in it (nextage.xml)"),
     ("move one frame twice", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool}, "
                                                     "{frame: left_tool, offset: [0, 0, 0.2]}]}"], {}, 2,
      "phases[0]: targets: two targets for frame 'left_tool'"),

@@ -190,6 +190,10 @@ def load_robot(ref: str | Path | None = None) -> RobotDescription:
         model = found
     else:
         model = (here / doc.model).resolve()
+    if model.is_dir():
+        inside = sorted(p.name for p in model.iterdir() if p.suffix.lower() in (".xml", ".urdf"))[:5]
+        raise ConfigError(f"{shown}: model: {doc.model!r} is a folder; name the model file in it"
+                          f"{' (' + ', '.join(inside) + ')' if inside else ' (it has no .xml or .urdf file)'}")
     if not model.is_file():
         raise ConfigError(f"{shown}: model: {doc.model!r} not found (looked for {model})")
     if model.suffix.lower() not in (".xml", ".urdf"):
