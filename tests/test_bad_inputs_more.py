@@ -357,3 +357,21 @@ def test_a_sweep_in_which_no_episode_ran_exits_1_saying_so(tmp_path, capsys, mon
     err = capsys.readouterr().err
     assert "nextage-qp sweep: error: no episode ran to its end (2 refused, 0 errors" in err
     assert (tmp_path / "out" / "summary.json").is_file()
+
+
+def test_robot_check_flags_a_joint_range_written_upper_bound_first(tmp_path):
+    """MuJoCo leaves a joint whose range reads "2 -2" (limited="auto") unlimited without a word: robot check says so."""
+    import shutil
+
+    from nextage_qp.robots.check import check_robot
+
+    shutil.copytree(ROOT / "robots" / "nextage", tmp_path / "nextage")
+    xml = tmp_path / "nextage" / "nextage.xml"
+    old = '<joint name="LARM_JOINT0" class="arm" axis="0 0 1" range="-1.5708 1.5708"/>'
+    assert old in xml.read_text()
+    xml.write_text(xml.read_text().replace(old, old.replace('range="-1.5708 1.5708"',
+                                                            'range="1.5708 -1.5708" limited="auto"')))
+    (tmp_path / "r.yaml").write_text(NEXTAGE.replace(f"model: {ROOT}/robots/nextage/", f"model: {tmp_path}/nextage/"))
+    found = [f for f in check_robot(tmp_path / "r.yaml").findings if f.topic == "range"]
+    assert len(found) == 1 and found[0].level == "problem"
+    assert "joint 'LARM_JOINT0' range [1.5708, -1.5708] has its lower bound above its upper" in found[0].message

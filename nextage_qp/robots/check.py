@@ -66,7 +66,7 @@ def check_robot(ref: str | Path) -> CheckReport:
     """
     desc = describe(ref)
     spec, issues = model_spec(desc.model, desc.package_paths, desc.source, lenient=True)
-    found = checks.meshes(issues) + checks.angle_unit(desc, spec)
+    found = checks.meshes(issues) + checks.angle_unit(desc, spec) + checks.reversed_ranges(desc, spec)
     if desc.angle is not None:
         spec.compiler.degree = desc.angle == "degree"
     bodies = {b.name for b in spec.bodies if b.name}

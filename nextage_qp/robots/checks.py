@@ -137,6 +137,16 @@ def angle_unit(desc: RobotDescription, spec: mujoco.MjSpec) -> list[Finding]:
     return []
 
 
+def reversed_ranges(desc: RobotDescription, spec: mujoco.MjSpec) -> list[Finding]:
+    """Robot joints whose range is written upper bound first: MuJoCo then leaves them unlimited, without a word."""
+    return [Finding("problem", "range", f"{desc.model.name}: joint {j.name!r} range [{j.range[0]:g}, {j.range[1]:g}] "
+                    "has its lower bound above its upper, so MuJoCo leaves the joint unlimited",
+                    "swap the two values in the model")
+            for j in spec.joints if j.name in desc.joints and j.type in (mujoco.mjtJoint.mjJNT_HINGE,
+                                                                        mujoco.mjtJoint.mjJNT_SLIDE)
+            and j.range[0] > j.range[1]]
+
+
 def reach(model: mujoco.MjModel, desc: RobotDescription) -> list[Finding]:
     """Arm frames that none of the arm's joints moves; robot-file frames that no arm moves."""
     out = []
