@@ -117,6 +117,9 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
     ("robot model a folder", ["robot", "check", "{tmp}/r.yaml"],
      robot("nextage/nextage.xml", "nextage"), 2, "model: '" + str(ROOT) + "/robots/nextage' is a folder; name the "
                                                   "model file in it (nextage.xml)"),
+    ("robot file collision group with an unknown body", ["run", PUSH, "--robot", "{tmp}/r.yaml"],
+     robot("head: {bodies: [HEAD_JOINT0_Link, HEAD_JOINT1_Link]}", "head: {bodies: [HEAD_JOINT0_Link, HEAD_LINK]}"), 2,
+     "{tmp}/r.yaml: collision_groups: unknown body (collision group 'head') 'HEAD_LINK'; valid: "),
     ("move one frame twice", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool}, "
                                                     "{frame: left_tool, offset: [0, 0, 0.2]}]}"], {}, 2,
      "phases[0]: targets: two targets for frame 'left_tool'"),

@@ -72,11 +72,13 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
         if str(exc).startswith("scene.objects"):  # a declaration's error: name the config it is in
             raise ConfigError(f"{source}: {exc}") from None
         raise
-    for key in robot.description.keyframes:  # the robot file's own names: its error, not the task config's
-        try:
-            robot.keyframe_q(key)
-        except UnknownNameError as exc:
-            raise ConfigError(f"{robot.description.source}: keyframes.{key}: {exc}") from None
+    where = "collision_groups"  # the robot file's own names: its error, not the task config's
+    try:
+        robot.collision_geoms()
+        for where in (f"keyframes.{key}" for key in robot.description.keyframes):
+            robot.keyframe_q(where.split(".", 1)[1])
+    except UnknownNameError as exc:
+        raise ConfigError(f"{robot.description.source}: {where}: {exc}") from None
     check_names(cfg, robot, source)
     check_angles(cfg, robot, source)
     check_clear(robot, source)
