@@ -120,6 +120,10 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
     ("robot file collision group with an unknown body", ["run", PUSH, "--robot", "{tmp}/r.yaml"],
      robot("head: {bodies: [HEAD_JOINT0_Link, HEAD_JOINT1_Link]}", "head: {bodies: [HEAD_JOINT0_Link, HEAD_LINK]}"), 2,
      "{tmp}/r.yaml: collision_groups: unknown body (collision group 'head') 'HEAD_LINK'; valid: "),
+    ("move target beyond the arm's reach", ["run", PUSH, "--set", "phases=[{kind: move, targets: [{frame: left_tool, "
+                                                              "relative_to: world, offset: [5, 0, 1]}]}]"], {}, 2,
+     "phase 'move[0]' (move): left_tool: out of reach: 5.001 m from CHEST_JOINT0 at (0.000, 0.000, 1.117), and "
+     "left_tool reaches at most 1.061 m from there"),
     ("move one frame twice", ["run", PUSH, "--set", "phases[0]={kind: move, targets: [{frame: left_tool}, "
                                                     "{frame: left_tool, offset: [0, 0, 0.2]}]}"], {}, 2,
      "phases[0]: targets: two targets for frame 'left_tool'"),

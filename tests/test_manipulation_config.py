@@ -67,7 +67,7 @@ def test_bad_configs_give_one_line_errors_and_exit_2(tmp_path, capsys, edit, mes
 def test_unreachable_target_fails_the_phase_with_its_name(tmp_path, capsys):
     def edit(d):
         d["phases"] = [{"kind": "move", "name": "reach far", "timeout": 1.0,
-                        "targets": [{"frame": "left_tool", "relative_to": "world", "offset": [1.5, 0.0, 1.0]}]}]
+                        "targets": [{"frame": "left_tool", "relative_to": "world", "offset": [1.0, 0.0, 1.0]}]}]
     path = write_variant(tmp_path, PUSH, edit)
     log = tmp_path / "log.npz"
     assert main(["run", str(path), "--json", "--log", str(log)]) == 1
@@ -82,7 +82,7 @@ def test_text_summary_keeps_unit_brackets(tmp_path, capsys, monkeypatch):
 
     def edit(d):
         d["phases"] = [{"kind": "move", "name": "reach far", "timeout": 0.2,
-                        "targets": [{"frame": "left_tool", "relative_to": "world", "offset": [1.5, 0.0, 1.0]}]}]
+                        "targets": [{"frame": "left_tool", "relative_to": "world", "offset": [1.0, 0.0, 1.0]}]}]
     assert main(["run", str(write_variant(tmp_path, PUSH, edit))]) == 1
     out = capsys.readouterr().out
     for text in ("start [s]", "duration [s]", "final object position [m]", "obstacle contacts [steps]"):

@@ -48,6 +48,7 @@ class ScriptedView:
     half: float = 0.035
     reach: Callable | None = None
     plans: list = field(default_factory=list)
+    reach_checked: list = field(default_factory=list)  # (frame, goal) of every check_reach call
     forces: dict = field(default_factory=dict)
     symmetry: float = np.pi
     rest: float = 0.91
@@ -89,6 +90,9 @@ class ScriptedView:
             return None
         self.plans.append(tuple(targets))
         return np.array([len(self.plans) - 1.0])
+
+    def check_reach(self, frame, pos, where):
+        self.reach_checked.append((frame, tuple(np.round(pos, 6))))
 
     def pose_at(self, frame, q):
         if q[0] < 0:
@@ -155,6 +159,7 @@ def test_move_walks_at_its_speed_and_waits_for_the_real_frame():
     view = ScriptedView(commanded={"left_tool": pose(0.4, 0.2, 1.0)}, frames={"left_tool": pose(0.4, 0.2, 1.0)})
     phase = make("move", targets=[{"frame": "left_tool", "offset": [0.5, 0.2, 1.0]}], speed=0.1, tolerance=0.002)
     phase.start(view)
+    assert view.reach_checked == [("left_tool", (0.5, 0.2, 1.0))]  # its goal checked against the arm's reach first
     cmd = phase.update(view)
     (target,) = cmd.targets
     assert np.linalg.norm(target.pos - [0.4, 0.2, 1.0]) == pytest.approx(1.0 * DT**2)  # from rest at 1 m/s^2

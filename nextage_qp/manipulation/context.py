@@ -134,6 +134,9 @@ class View(Protocol):
     def pose_at(self, frame: str, q: np.ndarray) -> Pose:
         """World pose of a frame at joints ``q`` (e.g. a planned configuration)."""
 
+    def check_reach(self, frame: str, pos: np.ndarray, where: str) -> None:
+        """Raise :class:`~nextage_qp.errors.InfeasibleError` when no joint configuration brings the frame to ``pos``."""
+
     def default_posture(self) -> np.ndarray:
         """The joints [rad] the IK's redundancy heads for when a command names no posture."""
 

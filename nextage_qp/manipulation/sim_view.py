@@ -135,6 +135,13 @@ class SimView:
             self._kinematics = Kinematics(self.robot)
         return self._kinematics.fk(frame, q)
 
+    def check_reach(self, frame: str, pos: np.ndarray, where: str) -> None:  # noqa: D102
+        if self.robot.base is not None:  # a base drives: no sphere bounds where the arms reach
+            return
+        if self._kinematics is None:
+            self._kinematics = Kinematics(self.robot)
+        self._kinematics.check_reach(frame, pos, self._servo.q_cmd, where)
+
     def default_posture(self) -> np.ndarray:  # noqa: D102
         return self._servo.ik.default_posture.copy()
 

@@ -82,6 +82,8 @@ class Move(Phase):
 
     def start(self, view: View) -> None:  # noqa: D102
         self.points = [Setpoint(view.commanded_pose(t.frame).pos) for t in self.spec.targets]
+        for t in self.spec.targets:  # a goal beyond the frame's reach sphere: refused, rather than a timeout
+            view.check_reach(t.frame, resolve_point(view, t)[0], f"phase {self.name!r} (move): {t.frame}")
 
     def update(self, view: View) -> Command:  # noqa: D102
         targets, done = [], True
