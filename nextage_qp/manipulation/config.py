@@ -119,10 +119,13 @@ class ManipulationConfig(_Strict):
         held: str | None = None
         for i, phase in enumerate(self.phases):
             obj = getattr(phase, "object", None)
-            if phase.grip == "needs" and obj != held:
+            if phase.grip in ("needs", "ends") and obj != held:
                 raise ValueError(f"phases[{i}]: {phase.kind} needs {obj!r} clamped by an earlier grasp phase"
                                  f"{f' (the clamp holds {held!r} then)' if held else ''}")
-            held = obj if phase.grip == "makes" else None if phase.kind == "release" else held
+            if phase.grip == "makes":
+                held = obj
+            elif phase.grip == "ends":
+                held = None
         return self
 
     def phase_name(self, index: int) -> str:

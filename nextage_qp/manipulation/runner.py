@@ -33,6 +33,7 @@ from nextage_qp.mobile.odometry import base_report
 from nextage_qp.object_checks import check_clear
 from nextage_qp.perception_setup import attach_camera, log_estimates, perception_of, source_of
 from nextage_qp.robot import Robot, tool_frames
+from nextage_qp.robots.check import check_own_names
 from nextage_qp.robots.description import load_robot
 from nextage_qp.robots.groups import scene_bodies
 from nextage_qp.scene import BodyPose, SceneOverrides
@@ -72,13 +73,7 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
         if str(exc).startswith("scene.objects"):  # a declaration's error: name the config it is in
             raise ConfigError(f"{source}: {exc}") from None
         raise
-    where = "collision_groups"  # the robot file's own names: its error, not the task config's
-    try:
-        robot.collision_geoms()
-        for where in (f"keyframes.{key}" for key in robot.description.keyframes):
-            robot.keyframe_q(where.split(".", 1)[1])
-    except UnknownNameError as exc:
-        raise ConfigError(f"{robot.description.source}: {where}: {exc}") from None
+    check_own_names(robot)  # the robot file's own names: its error, not the task config's
     check_names(cfg, robot, source)
     check_angles(cfg, robot, source)
     check_clear(robot, source)
@@ -192,7 +187,8 @@ class Runner:
                         rec.info = dict(phase.info)
                         cause = phase.stalled(view)
                         held = self.ik.collision.violated(self.ik.model, HELD_SLACK) if self.ik.collision else []
-                        held = ["; held by ik.collision_pairs: " + ", ".join(h[15:] for h in held[:3])] if held else []
+                        held = ["; held by ik.collision_pairs: " + ", ".join(h.removeprefix("collision pair ")
+                                                                             for h in held[:3])] if held else []
                         raise PhaseError(f"phase {rec.name!r} ({spec.kind}) timed out after {spec.timeout:g} s "
                                          f"of simulated time{': ' + cause if cause else ''}; "
                                          f"last state: {_brief(phase.info)}"

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -18,6 +18,9 @@ from nextage_qp.robots import checks, physics_checks
 from nextage_qp.robots.checks import Finding
 from nextage_qp.robots.description import RobotDescription, load_robot
 from nextage_qp.robots.modelfile import compile_alone, model_spec
+
+if TYPE_CHECKING:
+    from nextage_qp.robot import Robot
 
 
 @dataclass
@@ -107,11 +110,29 @@ def _as_the_commands_load_it(ref: str | Path) -> list[Finding]:
     try:
         robot = Robot.from_scene("scene", robot=str(ref))
         robot_gains(robot)
-        for name in robot.description.keyframes:
-            robot.keyframe_q(name)
+        check_own_names(robot)
     except ConfigError as exc:
         return [Finding("problem", "load", str(exc), "the commands refuse the robot file so: fix what it names")]
     return []
+
+
+def check_own_names(robot: Robot) -> None:
+    """Resolve the names the robot file itself gives: its collision groups' bodies and its keyframes' joints.
+
+    Raises:
+        ConfigError: Naming the robot file and the key (``keyframes.home: unknown joint 'FOO'; valid: ...``), or a
+            keyframe value out of its joint's range.
+    """
+    from nextage_qp.errors import ConfigError, UnknownNameError
+
+    where = "collision_groups"
+    try:
+        robot.collision_geoms()
+        for key in robot.description.keyframes:
+            where = f"keyframes.{key}"
+            robot.keyframe_q(key)
+    except UnknownNameError as exc:
+        raise ConfigError(f"{robot.description.source}: {where}: {exc}") from None
 
 
 def home_qpos(model: mujoco.MjModel, desc: RobotDescription) -> tuple[np.ndarray, list[Finding]]:

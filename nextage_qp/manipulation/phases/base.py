@@ -30,7 +30,7 @@ class Spec(BaseModel):
 
     grip: ClassVar[str | None] = None
     """How the phase uses the clamp: ``"makes"`` one (grasp), ``"needs"`` one on its object from an earlier phase
-    (carry, place, release), or None."""
+    (carry, place), ``"ends"`` it (needs it, then lets go: release), or None."""
 
     kind: str
     name: str | None = Field(default=None, description="Label in progress and results (default: kind + index).")

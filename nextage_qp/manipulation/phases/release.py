@@ -28,7 +28,7 @@ MAX_EASE_TRAVEL = 0.005
 class ReleaseSpec(Spec):
     """Open the pads away from the object along the clamp axis, then retreat upwards."""
 
-    grip = "needs"
+    grip = "ends"
 
     kind: Literal["release"]
     object: str = name_field("object")
