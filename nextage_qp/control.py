@@ -30,7 +30,7 @@ import numpy as np
 from nextage_qp.errors import ConfigError
 from nextage_qp.gains import Gains, GainsFile, gains_path, load_gains
 
-__all__ = ["Gains", "GainsFile", "PDController", "gains_path", "load_gains"]
+__all__ = ["ActuatorBlock", "Gains", "GainsFile", "PDController", "gains_path", "index_view", "load_gains"]
 
 
 class PDController:
@@ -147,6 +147,14 @@ class PDController:
             self.any_saturated_ticks += 1
             np.clip(u, -lim, lim, out=u)
         return u
+
+
+def index_view(idx: np.ndarray) -> slice | np.ndarray:
+    """A slice for a contiguous index array (numpy then returns views, not copies), else the array."""
+    idx = np.asarray(idx, dtype=int)
+    if idx.size and np.array_equal(idx, np.arange(idx[0], idx[0] + idx.size)):
+        return slice(int(idx[0]), int(idx[0]) + idx.size)
+    return idx
 
 
 class ActuatorBlock:

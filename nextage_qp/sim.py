@@ -26,7 +26,8 @@ from collections.abc import Callable, Sequence
 import mujoco
 import numpy as np
 
-from nextage_qp.control import ActuatorBlock, Gains, PDController
+from nextage_qp import stepping
+from nextage_qp.control import ActuatorBlock, Gains, PDController, index_view
 from nextage_qp.divergence import raise_divergence
 from nextage_qp.mj_warnings import MUJOCO_WARNINGS
 from nextage_qp.mobile.odometry import BaseTrack
@@ -40,13 +41,6 @@ __all__ = ["Hook", "Simulation", "StageTimer", "Timing"]
 
 Hook = Callable[["Simulation"], None]
 _BAD = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
-
-def _view(idx: np.ndarray) -> slice | np.ndarray:
-    """A slice for a contiguous index array (numpy then returns views, not copies), else the array."""
-    idx = np.asarray(idx, dtype=int)
-    if idx.size and np.array_equal(idx, np.arange(idx[0], idx[0] + idx.size)):
-        return slice(int(idx[0]), int(idx[0]) + idx.size)
-    return idx
 
 
 class Simulation:
@@ -70,7 +64,9 @@ class Simulation:
         hooks: Functions called as ``hook(sim)`` after every tick (e.g. to measure clearances).
         substep_hooks: Functions called as ``hook(sim)`` at every physics step, after its contacts.
         timer: A :class:`StageTimer` to profile the loop, or None.
-        physics_s: Wall time inside ``mj_step`` since the last :meth:`reset` [s] (every call timed where it is made).
+        physics_s: Wall time inside ``mj_step`` since the last :meth:`reset` [s] (timed where it is called).
+        touch_adr: ``sensordata`` address of a contact sensor's (found, dist) read every step (-1: none).
+        touch_steps: Physics steps after which that sensor read a touch, since the last :meth:`reset`.
         base: A mobile robot's base (:class:`~nextage_qp.mobile.base.BaseTrack`), or None.
     """
 
@@ -110,9 +106,10 @@ class Simulation:
         self.hooks: list[Hook] = []
         self.substep_hooks: list[Hook] = []
         self.timer: StageTimer | None = None
+        self.touch_adr, self.touch_steps = -1, 0
         # Views into MjData (the robot's joints are contiguous in every bundled scene; an index array otherwise;
         # its actuators a block of any order) and per-tick buffers, so the loop allocates little.
-        self._qi, self._di = _view(robot.qpos_idx), _view(robot.dof_idx)
+        self._qi, self._di = index_view(robot.qpos_idx), index_view(robot.dof_idx)
         self._act = ActuatorBlock(robot.actuator_ids, self.data)
         self._bad_warnings = [self.data.warning[w] for w in _BAD]  # views into the data
         self.base = BaseTrack(robot.base) if robot.base is not None else None
@@ -169,7 +166,7 @@ class Simulation:
         self.pd.reset_counters()
         self.watch.reset()
         self.recorder.clear()
-        self._raw, self._step, self.physics_s = None, 0, 0.0
+        self._raw, self._step, self.physics_s, self.touch_steps = None, 0, 0.0, 0
         if self.base is not None:
             self.base.reset(self.model, self.data)
         self._measure()
@@ -223,8 +220,9 @@ class Simulation:
         if timer:
             timer.lap("pd+record")
         ctrl, act_force, force, hooks = self._act.ctrl, self._act.force, self._force, self.substep_hooks
-        clock, step, physics = time.perf_counter, mujoco.mj_step, 0.0
-        if hooks:
+        clock, touch = time.perf_counter, self.touch_adr
+        if hooks or not stepping.NATIVE:
+            step, physics = mujoco.mj_step, 0.0
             for k in range(n):
                 ctrl[:] = ramp[k]
                 t0 = clock()
@@ -232,15 +230,14 @@ class Simulation:
                 physics += clock() - t0
                 force[k] = act_force
                 self._step += 1
+                self.touch_steps += touch >= 0 and stepping.touching(d.sensordata, touch)
                 for hook in tuple(hooks):
                     hook(self)
-        else:
-            for k in range(n):
-                ctrl[:] = ramp[k]
-                t0 = clock()
-                step(m, d)
-                physics += clock() - t0
-                force[k] = act_force
+        else:  # the same loop compiled: timed as a whole, its own work a few copies per step (tools/bench_loop.py)
+            t0 = clock()
+            self.touch_steps += stepping.substeps(stepping.STEP, m._address, d._address, ctrl, ramp, act_force, force,
+                                                  d.sensordata, touch)
+            physics = clock() - t0
             self._step += n
         self.physics_s += physics
         if timer:

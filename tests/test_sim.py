@@ -149,6 +149,32 @@ def test_obstacle_contacts_are_counted_per_physics_step(gains):
     assert monitor.min_clearance is not None and monitor.min_clearance < 0
 
 
+def test_compiled_physics_loop_equals_the_python_loop(gains):
+    """The compiled substep loop leaves the state, forces and obstacle-contact count of the Python loop, to the bit."""
+    from nextage_qp import stepping
+    from nextage_qp.manipulation.metrics import OutcomeMonitor
+    from nextage_qp.scene import BodyPose, SceneOverrides
+
+    if not stepping.NATIVE:
+        pytest.skip("MuJoCo's shared library not found: the simulation steps from Python only")
+    wall = SceneOverrides(poses={"obstacle": BodyPose(pos=(0.505, 0.23, 1.03), yaw=0.0)})
+    runs = []
+    for python_loop in (False, True):
+        robot = Robot.from_scene("dock_dumbbell", wall)
+        sim = Simulation(robot, gains)
+        monitor = OutcomeMonitor(robot, "dumbbell")
+        monitor.attach(sim)
+        if python_loop:
+            sim.substep_hooks.append(lambda s: None)  # any Python hook takes the Python loop
+        sim.set_target(robot.keyframe_q("home") + 0.05)
+        sim.run(0.1)
+        runs.append((sim.recorder.arrays(), monitor.obstacle_contacts, sim.physics_s, sim.data.qpos.copy()))
+    (a, contacts_a, physics_a, q_a), (b, contacts_b, physics_b, q_b) = runs
+    assert contacts_a == contacts_b > 0
+    assert np.array_equal(q_a, q_b) and all(np.array_equal(a[k], b[k]) for k in a)
+    assert physics_a > 0 and physics_b > 0
+
+
 def test_actuators_apply_the_documented_pd_law(robot):
     # The law runs in MuJoCo's actuators; the torque they applied matches PDController.torque (numpy) on the
     # recorded state, saturation included.

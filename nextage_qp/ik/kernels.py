@@ -35,9 +35,17 @@ def _mujoco_library() -> ctypes.CDLL | None:
 
 
 _LIB = _mujoco_library()
-GEOM_DISTANCE = 0 if _LIB is None else int(ctypes.cast(_LIB.mj_geomDistance, ctypes.c_void_p).value or 0)
+
+
+def address(name: str) -> int:
+    """Address of one of MuJoCo's functions in its shared library (0: the library or the function not found)."""
+    fn = getattr(_LIB, name, None) if _LIB is not None else None
+    return 0 if fn is None else int(ctypes.cast(fn, ctypes.c_void_p).value or 0)
+
+
+GEOM_DISTANCE = address("mj_geomDistance")
 """Address of ``mj_geomDistance`` (0: the library was not found; callers take their Python path)."""
-JAC = 0 if _LIB is None else int(ctypes.cast(_LIB.mj_jac, ctypes.c_void_p).value or 0)
+JAC = address("mj_jac")
 """Address of ``mj_jac``."""
 NATIVE = bool(GEOM_DISTANCE and JAC)
 """True when :func:`narrow_rows` can call MuJoCo."""

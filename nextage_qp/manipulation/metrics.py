@@ -80,11 +80,16 @@ class OutcomeMonitor:
     def attach(self, sim: Simulation) -> None:
         """Register the monitor's hooks with a simulation.
 
-        The contact hook runs at every physics step only while something is within the watched clearance of the
-        obstacle (:meth:`on_tick` adds and removes it), so the physics loop carries no hook the rest of the time.
+        The obstacle's contacts are counted at every physics step only while something is within the watched
+        clearance of the obstacle (:meth:`on_tick` decides). Where the model has the obstacle's contact sensor
+        (:func:`~nextage_qp.scene.touch_sensor`) the simulation's physics loop reads it (``sim.touch_adr``), else
+        :meth:`on_substep` reads MuJoCo's contact list (a hook :meth:`on_tick` adds and removes).
         """
         sim.hooks.append(self.on_tick)
-        if self.obstacle is not None:
+        self._touch_base = sim.touch_steps
+        if self.obstacle is not None and self._touch is not None:
+            sim.touch_adr = self._touch.start  # the physics loop counts the touching steps itself
+        elif self.obstacle is not None:
             sim.substep_hooks.append(self.on_substep)
 
     def on_substep(self, sim: Simulation) -> None:
@@ -92,18 +97,10 @@ class OutcomeMonitor:
 
         Skipped while the last tick found every mover farther than the watched clearance from the obstacle
         (``CONTACT_WATCH``, or ``CONTACT_WATCH_SPEED`` times the control period: nothing here moves that far
-        within one control period). Reads the obstacle's contact sensor where the model has one
-        (:func:`~nextage_qp.scene.touch_sensor`), else MuJoCo's contact list.
+        within one control period). Reads MuJoCo's contact list (a model without the obstacle's contact sensor).
         """
         d = sim.data
-        if not self._watch:
-            return
-        if self._touch is not None:
-            found, dist = d.sensordata[self._touch]
-            if found > 0 and dist < 0:
-                self.obstacle_contacts += 1
-            return
-        if d.ncon == 0:
+        if not self._watch or d.ncon == 0:
             return
         geoms = d.contact.geom[: d.ncon]
         touching = self._is_obstacle[geoms]
@@ -130,6 +127,10 @@ class OutcomeMonitor:
                                                      self._fromto)
         self.min_clearance = best
         self._watch = nearest < watch
+        if self._touch is not None:
+            self.obstacle_contacts = sim.touch_steps - self._touch_base
+            sim.touch_adr = self._touch.start if self._watch else -1
+            return
         hooked = self.on_substep in sim.substep_hooks
         if self._watch and not hooked:
             sim.substep_hooks.append(self.on_substep)
