@@ -6,7 +6,7 @@ fresh torque from the PD law evaluated inside MuJoCo on the state of that step:
 
 .. math:: u_k = \operatorname{clip}(K_p(q^{ref}(t_k) - q_k) + K_d(\dot q^{ref}(t_k) - \dot q_k) + b)
 
-The law runs in MuJoCo's actuators (:meth:`~nextage_qp.control.PDController.install`): Python sets one control
+The law runs in MuJoCo's actuators (:meth:`~nextage_qp.control.PDController.install`): the loop sets one control
 vector per step, ramped linearly from the reference at the start of the period to the one at its end (the
 first-order hold of Ruckig's smooth profile; the bias :math:`b` is sampled once per period), and ``mj_step``
 applies the feedback and the clamp; under the ``implicitfast`` integrator the damping term is integrated

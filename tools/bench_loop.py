@@ -5,6 +5,8 @@ Measured in one run on one core:
 * bare physics: ``mj_step`` on the same scene with a constant gravity-holding torque (the ceiling);
 * the full loop (``nextage-qp reach``'s pipeline: the servo tick's QP IK -> Ruckig -> PD at every physics step
   -> MuJoCo, with recording) on reach motions of the left wrist, as simulated seconds per wall second;
+* a tick's 20 physics steps as the simulation's compiled loop, as the Python loop and as ``mj_step(nstep=20)``
+  from the same state, alternately (the compiled loop's own work, which the physics share counts as physics);
 * the same loop with the simulation's stage timer on, timing the servo (IK) and each stage of the real
   ``Simulation.tick`` separately (median and p99 per call);
 * with ``--task CONFIG``, the physics share of a whole task run at the config's own settings (the wall time
@@ -33,6 +35,7 @@ from importlib import metadata  # noqa: E402
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
+from nextage_qp import stepping  # noqa: E402
 from nextage_qp.control import load_gains  # noqa: E402
 from nextage_qp.experiments.reach import run_reach  # noqa: E402
 from nextage_qp.ik import QPIK, FrameTarget, IKConfig  # noqa: E402
@@ -68,6 +71,37 @@ def bare_rtf(scene: str, seconds: float) -> float:
     for _ in range(n):
         mujoco.mj_step(m, d)
     return seconds / (time.perf_counter() - t0)
+
+
+def stepping_overhead(scene: str, n: int = 20, repeats: int = 300) -> dict[str, dict[str, float]]:
+    """A tick's ``n`` physics steps three ways, alternately, from the same state: the compiled loop the simulation
+    runs (controls set and forces kept every step), the Python loop it falls back to, and ``mj_step(m, d, nstep=n)``
+    (MuJoCo's own loop, one control for all steps: what the compiled loop's own work is measured against)."""
+    robot = Robot.from_scene(scene)
+    sim = Simulation(robot, load_gains("default"))
+    m, d = sim.model, sim.data
+    start = mujoco.MjData(m)
+    mujoco.mj_copyData(start, m, d)
+    ctrl, act_force = sim._act.ctrl, sim._act.force
+    ramp, force = np.repeat(ctrl[None, :].copy(), n, axis=0), np.zeros((n, ctrl.size))
+
+    def python_loop() -> None:
+        for k in range(n):
+            ctrl[:] = ramp[k]
+            mujoco.mj_step(m, d)
+            force[k] = act_force
+
+    ways = {"compiled loop": lambda: stepping.substeps(stepping.STEP, m._address, d._address, ctrl, ramp, act_force,
+                                                       force, d.sensordata, -1),
+            "python loop": python_loop, "mj_step nstep": lambda: mujoco.mj_step(m, d, nstep=n)}
+    samples: dict[str, list[float]] = {k: [] for k in ways}
+    for _ in range(repeats):
+        for name, way in ways.items():
+            mujoco.mj_copyData(d, m, start)
+            t0 = time.perf_counter()
+            way()
+            samples[name].append(time.perf_counter() - t0)
+    return _stats(samples)
 
 
 def loop_rtf(scene: str, duration: float, repeats: int) -> tuple[list[float], list[float]]:
@@ -178,6 +212,7 @@ def main() -> None:
         "loop_over_bare_ratio": float(np.median(rtfs) / np.median(bare)),
         "reach_final_error_m_max": float(np.max(errors)),
         "per_call_us": stages,
+        "physics_steps_of_a_tick_us": stepping_overhead(args.scene) if stepping.NATIVE else None,
         "tasks": {},
     }
     for config in args.task:
@@ -204,6 +239,12 @@ def main() -> None:
           f"{out['loop_over_bare_ratio']:.2f} of bare)")
     print(f"reach final error max  {out['reach_final_error_m_max'] * 1e3:.4f} mm\n")
     _print_stages(stages)
+    steps = out["physics_steps_of_a_tick_us"]
+    if steps:
+        print("\n20 physics steps from the same state, alternately (the compiled loop's own work against MuJoCo's)")
+        _print_stages(steps)
+        ratio = steps["compiled loop"]["median_us"] / steps["mj_step nstep"]["median_us"]
+        print(f"compiled loop / mj_step nstep: {ratio:.3f} (median)")
     for config, task in out["tasks"].items():
         sets = "".join(f" --set {item}" for item in task["set"])
         print(f"\ntask {config}{sets} (ctrl_dt {task['ctrl_dt_s'] * 1e3:g} ms): RTF {task['real_time_factor']:.1f}x; "
