@@ -158,14 +158,20 @@ def lever_bounds(model: mujoco.MjModel) -> np.ndarray:
     the offsets along the chain); 0 where the dof does not move the geom, inf for a non-hinge dof.
     """
     lever = np.zeros((model.ngeom, model.nv))
-    for g in range(model.ngeom):
-        length = float(np.linalg.norm(model.geom_pos[g]) + model.geom_rbound[g])
-        body = int(model.geom_bodyid[g])
+    norm = np.linalg.norm  # per vector, as along the chain: each offset's norm computed once
+    body_len = [float(norm(p)) for p in model.body_pos]
+    joint_len = [float(norm(p)) for p in model.jnt_pos]
+    hinge = (model.jnt_type == mujoco.mjtJoint.mjJNT_HINGE).tolist()
+    parent, dofadr, dofnum, dof_jnt = (a.tolist() for a in (model.body_parentid, model.body_dofadr,
+                                                            model.body_dofnum, model.dof_jntid))
+    for g, (pos, rbound, body) in enumerate(zip(model.geom_pos, model.geom_rbound.tolist(),
+                                                model.geom_bodyid.tolist(), strict=True)):
+        length = float(norm(pos) + rbound)
+        row = lever[g]
         while body > 0:
-            for dof in range(model.body_dofadr[body], model.body_dofadr[body] + model.body_dofnum[body]):
-                jnt = model.dof_jntid[dof]
-                hinge = model.jnt_type[jnt] == mujoco.mjtJoint.mjJNT_HINGE
-                lever[g, dof] = length + float(np.linalg.norm(model.jnt_pos[jnt])) if hinge else np.inf
-            length += float(np.linalg.norm(model.body_pos[body]))
-            body = int(model.body_parentid[body])
+            for dof in range(dofadr[body], dofadr[body] + dofnum[body]):
+                jnt = dof_jnt[dof]
+                row[dof] = length + joint_len[jnt] if hinge[jnt] else np.inf
+            length += body_len[body]
+            body = parent[body]
     return lever
