@@ -115,6 +115,9 @@ class Simulation:
         self.base = BaseTrack(robot.base) if robot.base is not None else None
         self._fractions = np.arange(self.n_substeps) / self.n_substeps
         self._force = np.zeros((self.n_substeps, self._act.width))
+        if stepping.NATIVE:  # load (or compile) the loop now, with the types a tick passes: no tick pays for it
+            stepping.substeps(stepping.STEP, 0, 0, self._act.ctrl, self._force[:0], self._act.force, self._force,
+                              self.data.sensordata, -1)
         self._raw: RefState | None = None
         self._step = 0
         self.physics_s = 0.0
