@@ -8,6 +8,7 @@ its parser and sets ``func`` (a callable taking the parsed args and returning an
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import os
 import sys
@@ -85,6 +86,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except NextageQPError as exc:
         message = " ".join(str(exc).split())  # always one line
         print(f"nextage-qp {args.command}: error: {message}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        if exc.errno != errno.ENAMETOOLONG:
+            raise
+        print(f"nextage-qp {args.command}: error: file name too long: {str(exc.filename)[:80]}... "
+              f"(at most {os.pathconf('/', 'PC_NAME_MAX')} characters a path component)", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"nextage-qp {args.command}: interrupted", file=sys.stderr)

@@ -71,7 +71,7 @@ class ObjectDecl(BaseModel):
     size: tuple[Length, ...] | None = None
     sides: int | None = Field(default=None, ge=3, le=24)
     parts: tuple[PartDecl, ...] = ()
-    mass: float = Field(default=0.1, gt=0, le=50.0, allow_inf_nan=False, description="[kg]")
+    mass: float = Field(default=0.1, ge=1e-4, le=50.0, allow_inf_nan=False, description="[kg], 0.1 g to 50 kg")
     friction: float = Field(default=0.5, gt=0, le=5.0, allow_inf_nan=False, description="Sliding friction.")
     pos: tuple[float, float] | Vec3 | None = Field(default=None, description="Start position [m] (z: on the table).")
     yaw: float | None = Field(default=None, ge=-7.0, le=7.0, description="Start yaw [rad].")

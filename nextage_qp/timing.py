@@ -12,7 +12,7 @@ class Timing(BaseModel):
 
     model_config = STRICT
 
-    sim_dt: float = Field(default=0.001, gt=0, le=0.01, description="Physics step [s].")
+    sim_dt: float = Field(default=0.001, ge=1e-5, le=0.01, description="Physics step [s], 10 us to 10 ms.")
     ctrl_dt: float = Field(default=0.004, gt=0, le=0.05, description="IK + Ruckig period [s] (multiple of sim_dt).")
 
     @model_validator(mode="after")

@@ -382,3 +382,17 @@ def test_robot_check_flags_a_joint_range_written_upper_bound_first(tmp_path):
     found = [f for f in check_robot(tmp_path / "r.yaml").findings if f.topic == "range"]
     assert len(found) == 1 and found[0].level == "problem"
     assert "joint 'LARM_JOINT0' range [1.5708, -1.5708] has its lower bound above its upper" in found[0].message
+
+
+@pytest.mark.parametrize(("argv", "expected"), [
+    (["run", "a" * 300 + ".yaml"], "file name too long"),
+    (["reach", "--pos", "0.3", "0.1", "1.0", "--duration", "0.2", "--max-acceleration", "0.001"], "[0.01, 10000]"),
+    (["reach", "--pos", "0.3", "0.1", "1.0", "--duration", "0.2", "--max-jerk", "1e-12"], "[0.01, 1e+06]"),
+    (["run", "configs/push_cube.yaml", "--set", "timing.sim_dt=1e-9"], "timing.sim_dt"),
+    (["run", "configs/push_cube.yaml", "--set",
+      "scene.objects.cube={shape: box, size: [0.03,0.03,0.03], mass: 1e-12}"], "scene.objects.cube.mass"),
+])
+def test_limits_that_used_to_crash_or_hang_are_refused_in_one_line(capsys, argv, expected):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and expected in err and "Traceback" not in err

@@ -81,9 +81,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--direction", type=COORD, nargs=3, metavar=("DX", "DY", "DZ"), help="world direction for --axis")
     p.add_argument("--max-velocity", type=number(0.01, 100), default=1.0,
                    help="reference velocity limit [rad/s], in (0, 100]")
-    p.add_argument("--max-acceleration", type=number(0, 1e4, lo_open=True), default=4.0,
-                   help="reference acceleration limit [rad/s^2], in (0, 1e4]")
-    p.add_argument("--max-jerk", type=number(0, 1e6, lo_open=True), default=40.0,
-                   help="reference jerk limit [rad/s^3], in (0, 1e6]")
+    p.add_argument("--max-acceleration", type=number(0.01, 1e4), default=4.0,
+                   help="reference acceleration limit [rad/s^2], in [0.01, 1e4]")
+    p.add_argument("--max-jerk", type=number(0.01, 1e6), default=40.0,
+                   help="reference jerk limit [rad/s^3], in [0.01, 1e6]")
     add_sim_args(p, "write distance-to-target plot")
     p.set_defaults(func=_run)
