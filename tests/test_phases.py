@@ -947,3 +947,14 @@ def test_a_scripted_push_without_a_wrist_sensor_still_pushes_and_says_so():
         cmd = run_until_done(phase, view, each=pushed_along_the_tool_face(view))
         assert cmd.done and phase.info["object_error_xy_m"] <= 0.002
         assert phase.info["wrist_sensor"] is sensed
+
+
+def test_a_failure_inside_a_phase_names_the_phase():
+    """An error raised below the phase (here the clamp's hold check) is reported with the phase it ended."""
+    from nextage_qp import api
+
+    result = api.run_task("configs/pick_place_box.yaml", overrides=[
+        "scene.objects.box.pos=[0.55,-0.05]", "scene.poses.box_target.pos=[0.30,0.33,0.905]",
+        "scene.objects.box.mass=0.3"]).record
+    assert not result["success"]
+    assert result["error"].startswith("phase 'lift over the wall and set down on the target' (place): the clamp lost")

@@ -204,6 +204,8 @@ class Runner:
             if isinstance(exc, InfeasibleError) and self.sim.time == 0.0:
                 raise  # refused before anything moved (exit 2, like an overlapping target)
             self.error = str(exc)
+            if self._phase is not None and not self.error.startswith("phase "):  # say which phase it ended in
+                self.error = f"phase {self._phase[0]!r} ({self._phase[1]}): {self.error}"
             for rec in self.records:
                 if rec.status == "running":
                     rec.status, rec.duration_s = "failed", self.sim.time - rec.start_s
