@@ -326,7 +326,21 @@ def test_a_push_that_times_out_on_a_tipping_object_says_so():
     result = run_task(ROOT / "configs" / "push_cube.yaml", overrides=[
         "scene.objects.cube={shape: box, size: [0.037, 0.0165, 0.035]}", "scene.poses.cube.pos=[0.372,-0.024,0.91]",
         "scene.poses.cube.yaw=0.438", "scene.poses.cube_target.pos=[0.73,-0.049,0.91]", "scene.masses.cube=0.21",
-        "scene.friction_scale.cube=1.8", "phases.0.timeout=20"])
+        "scene.friction_scale.cube=1.8", "phases.0.timeout=20",
+        "phases.0.height=0.008", "ik.collision_pairs.0.min_distance=0.008"])  # met 22 mm up, not 17: it tips
     assert not result.success
     assert "timed out after 20 s of simulated time: cube tipped under the tool for" in result.error, result.error
     assert result.phases[0]["tilt_pauses"] * 0.02 >= 0.25 * 20
+
+
+def test_the_same_narrow_box_slides_when_the_hand_meets_it_low():
+    """The box above, pushed with the config's own height: the hand meets it 17 mm up rather than 22, the wedge number
+    mu * h / (2 w) drops from 1.2 to 0.93, and it slides to its target (tools/push_wedge.py)."""
+    from nextage_qp.api import run_task
+
+    result = run_task(ROOT / "configs" / "push_cube.yaml", overrides=[
+        "scene.objects.cube={shape: box, size: [0.037, 0.0165, 0.035]}", "scene.poses.cube.pos=[0.372,-0.024,0.91]",
+        "scene.poses.cube.yaw=0.438", "scene.poses.cube_target.pos=[0.73,-0.049,0.91]", "scene.masses.cube=0.21",
+        "scene.friction_scale.cube=1.8"])
+    assert result.success, result.error
+    assert result.object_error_xy_m <= 0.005

@@ -9,10 +9,10 @@ Quasi-statically the push slides the object only if
 where w is the object's half-depth along the push (a box's half-width across the face pushed, a cylinder's radius,
 a prism's apothem). At W >= 1 the object wedges between the tool and the table and tips instead: no controller
 pushes it with that hand at that height. The table friction of each episode is read from its compiled scene; w is
-the smallest half-depth of its shape (the box's narrower side); h defaults to 22 mm, the median height of the
-Nextage hand's contacts on a pushed object (the lower edge of its camera box, measured over a push).
+the smallest half-depth of its shape (the box's narrower side); h defaults to 17 mm, the median height of the
+Nextage hand's contacts on a pushed object (the lower edge of its camera box; tools/push_contact_height.py).
 
-Run: python tools/push_wedge.py runs/sweeps/push_shapes-seed0 [--contact-height 0.022]
+Run: python tools/push_wedge.py runs/sweeps/push_shapes-seed0 [--contact-height 0.017]
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ def table_friction(overrides: list[str], base: Path) -> float:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("run", type=Path, help="a sweep's output folder (episodes.jsonl, sweep.json)")
-    parser.add_argument("--contact-height", type=float, default=0.022, help="h [m]")
+    parser.add_argument("--contact-height", type=float, default=0.017, help="h [m]")
     args = parser.parse_args()
     base = Path(json.loads((args.run / "sweep.json").read_text())["base"])
     rows = []
