@@ -324,6 +324,22 @@ def test_episode_past_its_wall_limit_fails_with_its_reason(tmp_path):
     assert episode.failed_phase == "push cube to target" and episode.result is not None
 
 
+def test_resume_keeps_the_records_and_reruns_lines_that_are_not_records(tmp_path):
+    """A damaged episodes.jsonl (bytes that are not UTF-8, a cut multi-byte character at the end, JSON that is not an
+    episode) is no traceback: its good records are kept, the rest run again."""
+    spec = SweepSpec(QUICK)
+    store = SweepStore(tmp_path, spec, 0, resume=False)
+    store.add(Episode(0, 1, {}, [], "failed"))
+    store.add(Episode(2, 1, {}, [], "success"))
+    store.close()
+    with (tmp_path / "episodes.jsonl").open("ab") as f:
+        f.write(b"\xff\xfe not text\n[1, 2]\n{\"index\": 5}\n{\"index\": 3, \"note\": \"\xc3")
+    resumed = SweepStore(tmp_path, spec, 0, resume=True)
+    resumed.close()
+    assert sorted(resumed.done) == [0, 2]
+    assert (tmp_path / "episodes.jsonl").read_bytes().endswith(b"{\"index\": 5}\n")  # the cut line is gone
+
+
 @pytest.mark.slow
 def test_resume_runs_only_the_missing_episodes(tmp_path, six_local):
     spec, ref = six_local

@@ -83,14 +83,17 @@ class SweepStore:
         done: dict[int, Episode] = {}
         if not self.episodes_path.is_file():
             return done
-        text = self.episodes_path.read_text()
-        if text and not text.endswith("\n"):  # the last line was cut short by an interruption: it runs again
-            text = text[: text.rfind("\n") + 1]
-            self.episodes_path.write_text(text)
-        for line in text.splitlines():
-            try:
-                ep = Episode.from_json(json.loads(line))
-            except (json.JSONDecodeError, TypeError):
+        try:
+            data = self.episodes_path.read_bytes()
+            if data and not data.endswith(b"\n"):  # the last line was cut short by an interruption: it runs again
+                data = data[: data.rfind(b"\n") + 1]
+                self.episodes_path.write_bytes(data)
+        except OSError as exc:
+            raise ConfigError(f"--resume: cannot read or mend {self.episodes_path} ({exc.strerror or exc})") from None
+        for line in data.splitlines():
+            try:  # a line that is not a record (not UTF-8, not JSON, not an episode) runs again
+                ep = Episode.from_json(json.loads(line.decode("utf-8")))
+            except (UnicodeDecodeError, json.JSONDecodeError, TypeError, KeyError, ValueError, AttributeError):
                 continue
             done[ep.index] = ep
         return done
