@@ -29,3 +29,29 @@ def folder_problem(folder: Path) -> str | None:
     except OSError as exc:
         return f"folder {existing} is not writable ({exc.strerror or exc})"
     return None
+
+
+def refuse_overwriting(outputs: dict[str, Path | None], inputs: dict[str, Path | str | None]) -> None:
+    """Refuse an output that would overwrite one of the command's inputs, or another of its outputs.
+
+    Args:
+        outputs: What each output is called (``--plot``) and the path it would be written to (None: not asked for).
+        inputs: What each input is called (``the config``) and its path (None or missing files are skipped).
+
+    Raises:
+        ConfigError: Naming the output, the path and what is already there.
+    """
+    from nextage_qp.errors import ConfigError
+
+    taken: dict[Path, str] = {}
+    for name, path in inputs.items():
+        if path is not None and Path(path).is_file():
+            taken.setdefault(Path(path).resolve(), name)
+    for name, path in outputs.items():
+        if path is None:
+            continue
+        key = Path(path).resolve()
+        if key in taken:
+            raise ConfigError(f"{name} {path}: that is {taken[key]}, which this would overwrite; give {name} another "
+                              "path")
+        taken[key] = name if name.startswith("the ") else f"the {name} output"

@@ -18,6 +18,7 @@ PUSH = str(ROOT / "configs" / "push_cube.yaml")
 PICK = str(ROOT / "configs" / "pick_place_box.yaml")
 STACK = str(ROOT / "configs" / "stack_boxes.yaml")
 SWEEP = str(ROOT / "configs" / "sweeps" / "push_cube.yaml")
+STUDY = str(ROOT / "configs" / "studies" / "pd_gains.yaml")
 
 NEXTAGE = ((ROOT / "robots" / "nextage.yaml").read_text()
            .replace("model: nextage/", f"model: {ROOT}/robots/nextage/")
@@ -37,6 +38,17 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
      "--plot: '/proc/x.png': folder /proc is not writable"),
     ("run --log under a missing folder of /proc", ["run", PUSH, "--log", "/proc/x/y.npz"], {}, 2,
      "folder /proc is not writable"),
+    ("run --log summary onto the config", ["run", "{tmp}/c.json", "--log", "{tmp}/c.npz"],
+     {"c.json": open(PUSH).read()}, 2, "--log summary {tmp}/c.json: that is the config, which this would overwrite"),
+    ("sweep --json onto the sweep's own record", ["sweep", SWEEP, "--n", "1", "--out", "{tmp}/o", "--json",
+                                                  "{tmp}/o/sweep.json"], {}, 2,
+     "--json {tmp}/o/sweep.json: that is the sweep's record, which this would overwrite"),
+    ("sweep --only beyond the episode cap", ["sweep", SWEEP, "--only", "3,1000000"], {}, 2,
+     "--only '3,1000000': expected episode indices from 0 to 999999"),
+    ("tune --out a sweep's folder", ["tune", STUDY, "--out", "{tmp}/o"], {"o/sweep.json": "{}"}, 2,
+     "--out {tmp}/o: holds a sweep's records (sweep.json, episodes.jsonl)"),
+    ("tune --out another study's folder", ["tune", STUDY, "--out", "{tmp}/o"],
+     {"o/summary.json": '{"study": "other"}'}, 2, "--out {tmp}/o: holds study 'other''s outputs"),
     ("sweep --json into /proc", ["sweep", SWEEP, "--n", "1", "--json", "/proc/x.json"], {}, 2,
      "--json: '/proc/x.json': folder /proc is not writable"),
     ("perception.dump into /proc", ["run", PUSH, "--set", "perception.source=camera", "--set",

@@ -18,6 +18,7 @@ from nextage_qp.commands.common import PLAIN_PROGRESS_S, PLOT_SUFFIXES, SEED, ou
 from nextage_qp.errors import ConfigError
 from nextage_qp.manipulation.config import jitter_overrides, load_config
 from nextage_qp.manipulation.runner import Runner
+from nextage_qp.out_paths import refuse_overwriting
 from nextage_qp.sweep.episode import unmet_criteria
 
 
@@ -51,6 +52,9 @@ def run(args: argparse.Namespace) -> int:
     if args.log:
         _check_log_summary(args.log)
     cfg = load_config(args.config, overrides)
+    refuse_overwriting({"--log": args.log, "--log summary": args.log.with_suffix(".json") if args.log else None,
+                        "--plot": args.plot, "--video": args.video, "--rerun": args.rerun},
+                       {"the config": args.config, "the robot file": cfg.robot, "the scene": cfg.scene.file})
     runner = Runner(cfg, args.config)
     err = Console(stderr=True)
     callbacks = []

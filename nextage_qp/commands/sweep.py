@@ -27,6 +27,7 @@ from nextage_qp.commands.common import (
 from nextage_qp.errors import ConfigError
 from nextage_qp.estimate_errors import SHOVE_SETTLE_S
 from nextage_qp.json_out import dumps
+from nextage_qp.out_paths import refuse_overwriting
 from nextage_qp.sweep.episode import Episode
 from nextage_qp.sweep.run import plan, run_sweep
 from nextage_qp.sweep.spec import SweepSpec
@@ -58,8 +59,8 @@ def _indices(args: argparse.Namespace) -> list[int]:
             only = [int(x) for x in args.only.split(",") if x.strip()]
         except ValueError:
             raise ConfigError(f"--only {args.only!r}: expected episode indices like 3,17,42") from None
-        if not only or min(only) < 0:
-            raise ConfigError(f"--only {args.only!r}: expected episode indices >= 0 like 3,17,42")
+        if not only or min(only) < 0 or max(only) >= 1_000_000:
+            raise ConfigError(f"--only {args.only!r}: expected episode indices from 0 to 999999 like 3,17,42")
         return sorted(set(only))
     if args.n is None:
         raise ConfigError("--n is required (the number of episodes), unless --only names episodes")
@@ -129,6 +130,9 @@ def run(args: argparse.Namespace) -> int:
         out = Path(tempfile.mkdtemp(prefix=f"nextage-sweep-{spec.name}-"))
     else:
         out = default_folder(spec, args.seed)
+    refuse_overwriting({"the sweep's record": out / "sweep.json", "the sweep's episodes": out / "episodes.jsonl",
+                        "--json": args.json, "--plot": args.plot},
+                       {"the sweep file": spec.path, "its base config": spec.base_path})
     store = SweepStore(out, spec, args.seed, resume=args.resume)
     tasks = plan(spec, args.seed, indices)
     already = [store.done[t.index] for t in tasks if t.index in store.done]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 from pathlib import Path
@@ -61,6 +62,23 @@ class _Progress:
                            markup=False, soft_wrap=True)
 
 
+def _not_anothers(out: Path, name: str) -> None:
+    """Refuse an ``--out`` that holds a sweep's records or another study's outputs (its summary.json is rewritten)."""
+    if (out / "sweep.json").is_file() or (out / "episodes.jsonl").is_file():
+        raise ConfigError(f"--out {out}: holds a sweep's records (sweep.json, episodes.jsonl), which the study's "
+                          "outputs would overwrite; choose another --out")
+    summary = out / "summary.json"
+    if summary.is_file():
+        try:
+            doc = json.loads(summary.read_text())
+        except (OSError, ValueError):
+            doc = None
+        owner = doc.get("study") if isinstance(doc, dict) else None
+        if owner != name:
+            what = f"study {owner!r}'s outputs" if isinstance(owner, str) else "a summary.json this study did not write"
+            raise ConfigError(f"--out {out}: holds {what}, which study {name!r} would overwrite; choose another --out")
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the study; exit 0 when it holds the requested trials and its outputs are written, 130 on Ctrl-C."""
     from nextage_qp.sweep.backends import local_pool, ray_init
@@ -70,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
     study = Study(args.study)
     trials = _check(args, study.file.trials)
     out = args.out or Path("runs") / "studies" / study.name
+    _not_anothers(out, study.name)
     _out_dir(out)
     url = args.storage or f"sqlite:///{(out / 'study.db').resolve()}"
     storage = open_storage(url)
