@@ -30,14 +30,14 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, model_validator
+from pydantic import Field, model_validator
 
-from nextage_qp.yaml_file import MAX_SECONDS, STRICT, name_field
+from nextage_qp.yaml_file import MAX_SECONDS, STRICT, YamlModel, name_field
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 
 
-class _Strict(BaseModel):
+class _Strict(YamlModel):
     model_config = STRICT
 
 

@@ -26,12 +26,12 @@ from typing import TYPE_CHECKING, Annotated
 
 import mujoco
 import numpy as np
-from pydantic import BaseModel, Field
+from pydantic import Field
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.robots.schema import GainRule
 from nextage_qp.scene import package_root
-from nextage_qp.yaml_file import STRICT, read_yaml_mapping, validate
+from nextage_qp.yaml_file import STRICT, YamlModel, read_yaml_mapping, validate
 
 if TYPE_CHECKING:
     from nextage_qp.robot import Robot
@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False, strict=True)]
 
 
-class JointGains(BaseModel):
+class JointGains(YamlModel):
     """One joint's gains: ``kp`` [N·m/rad] and ``kd`` [N·m·s/rad], finite and >= 0."""
 
     model_config = STRICT
@@ -48,7 +48,7 @@ class JointGains(BaseModel):
     kd: NonNegative
 
 
-class GainsFile(BaseModel):
+class GainsFile(YamlModel):
     """The schema of a gains YAML: one entry per robot joint and the gravity-compensation switch."""
 
     model_config = STRICT

@@ -25,9 +25,9 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import Field, model_validator
 
-from nextage_qp.yaml_file import STRICT
+from nextage_qp.yaml_file import STRICT, YamlModel
 
 Shape = Literal["box", "cylinder", "capsule", "sphere", "prism"]
 SIZES = {"box": 3, "cylinder": 2, "capsule": 2, "sphere": 1, "prism": 2}
@@ -41,7 +41,7 @@ RGBA = tuple[Unit, Unit, Unit, Unit]
 """A colour: red, green, blue and alpha, each in [0, 1]."""
 
 
-class PartDecl(BaseModel):
+class PartDecl(YamlModel):
     """One primitive: shape, size, and (in a compound) its offset in the object's frame."""
 
     model_config = STRICT
@@ -62,7 +62,7 @@ class PartDecl(BaseModel):
         return self
 
 
-class ObjectDecl(BaseModel):
+class ObjectDecl(YamlModel):
     """An object declared in the task config (see the module docstring)."""
 
     model_config = STRICT

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import Field, model_validator
 
-from nextage_qp.yaml_file import STRICT
+from nextage_qp.yaml_file import STRICT, YamlModel
 
 
-class Timing(BaseModel):
+class Timing(YamlModel):
     """Loop rates: the physics step and the control period (a whole multiple of it)."""
 
     model_config = STRICT

@@ -20,18 +20,18 @@ from typing import NamedTuple
 
 import numpy as np
 import ruckig
-from pydantic import BaseModel, field_validator
+from pydantic import field_validator
 
 from nextage_qp.errors import TrajectoryError
 from nextage_qp.robot import PerJoint, per_joint
-from nextage_qp.yaml_file import STRICT
+from nextage_qp.yaml_file import STRICT, YamlModel
 
 _OK = (ruckig.Result.Working, ruckig.Result.Finished)
 MIN_LIMIT = 0.01  # smallest bound: below it a reference takes longer than Ruckig computes (ErrorTrajectoryDuration)
 NUDGE = 1e-12  # [rad] a target moves for Ruckig to solve a step it failed on numerically (JointTrajectory._nudged)
 
 
-class TrajectoryLimits(BaseModel):
+class TrajectoryLimits(YamlModel):
     """Kinematic bounds of the joint references, scalar (every joint) or per joint.
 
     A per-joint value is a list in the robot's joint order or a mapping ``{joint: value}`` (joints left out take

@@ -9,13 +9,13 @@ from __future__ import annotations
 from typing import Literal
 
 import qpsolvers
-from pydantic import BaseModel, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from nextage_qp.robot import GroupSpec
-from nextage_qp.yaml_file import STRICT
+from nextage_qp.yaml_file import STRICT, YamlModel
 
 
-class CollisionPairConfig(BaseModel):
+class CollisionPairConfig(YamlModel):
     """Collision avoidance between two named geom groups (see :meth:`Robot.collision_geoms`).
 
     Every geom of group ``a`` is kept at least ``min_distance`` from every geom of group ``b``; the
@@ -33,6 +33,9 @@ class CollisionPairConfig(BaseModel):
 
     @model_validator(mode="after")
     def _detection_beyond_minimum(self) -> CollisionPairConfig:
+        if self.a == self.b:
+            raise ValueError(f"a and b are both {self.a!r}: a pair keeps two different groups apart (a group's own "
+                             "links touch at their joints)")
         if self.detection_distance <= self.min_distance:
             raise ValueError(
                 f"detection_distance ({self.detection_distance} m) must exceed min_distance ({self.min_distance} m)"
@@ -40,7 +43,7 @@ class CollisionPairConfig(BaseModel):
         return self
 
 
-class CollisionGroupConfig(BaseModel):
+class CollisionGroupConfig(YamlModel):
     """A named geom group of its own.
 
     Every collision geom of the listed bodies and of the subtrees below the listed roots (e.g. ``{subtrees:
@@ -59,7 +62,7 @@ class CollisionGroupConfig(BaseModel):
         return self
 
 
-class IKConfig(BaseModel):
+class IKConfig(YamlModel):
     r"""Differential IK as a QP: task costs, regularisation, limits and solver.
 
     The QP solved each step (mink's formulation, :math:`\Delta q = v\,dt`) is

@@ -15,7 +15,7 @@ from typing import Annotated, Any, Union
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, Field, create_model, model_validator
+from pydantic import Field, create_model, model_validator
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.faults import EstimationConfig, FaultsConfig
@@ -28,12 +28,12 @@ from nextage_qp.scene_objects import ObjectDecl
 from nextage_qp.sim import Timing
 from nextage_qp.trajectory import TrajectoryLimits
 from nextage_qp.vision.config import PerceptionConfig
-from nextage_qp.yaml_file import STRICT, load_yaml, read_yaml_mapping, validate, yaml_error_line
+from nextage_qp.yaml_file import STRICT, YamlModel, load_yaml, read_yaml_mapping, validate, yaml_error_line
 
 Vec3 = tuple[float, float, float]
 
 
-class _Strict(BaseModel):
+class _Strict(YamlModel):
     model_config = STRICT
 
 
@@ -49,10 +49,11 @@ class SceneConfig(_Strict):
 
     file: str = Field(description="Bundled scene name (push_cube, dock_dumbbell) or MJCF path.")
     poses: dict[str, PoseOverride] = Field(default_factory=dict, description="Body -> start/fixed pose.")
-    masses: dict[str, Annotated[float, Field(gt=0)]] = Field(default_factory=dict, description="Body -> mass [kg].")
-    friction_scale: dict[str, Annotated[float, Field(gt=0, allow_inf_nan=False)]] = Field(
-        default_factory=dict, description="Body -> factor on the sliding friction of all its contacts (default 1)."
-    )
+    masses: dict[str, Annotated[float, Field(ge=1e-4, le=50.0)]] = Field(
+        default_factory=dict, description="Body -> mass [kg], 0.1 g to 50 kg (as a declared object's).")
+    friction_scale: dict[str, Annotated[float, Field(gt=0, le=20.0, allow_inf_nan=False)]] = Field(
+        default_factory=dict, description="Body -> factor on the sliding friction of all its contacts (default 1, "
+                                          "at most 20).")
     objects: dict[str, ObjectDecl] = Field(
         default_factory=dict, description="Object -> shape, size, mass, friction, pose (nextage_qp/scene_objects.py).")
 
@@ -112,6 +113,17 @@ class ManipulationConfig(_Strict):
         if self.target == self.object:
             raise ValueError(f"target: {self.object!r} is the object itself (its error to itself is always 0); "
                              "name the body that marks its target")
+        return self
+
+    @model_validator(mode="after")
+    def _phase_names_are_unique(self) -> ManipulationConfig:
+        seen: dict[str, int] = {}
+        for i, phase in enumerate(self.phases):
+            if phase.name is not None and phase.name in seen:
+                raise ValueError(f"phases[{i}].name: {phase.name!r} is also phases[{seen[phase.name]}]'s name; a "
+                                 "failure names its phase, so give each phase its own")
+            if phase.name is not None:
+                seen[phase.name] = i
         return self
 
     @model_validator(mode="after")

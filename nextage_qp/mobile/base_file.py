@@ -21,14 +21,14 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import Field, model_validator
 
-from nextage_qp.yaml_file import STRICT
+from nextage_qp.yaml_file import STRICT, YamlModel
 
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
-class BaseLimits(BaseModel):
+class BaseLimits(YamlModel):
     """What the base's motors and steering can do."""
 
     model_config = STRICT
@@ -41,7 +41,7 @@ class BaseLimits(BaseModel):
     steer_rate: Positive = Field(default=1.5, le=50.0, description="Bicycle: steering speed [rad/s].")
 
 
-class ChassisFile(BaseModel):
+class ChassisFile(YamlModel):
     """The base's own body (the robot stands on it)."""
 
     model_config = STRICT
@@ -50,7 +50,7 @@ class ChassisFile(BaseModel):
     half_height: Positive = Field(default=0.04, le=1.0, description="Chassis plate half-height [m].")
 
 
-class BaseFile(BaseModel):
+class BaseFile(YamlModel):
     """The schema of a robot file's ``base:`` section (see the module docstring)."""
 
     model_config = STRICT

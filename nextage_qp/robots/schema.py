@@ -36,17 +36,17 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, Field, ValidationInfo, field_validator, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from nextage_qp.mobile.base_file import BaseFile
 from nextage_qp.vision.cameras import CameraFile
-from nextage_qp.yaml_file import STRICT
+from nextage_qp.yaml_file import STRICT, YamlModel
 
 Name = Annotated[str, Field(min_length=1)]
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
-class ArmFile(BaseModel):
+class ArmFile(YamlModel):
     """One arm: its joints (shoulder to wrist) and the frames the phases use on it."""
 
     model_config = STRICT
@@ -58,7 +58,7 @@ class ArmFile(BaseModel):
     pad: Name | None = Field(default=None, description="Frame on the clamping face (default: the wrist).")
 
 
-class FrameFile(BaseModel):
+class FrameFile(YamlModel):
     """A frame the robot file adds to the model: a site on a body, at an offset in the body's frame."""
 
     model_config = STRICT
@@ -77,7 +77,7 @@ class FrameFile(BaseModel):
         return self
 
 
-class GroupFile(BaseModel):
+class GroupFile(YamlModel):
     """A collision group: bodies, and whole subtrees (a body and every body below it)."""
 
     model_config = STRICT
@@ -92,7 +92,7 @@ class GroupFile(BaseModel):
         return self
 
 
-class GainRule(BaseModel):
+class GainRule(YamlModel):
     """PD gains from each joint's reflected inertia at ``home``: ``kp = I w^2``, ``kd = 2 zeta I w - d``."""
 
     model_config = STRICT
@@ -102,7 +102,7 @@ class GainRule(BaseModel):
     gravity_compensation: bool = True
 
 
-class MountFile(BaseModel):
+class MountFile(YamlModel):
     """Where the robot's root sits in the world of a task scene."""
 
     model_config = STRICT
@@ -111,7 +111,7 @@ class MountFile(BaseModel):
     yaw: float = Field(default=0.0, ge=-7.0, le=7.0, description="[rad]")
 
 
-class RobotFile(BaseModel):
+class RobotFile(YamlModel):
     """The schema of a robot file (see the module docstring)."""
 
     model_config = STRICT

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from nextage_qp.errors import ConfigError, InfeasibleError
 from nextage_qp.manipulation.config import load_config
@@ -33,13 +33,13 @@ from nextage_qp.manipulation.runner import build_robot
 from nextage_qp.robots.description import DEFAULT_ROBOT
 from nextage_qp.sweep.keys import key_hash, lookup, scene_default, yaml_scalar
 from nextage_qp.sweep.nested import check_nested, draw_nested, extremes
-from nextage_qp.yaml_file import STRICT, read_yaml_mapping, validate
+from nextage_qp.yaml_file import STRICT, YamlModel, read_yaml_mapping, validate
 
 Number = Annotated[float, Field(allow_inf_nan=False)]
 Bound = Number | list[Number]
 
 
-class _Strict(BaseModel):
+class _Strict(YamlModel):
     model_config = STRICT
 
 

@@ -26,10 +26,10 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import Field, model_validator
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.yaml_file import STRICT, read_yaml_mapping, validate
+from nextage_qp.yaml_file import STRICT, YamlModel, read_yaml_mapping, validate
 
 Number = Annotated[float, Field(allow_inf_nan=False)]
 OBJECTIVES = {"sweep": ("failures_then_p95_error",), "steps": ("settling_time",)}
@@ -37,7 +37,7 @@ SAMPLERS = ("tpe", "cmaes")
 PARAM_KEYS = ("float", "log", "int", "choice", "also")
 
 
-class _Strict(BaseModel):
+class _Strict(YamlModel):
     model_config = STRICT
 
 

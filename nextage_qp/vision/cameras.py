@@ -24,13 +24,13 @@ import math
 
 import mujoco
 import numpy as np
-from pydantic import BaseModel, Field
+from pydantic import Field
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.yaml_file import STRICT
+from nextage_qp.yaml_file import STRICT, YamlModel
 
 
-class DepthNoise(BaseModel):
+class DepthNoise(YamlModel):
     """Depth noise of a range camera: axial sigma ``sigma_m + per_m2 * z^2`` and missing pixels at depth edges."""
 
     model_config = STRICT
@@ -44,7 +44,7 @@ class DepthNoise(BaseModel):
                                 description="Probability that an edge pixel has no depth.")
 
 
-class CameraFile(BaseModel):
+class CameraFile(YamlModel):
     """One camera of a robot file (see the module docstring)."""
 
     model_config = STRICT

@@ -15,12 +15,12 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, Field
+from pydantic import Field
 
-from nextage_qp.yaml_file import STRICT
+from nextage_qp.yaml_file import STRICT, YamlModel
 
 
-class PerceptionConfig(BaseModel):
+class PerceptionConfig(YamlModel):
     """See the module docstring."""
 
     model_config = STRICT

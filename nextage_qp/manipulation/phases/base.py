@@ -18,12 +18,12 @@ from nextage_qp.geometry import Pose
 from nextage_qp.manipulation.clamp import Clamp
 from nextage_qp.manipulation.context import Grip, View
 from nextage_qp.servo import Command
-from nextage_qp.yaml_file import MAX_SECONDS, STRICT, NameKind, name_field
+from nextage_qp.yaml_file import MAX_SECONDS, STRICT, NameKind, YamlModel, name_field
 
 __all__ = ["MAX_SECONDS", "NameKind", "Phase", "Spec", "name_field"]
 
 
-class Spec(BaseModel):
+class Spec(YamlModel):
     """Fields every phase has; subclasses add ``kind: Literal[...]`` and their own."""
 
     model_config = STRICT

@@ -5,18 +5,18 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, Field
+from pydantic import Field
 
 from nextage_qp.geometry import yaw_of
 from nextage_qp.manipulation.context import Setpoint, View, resolve_point
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
 from nextage_qp.servo import Command
-from nextage_qp.yaml_file import STRICT
+from nextage_qp.yaml_file import STRICT, YamlModel
 
 Vec3 = tuple[float, float, float]
 
 
-class Waypoint(BaseModel):
+class Waypoint(YamlModel):
     """Where the grasped object's origin should pass: a body-relative or world position and yaw."""
 
     model_config = STRICT

@@ -6,19 +6,19 @@ import math
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, model_validator
+from pydantic import Field, model_validator
 
 from nextage_qp.manipulation.context import Setpoint, View, frame_target, resolve_point
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
 from nextage_qp.servo import Command
-from nextage_qp.yaml_file import STRICT
+from nextage_qp.yaml_file import STRICT, YamlModel
 
 Vec3 = tuple[float, float, float]
 Metres = Annotated[float, Field(ge=-10.0, le=10.0)]
 """A coordinate or offset [m]: within 10 m (as the command line's positions)."""
 
 
-class TargetSpec(BaseModel):
+class TargetSpec(YamlModel):
     """Where one tool frame should go, in the world or relative to a named body's live pose.
 
     The target position is ``ref.pos + R_ref @ offset`` where ``R_ref`` is the reference body's yaw
