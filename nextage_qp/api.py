@@ -139,7 +139,14 @@ def load_task(path: str | Path, *, overrides: Sequence[str] = ()) -> Task:
     Raises:
         ConfigError: The file is missing or invalid, or an override names a key the config does not have.
     """
-    return Task(load_config(path, _overrides(overrides)), str(path))
+    return Task(load_config(_path(path, "path"), _overrides(overrides)), str(path))
+
+
+def _path(value: Any, what: str) -> str | Path:
+    """``value`` if it is a path (a str or os.PathLike); a ConfigError naming ``what`` otherwise."""
+    if isinstance(value, (str, os.PathLike)) and str(value).strip():
+        return value
+    raise ConfigError(f"{what}: {value!r} is not a file path or bundled name (give a str or pathlib.Path)")
 
 
 def _overrides(overrides: Sequence[str]) -> list[str]:
@@ -154,6 +161,8 @@ def _overrides(overrides: Sequence[str]) -> list[str]:
 def run_task(path: str | Path, *, overrides: Sequence[str] = (), on_tick: Callable[[Tick], None] | None = None
              ) -> RunResult:
     """:func:`load_task`, then :meth:`Task.run`."""
+    if on_tick is not None and not callable(on_tick):
+        raise ConfigError(f"on_tick: {on_tick!r} is not callable (give a function of one Tick, or None)")
     return load_task(path, overrides=overrides).run(on_tick=on_tick)
 
 
@@ -185,12 +194,14 @@ def run_sweep(path: str | Path, episodes: int, *, seed: int = 0, workers: int | 
     from nextage_qp.sweep.store import SweepStore, default_folder
     from nextage_qp.sweep.summary import write_summary
 
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
-        raise ConfigError(f"episodes: {episodes!r} must be a whole number >= 1")
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or not 1 <= episodes <= 1_000_000:
+        raise ConfigError(f"episodes: {episodes!r} must be a whole number from 1 to 1000000")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ConfigError(f"workers: {workers!r} must be a whole number >= 1, or None (one per core)")
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
         raise ConfigError(f"seed: {seed!r} must be a whole number in [0, 2**32)")
-    spec = SweepSpec(path, _overrides(overrides))
-    folder = Path(out) if out is not None else default_folder(spec, seed)
+    spec = SweepSpec(_path(path, "path"), _overrides(overrides))
+    folder = Path(_path(out, "out")) if out is not None else default_folder(spec, seed)
     store = SweepStore(folder, spec, seed, resume=False)
     tasks = plan(spec, seed, range(episodes))
     start = time.monotonic()
@@ -207,7 +218,7 @@ def load_robot(ref: str | Path | None = None, *, scene: str | Path = "scene") ->
     Raises:
         ConfigError: The robot file or the scene is invalid, or they do not compile together.
     """
-    return Robot.from_scene(scene, robot=ref)
+    return Robot.from_scene(_path(scene, "scene"), robot=None if ref is None else _path(ref, "ref"))
 
 
 def register_phase(spec: type[Spec], phase: type[Phase]) -> None:

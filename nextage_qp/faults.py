@@ -32,13 +32,13 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from nextage_qp.yaml_file import MAX_SECONDS, STRICT, YamlModel, name_field
+from nextage_qp.yaml_file import MAX_SECONDS, name_field
+from nextage_qp.yaml_model import YamlModel
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 
 
-class _Strict(YamlModel):
-    model_config = STRICT
+_Strict = YamlModel
 
 
 class ObjectPoseFaults(_Strict):

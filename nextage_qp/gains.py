@@ -31,7 +31,8 @@ from pydantic import Field
 from nextage_qp.errors import ConfigError
 from nextage_qp.robots.schema import GainRule
 from nextage_qp.scene import package_root
-from nextage_qp.yaml_file import STRICT, YamlModel, read_yaml_mapping, validate
+from nextage_qp.yaml_file import read_yaml_mapping, validate
+from nextage_qp.yaml_model import YamlModel
 
 if TYPE_CHECKING:
     from nextage_qp.robot import Robot
@@ -42,16 +43,12 @@ NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False, strict=True)]
 class JointGains(YamlModel):
     """One joint's gains: ``kp`` [N·m/rad] and ``kd`` [N·m·s/rad], finite and >= 0."""
 
-    model_config = STRICT
-
     kp: NonNegative
     kd: NonNegative
 
 
 class GainsFile(YamlModel):
     """The schema of a gains YAML: one entry per robot joint and the gravity-compensation switch."""
-
-    model_config = STRICT
 
     gravity_compensation: bool = Field(default=True, strict=True)
     joints: dict[str, JointGains]

@@ -27,7 +27,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from nextage_qp.yaml_file import STRICT, YamlModel
+from nextage_qp.yaml_model import YamlModel
 
 Shape = Literal["box", "cylinder", "capsule", "sphere", "prism"]
 SIZES = {"box": 3, "cylinder": 2, "capsule": 2, "sphere": 1, "prism": 2}
@@ -43,8 +43,6 @@ RGBA = tuple[Unit, Unit, Unit, Unit]
 
 class PartDecl(YamlModel):
     """One primitive: shape, size, and (in a compound) its offset in the object's frame."""
-
-    model_config = STRICT
 
     shape: Shape
     size: tuple[Length, ...] = Field(description="MuJoCo's geom size convention [m] (see the module docstring).")
@@ -64,8 +62,6 @@ class PartDecl(YamlModel):
 
 class ObjectDecl(YamlModel):
     """An object declared in the task config (see the module docstring)."""
-
-    model_config = STRICT
 
     shape: Literal["box", "cylinder", "capsule", "sphere", "prism", "compound"] = "box"
     size: tuple[Length, ...] | None = None

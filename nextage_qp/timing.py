@@ -4,13 +4,11 @@ from __future__ import annotations
 
 from pydantic import Field, model_validator
 
-from nextage_qp.yaml_file import STRICT, YamlModel
+from nextage_qp.yaml_model import YamlModel
 
 
 class Timing(YamlModel):
     """Loop rates: the physics step and the control period (a whole multiple of it)."""
-
-    model_config = STRICT
 
     sim_dt: float = Field(default=0.001, ge=1e-5, le=0.01, description="Physics step [s], 10 us to 10 ms.")
     ctrl_dt: float = Field(default=0.004, gt=0, le=0.05, description="IK + Ruckig period [s] (multiple of sim_dt).")

@@ -24,7 +24,7 @@ from pydantic import field_validator
 
 from nextage_qp.errors import TrajectoryError
 from nextage_qp.robot import PerJoint, per_joint
-from nextage_qp.yaml_file import STRICT, YamlModel
+from nextage_qp.yaml_model import YamlModel
 
 _OK = (ruckig.Result.Working, ruckig.Result.Finished)
 MIN_LIMIT = 0.01  # smallest bound: below it a reference takes longer than Ruckig computes (ErrorTrajectoryDuration)
@@ -42,8 +42,6 @@ class TrajectoryLimits(YamlModel):
         max_acceleration: [rad/s²].
         max_jerk: [rad/s³].
     """
-
-    model_config = STRICT
 
     max_velocity: PerJoint = 1.0
     max_acceleration: PerJoint = 4.0

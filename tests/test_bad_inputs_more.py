@@ -346,11 +346,52 @@ def test_the_python_api_refuses_bad_arguments_in_one_line():
     assert abs(task.config.scene.poses["cube"].yaw - 0.3) < 1e-12
     with pytest.raises(ConfigError, match=r"overrides: None is not a 'KEY=VALUE' string"):
         nq.load_task("push_cube", overrides=[None])  # type: ignore[list-item]
-    for episodes in (0, -3, 1.5, True):
-        with pytest.raises(ConfigError, match=r"episodes: .* must be a whole number >= 1"):
+    for episodes in (0, -3, 1.5, True, 10**9):
+        with pytest.raises(ConfigError, match=r"episodes: .* must be a whole number from 1 to 1000000"):
             nq.run_sweep(SWEEP, episodes)  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match=r"seed: -1 must be a whole number"):
         nq.run_sweep(SWEEP, 1, seed=-1)
+    for workers in (0, 2.0, True):
+        with pytest.raises(ConfigError, match=r"workers: .* must be a whole number >= 1, or None"):
+            nq.run_sweep(SWEEP, 1, workers=workers)  # type: ignore[arg-type]
+    for call in (lambda: nq.load_task(5), lambda: nq.run_sweep(None, 1), lambda: nq.load_robot(3.0)):
+        with pytest.raises(ConfigError, match=r"is not a file path or bundled name"):
+            call()  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match=r"on_tick: 5 is not callable"):
+        nq.run_task("push_cube", on_tick=5)  # type: ignore[arg-type]
+
+
+def test_phase_kinds_are_checked_when_registered_and_removed():
+    """register_phase refuses what is no Spec/Phase pair, a kind that is no one-string Literal and a built-in kind;
+    unregister_phase refuses a built-in or unknown kind, naming the kinds that may be removed."""
+    from typing import Literal
+
+    import nextage_qp as nq
+    from nextage_qp.manipulation.phases import REGISTRY, Phase, Spec
+    from nextage_qp.manipulation.phases.push import Push, PushSpec
+
+    class NoLiteral(Spec):
+        kind: str = "x"
+
+    class Mine(Spec):
+        kind: Literal["mine_for_a_test"]
+
+    with pytest.raises(TypeError, match=r"give a Spec subclass and a Phase subclass"):
+        nq.register_phase(dict, Phase)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match=r"NoLiteral.kind must be a Literal of one string"):
+        nq.register_phase(NoLiteral, Phase)
+    with pytest.raises(TypeError, match=r"'push' is a built-in phase kind"):
+        nq.register_phase(type("Other", (PushSpec,), {}), Push)
+    with pytest.raises(KeyError, match=r"'push' is a built-in phase kind; kinds added that may be removed: none"):
+        nq.unregister_phase("push")
+    with pytest.raises(KeyError, match=r"'nope' is not registered"):
+        nq.unregister_phase("nope")
+    nq.register_phase(Mine, Phase)
+    try:
+        assert REGISTRY["mine_for_a_test"] == (Mine, Phase)
+    finally:
+        nq.unregister_phase("mine_for_a_test")
+    assert "mine_for_a_test" not in REGISTRY and REGISTRY["push"] == (PushSpec, Push)
 
 
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")

@@ -12,7 +12,7 @@ import qpsolvers
 from pydantic import Field, field_validator, model_validator
 
 from nextage_qp.robot import GroupSpec
-from nextage_qp.yaml_file import STRICT, YamlModel
+from nextage_qp.yaml_model import YamlModel
 
 
 class CollisionPairConfig(YamlModel):
@@ -21,8 +21,6 @@ class CollisionPairConfig(YamlModel):
     Every geom of group ``a`` is kept at least ``min_distance`` from every geom of group ``b``; the
     constraint is sent to the QP only while the pair is closer than ``detection_distance``.
     """
-
-    model_config = STRICT
 
     a: str = Field(description="First geom group, e.g. 'left_arm'.")
     b: str = Field(description="Second geom group, e.g. 'table'.")
@@ -50,8 +48,6 @@ class CollisionGroupConfig(YamlModel):
     [FOREARM_LINK]}`` for a forearm).
     """
 
-    model_config = STRICT
-
     bodies: tuple[str, ...] = ()
     subtrees: tuple[str, ...] = ()
 
@@ -77,8 +73,6 @@ class IKConfig(YamlModel):
     orientation costs, posture weight :math:`w_p`, constant damping :math:`\lambda` and
     Levenberg–Marquardt damping :math:`\mu`.
     """
-
-    model_config = STRICT
 
     position_cost: float = Field(default=1.0, ge=0.0, description="Weight of frame position errors [1/m].")
     orientation_cost: float = Field(default=1.0, ge=0.0, description="Weight of frame orientation errors [1/rad].")

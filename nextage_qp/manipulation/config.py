@@ -28,13 +28,13 @@ from nextage_qp.scene_objects import ObjectDecl
 from nextage_qp.sim import Timing
 from nextage_qp.trajectory import TrajectoryLimits
 from nextage_qp.vision.config import PerceptionConfig
-from nextage_qp.yaml_file import STRICT, YamlModel, load_yaml, read_yaml_mapping, validate, yaml_error_line
+from nextage_qp.yaml_file import load_yaml, read_yaml_mapping, validate, yaml_error_line
+from nextage_qp.yaml_model import YamlModel
 
 Vec3 = tuple[float, float, float]
 
 
-class _Strict(YamlModel):
-    model_config = STRICT
+_Strict = YamlModel
 
 
 class PoseOverride(_Strict):

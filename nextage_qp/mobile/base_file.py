@@ -23,15 +23,13 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from nextage_qp.yaml_file import STRICT, YamlModel
+from nextage_qp.yaml_model import YamlModel
 
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
 class BaseLimits(YamlModel):
     """What the base's motors and steering can do."""
-
-    model_config = STRICT
 
     wheel_speed: Positive = Field(default=8.0, le=200.0, description="Largest wheel speed [rad/s].")
     wheel_torque: Positive = Field(default=30.0, le=1e4, description="Wheel motor torque limit [N m].")
@@ -44,16 +42,12 @@ class BaseLimits(YamlModel):
 class ChassisFile(YamlModel):
     """The base's own body (the robot stands on it)."""
 
-    model_config = STRICT
-
     mass: Positive = Field(default=20.0, le=1e4, description="[kg]")
     half_height: Positive = Field(default=0.04, le=1.0, description="Chassis plate half-height [m].")
 
 
 class BaseFile(YamlModel):
     """The schema of a robot file's ``base:`` section (see the module docstring)."""
-
-    model_config = STRICT
 
     type: Literal["diff_drive", "bicycle", "holonomic"]
     wheel_radius: Positive = Field(default=0.1, le=2.0, description="[m]")

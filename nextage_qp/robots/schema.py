@@ -40,7 +40,7 @@ from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from nextage_qp.mobile.base_file import BaseFile
 from nextage_qp.vision.cameras import CameraFile
-from nextage_qp.yaml_file import STRICT, YamlModel
+from nextage_qp.yaml_model import YamlModel
 
 Name = Annotated[str, Field(min_length=1)]
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
@@ -48,8 +48,6 @@ Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 class ArmFile(YamlModel):
     """One arm: its joints (shoulder to wrist) and the frames the phases use on it."""
-
-    model_config = STRICT
 
     name: Name = Field(description="Arm name, e.g. left; arm groups are named NAME_arm.")
     joints: tuple[Name, ...] = Field(min_length=1, description="Joints, shoulder to wrist.")
@@ -60,8 +58,6 @@ class ArmFile(YamlModel):
 
 class FrameFile(YamlModel):
     """A frame the robot file adds to the model: a site on a body, at an offset in the body's frame."""
-
-    model_config = STRICT
 
     body: Name
     pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -80,8 +76,6 @@ class FrameFile(YamlModel):
 class GroupFile(YamlModel):
     """A collision group: bodies, and whole subtrees (a body and every body below it)."""
 
-    model_config = STRICT
-
     bodies: tuple[Name, ...] = ()
     subtrees: tuple[Name, ...] = ()
 
@@ -95,8 +89,6 @@ class GroupFile(YamlModel):
 class GainRule(YamlModel):
     """PD gains from each joint's reflected inertia at ``home``: ``kp = I w^2``, ``kd = 2 zeta I w - d``."""
 
-    model_config = STRICT
-
     bandwidth: Positive = Field(default=30.0, le=500.0, description="Closed-loop natural frequency w [rad/s].")
     damping_ratio: Positive = Field(default=1.0, le=5.0, description="zeta.")
     gravity_compensation: bool = True
@@ -105,16 +97,12 @@ class GainRule(YamlModel):
 class MountFile(YamlModel):
     """Where the robot's root sits in the world of a task scene."""
 
-    model_config = STRICT
-
     pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
     yaw: float = Field(default=0.0, ge=-7.0, le=7.0, description="[rad]")
 
 
 class RobotFile(YamlModel):
     """The schema of a robot file (see the module docstring)."""
-
-    model_config = STRICT
 
     name: Name
     model: Name = Field(description="MJCF or URDF file, relative to the robot file, or package://NAME/PATH.")

@@ -33,14 +33,14 @@ from nextage_qp.manipulation.runner import build_robot
 from nextage_qp.robots.description import DEFAULT_ROBOT
 from nextage_qp.sweep.keys import key_hash, lookup, scene_default, yaml_scalar
 from nextage_qp.sweep.nested import check_nested, draw_nested, extremes
-from nextage_qp.yaml_file import STRICT, YamlModel, read_yaml_mapping, validate
+from nextage_qp.yaml_file import read_yaml_mapping, validate
+from nextage_qp.yaml_model import YamlModel
 
 Number = Annotated[float, Field(allow_inf_nan=False)]
 Bound = Number | list[Number]
 
 
-class _Strict(YamlModel):
-    model_config = STRICT
+_Strict = YamlModel
 
 
 class Distribution(_Strict):

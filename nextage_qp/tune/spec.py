@@ -29,7 +29,8 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, model_validator
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.yaml_file import STRICT, YamlModel, read_yaml_mapping, validate
+from nextage_qp.yaml_file import read_yaml_mapping, validate
+from nextage_qp.yaml_model import YamlModel
 
 Number = Annotated[float, Field(allow_inf_nan=False)]
 OBJECTIVES = {"sweep": ("failures_then_p95_error",), "steps": ("settling_time",)}
@@ -37,8 +38,7 @@ SAMPLERS = ("tpe", "cmaes")
 PARAM_KEYS = ("float", "log", "int", "choice", "also")
 
 
-class _Strict(YamlModel):
-    model_config = STRICT
+_Strict = YamlModel
 
 
 class Param(_Strict):

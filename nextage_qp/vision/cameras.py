@@ -27,13 +27,11 @@ import numpy as np
 from pydantic import Field
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.yaml_file import STRICT, YamlModel
+from nextage_qp.yaml_model import YamlModel
 
 
 class DepthNoise(YamlModel):
     """Depth noise of a range camera: axial sigma ``sigma_m + per_m2 * z^2`` and missing pixels at depth edges."""
-
-    model_config = STRICT
 
     sigma_m: float = Field(default=0.0012, ge=0, le=0.1, allow_inf_nan=False, description="Axial sigma at 0 m [m].")
     per_m2: float = Field(default=0.0019, ge=0, le=0.1, allow_inf_nan=False,
@@ -46,8 +44,6 @@ class DepthNoise(YamlModel):
 
 class CameraFile(YamlModel):
     """One camera of a robot file (see the module docstring)."""
-
-    model_config = STRICT
 
     body: str = Field(min_length=1, description="Body the camera is mounted on.")
     pos: tuple[float, float, float] = Field(default=(0.0, 0.0, 0.0), description="Position in the body [m].")

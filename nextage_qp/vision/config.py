@@ -17,13 +17,11 @@ from typing import Literal
 
 from pydantic import Field
 
-from nextage_qp.yaml_file import STRICT, YamlModel
+from nextage_qp.yaml_model import YamlModel
 
 
 class PerceptionConfig(YamlModel):
     """See the module docstring."""
-
-    model_config = STRICT
 
     source: Literal["truth", "simulated", "camera"] | None = Field(
         default=None, description="truth; simulated: faults.object_pose's noise, latency and dropouts; camera: poses "

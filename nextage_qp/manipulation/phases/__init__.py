@@ -6,6 +6,7 @@ new kind is one module (its spec and behaviour) and one :func:`register` line.
 
 from __future__ import annotations
 
+import typing
 from types import MappingProxyType
 from typing import Any
 
@@ -21,18 +22,44 @@ from nextage_qp.manipulation.phases.release import Release, ReleaseSpec
 from nextage_qp.manipulation.phases.wait import Wait, WaitSpec
 
 _REGISTRY: dict[str, tuple[type[Spec], type[Phase]]] = {}
+BUILT_IN: frozenset[str] = frozenset()
 REGISTRY = MappingProxyType(_REGISTRY)
 """Phase kind -> (its spec model, its behaviour class), in registration order."""
 
 
 def register(spec: type[Spec], phase: type[Phase]) -> None:
-    """Add a phase kind (the value of ``spec``'s ``kind`` literal); a kind registered again is replaced."""
-    _REGISTRY[spec.kind_name()] = (spec, phase)
+    """Add a phase kind (the value of ``spec``'s ``kind`` literal); a kind registered again is replaced.
+
+    Raises:
+        TypeError: ``spec`` is no Spec subclass with a one-value ``kind: Literal[...]``, or ``phase`` no Phase
+            subclass, or the kind is a built-in one registered with other classes.
+    """
+    if not (isinstance(spec, type) and issubclass(spec, Spec)) or not (isinstance(phase, type)
+                                                                       and issubclass(phase, Phase)):
+        raise TypeError(f"register({spec!r}, {phase!r}): give a Spec subclass and a Phase subclass")
+    field = spec.model_fields.get("kind")
+    args = typing.get_args(field.annotation) if field is not None else ()
+    if field is None or typing.get_origin(field.annotation) is not typing.Literal or len(args) != 1 \
+            or not isinstance(args[0], str):
+        raise TypeError(f"register: {spec.__name__}.kind must be a Literal of one string, e.g. kind: "
+                        "Literal['my_phase']")
+    kind = args[0]
+    if kind in BUILT_IN and _REGISTRY.get(kind) not in (None, (spec, phase)):
+        raise TypeError(f"register: {kind!r} is a built-in phase kind; give yours another kind name")
+    _REGISTRY[kind] = (spec, phase)
 
 
 def unregister(kind: str) -> None:
-    """Remove a phase kind (e.g. one a test added)."""
-    _REGISTRY.pop(kind, None)
+    """Remove a phase kind added with :func:`register`.
+
+    Raises:
+        KeyError: ``kind`` is built in, or not registered (the message lists the kinds that may be removed).
+    """
+    if kind in BUILT_IN or kind not in _REGISTRY:
+        added = sorted(set(_REGISTRY) - BUILT_IN)
+        raise KeyError(f"unregister: {kind!r} is {'a built-in phase kind' if kind in BUILT_IN else 'not registered'}; "
+                       f"kinds added that may be removed: {', '.join(added) or 'none'}")
+    del _REGISTRY[kind]
 
 
 def build(spec: Any, name: str) -> Phase:
@@ -49,5 +76,7 @@ register(ReleaseSpec, Release)
 register(JointsSpec, Joints)
 register(WaitSpec, Wait)
 register(DriveSpec, Drive)
+BUILT_IN = frozenset(_REGISTRY)
+"""The kinds this package registers, which :func:`register` does not replace and :func:`unregister` keeps."""
 
 __all__ = ["REGISTRY", "Phase", "Spec", "build", "names_in", "register", "unregister"]

@@ -18,15 +18,14 @@ from nextage_qp.geometry import Pose
 from nextage_qp.manipulation.clamp import Clamp
 from nextage_qp.manipulation.context import Grip, View
 from nextage_qp.servo import Command
-from nextage_qp.yaml_file import MAX_SECONDS, STRICT, NameKind, YamlModel, name_field
+from nextage_qp.yaml_file import MAX_SECONDS, NameKind, name_field
+from nextage_qp.yaml_model import YamlModel
 
 __all__ = ["MAX_SECONDS", "NameKind", "Phase", "Spec", "name_field"]
 
 
 class Spec(YamlModel):
     """Fields every phase has; subclasses add ``kind: Literal[...]`` and their own."""
-
-    model_config = STRICT
 
     grip: ClassVar[str | None] = None
     """How the phase uses the clamp: ``"makes"`` one (grasp), ``"needs"`` one on its object from an earlier phase

@@ -11,15 +11,13 @@ from nextage_qp.geometry import yaw_of
 from nextage_qp.manipulation.context import Setpoint, View, resolve_point
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
 from nextage_qp.servo import Command
-from nextage_qp.yaml_file import STRICT, YamlModel
+from nextage_qp.yaml_model import YamlModel
 
 Vec3 = tuple[float, float, float]
 
 
 class Waypoint(YamlModel):
     """Where the grasped object's origin should pass: a body-relative or world position and yaw."""
-
-    model_config = STRICT
 
     relative_to: str = name_field("reference", default="world")
     offset: Vec3 = (0.0, 0.0, 0.0)

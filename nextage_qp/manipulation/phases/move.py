@@ -11,7 +11,7 @@ from pydantic import Field, model_validator
 from nextage_qp.manipulation.context import Setpoint, View, frame_target, resolve_point
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
 from nextage_qp.servo import Command
-from nextage_qp.yaml_file import STRICT, YamlModel
+from nextage_qp.yaml_model import YamlModel
 
 Vec3 = tuple[float, float, float]
 Metres = Annotated[float, Field(ge=-10.0, le=10.0)]
@@ -26,8 +26,6 @@ class TargetSpec(YamlModel):
     = the reference yaw turned by ``yaw`` [rad] about world z, z up), a world ``quat`` (w, x, y, z), or a
     tool ``axis`` (frame coordinates) that must point along a world ``direction``; or none.
     """
-
-    model_config = STRICT
 
     frame: str = name_field("frame", description="Site or body of the robot to move, e.g. an arm's tool frame.")
     relative_to: str = name_field("reference", default="world", description="'world' or a body name.")
