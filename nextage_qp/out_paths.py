@@ -6,6 +6,7 @@ A folder is writable when a temporary file can be made in it (and is gone again 
 
 from __future__ import annotations
 
+import os
 import tempfile
 from pathlib import Path
 
@@ -16,6 +17,14 @@ def nearest_existing(path: Path) -> Path:
     while not folder.exists() and folder != folder.parent:
         folder = folder.parent
     return folder
+
+
+def name_max(filename: object) -> int:
+    """The longest file name the file system that would hold ``filename`` takes (its nearest existing folder's)."""
+    try:
+        return os.pathconf(nearest_existing(Path(os.fsdecode(filename)).absolute()), "PC_NAME_MAX")  # type: ignore
+    except (OSError, TypeError, ValueError):
+        return 255
 
 
 def folder_problem(folder: Path) -> str | None:

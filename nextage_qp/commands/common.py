@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import math
 import os
 import re
@@ -14,7 +15,7 @@ import numpy as np
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.json_out import dumps
-from nextage_qp.out_paths import folder_problem
+from nextage_qp.out_paths import folder_problem, name_max
 from nextage_qp.robot import Robot
 
 
@@ -102,6 +103,14 @@ def output_file(*suffixes: str) -> Callable[[str], Path]:
     """
 
     def parse(text: str) -> Path:
+        try:
+            return checked(text)
+        except OSError as exc:  # a name over the file system's limit, say
+            long = exc.errno == errno.ENAMETOOLONG
+            limit = f" (at most {name_max(text)} characters a path component)" if long else ""
+            raise argparse.ArgumentTypeError(f"{text[:80]!r}: {exc.strerror or exc}{limit}") from None
+
+    def checked(text: str) -> Path:
         path = Path(text)
         want = " or ".join(suffixes)
         if not text.strip() or text.endswith(("/", os.sep)) or path.is_dir():
