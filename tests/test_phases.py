@@ -215,7 +215,7 @@ def test_push_fans_out_to_the_nearest_reachable_direction_and_refuses_when_there
     assert phase.info["directions_tried"] == 2
     assert phase.info["direction"] == pytest.approx([np.cos(0.2618), np.sin(0.2618)], abs=1e-4)
     view = push_view(reach=lambda targets: False)
-    with pytest.raises(PhaseError, match=r"no approach to cube within 60 deg of its line to cube_target"):
+    with pytest.raises(PhaseError, match=r"no approach to cube \(70 mm tall\) within 60 deg of its line to cube_target"):
         make("push", frame="left_tool", object="cube", target="cube_target").start(view)
 
 

@@ -27,13 +27,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import Pose, angle2, clamp, rot_z, rotate2, turn2, unit2, yaw_of
 from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.contact import PushContact
 from nextage_qp.manipulation.context import Setpoint, View
 from nextage_qp.manipulation.phases.base import Phase
-from nextage_qp.manipulation.phases.push_judge import finish, hold, retreat, start_retreat
+from nextage_qp.manipulation.phases.push_judge import finish, hold, no_approach, retreat, start_retreat
 from nextage_qp.manipulation.phases.push_spec import (
     BLIND_S,
     GAP_TIME,
@@ -77,10 +76,7 @@ class Push(Phase):
         obj, tgt, _ = self._planar(view)
         self._approach(view, unit2((tgt - obj)[:2]))
         if self.plan_failed:
-            raise PhaseError(f"phase {self.name!r} (push): no approach to {self.spec.object} within "
-                             f"{np.degrees(max(self.spec.fan)):.0f} deg of its line to {self.spec.target} is reachable "
-                             f"by {self.frame} (out of the arm's reach at the push height, or a tool point inside the "
-                             "hand, which then collides with the object: docs/robots.md)")
+            raise no_approach(self, view)
 
     def stalled(self, view: View) -> str | None:  # noqa: D102
         tilted_s = self.info.get("tilt_pauses", 0) * view.dt  # ticks the push paused for a tipping object

@@ -55,6 +55,17 @@ def hold(p: Push, view: View) -> Command:
     return finish(p, err)
 
 
+def no_approach(p: Push, view: View) -> PhaseError:
+    """The error of a push that finds no reachable approach at its start, with the object's height."""
+    c = p.spec
+    tall = sum(view.extent(c.object, np.array([0.0, 0.0, z])) for z in (1.0, -1.0)) * 1e3
+    return PhaseError(f"phase {p.name!r} (push): no approach to {c.object} ({tall:.0f} mm tall) within "
+                      f"{np.degrees(max(c.fan)):.0f} deg of its line to {c.target} is reachable by {p.frame}: out of "
+                      "the arm's reach at the push height, lower than the hand reaches down "
+                      "(tools/push_contact_height.py), or a tool point inside the hand, which then collides with the "
+                      "object (docs/robots.md)")
+
+
 def finish(p: Push, err: float, cause: str = "") -> Command:
     """Nothing left to try: accept the error within ``accept`` (retreat and end) or fail (saying why: ``cause``)."""
     c = p.spec
