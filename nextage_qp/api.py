@@ -144,8 +144,10 @@ def load_task(path: str | Path, *, overrides: Sequence[str] = ()) -> Task:
 
 def _path(value: Any, what: str) -> str | Path:
     """``value`` if it is a path (a str or os.PathLike); a ConfigError naming ``what`` otherwise."""
-    if isinstance(value, (str, os.PathLike)) and str(value).strip():
+    if isinstance(value, str) and value.strip():
         return value
+    if isinstance(value, os.PathLike) and os.fspath(value):
+        return Path(value)
     raise ConfigError(f"{what}: {value!r} is not a file path or bundled name (give a str or pathlib.Path)")
 
 
