@@ -344,3 +344,16 @@ def test_the_same_narrow_box_slides_when_the_hand_meets_it_low():
         "scene.friction_scale.cube=1.8"])
     assert result.success, result.error
     assert result.object_error_xy_m <= 0.005
+
+
+def test_the_right_hand_takes_a_correction_at_the_push_height():
+    """The push config's right hand may come as close to the table as the left, so a correction it reaches more
+    squarely goes to it (push sweep, seed 0, episode 21: the first push leaves the cube off to the left hand's far side)."""
+    from nextage_qp.api import run_task
+
+    result = run_task(ROOT / "configs" / "push_cube.yaml", overrides=[
+        "scene.poses.cube.pos=[0.3343208139417267,0.02275795790483376,0.91]", "scene.poses.cube.yaw=0.1658889769110009",
+        "scene.poses.cube_target.pos=[0.7400927167260142,-0.03596129131127077,0.91]",
+        "scene.masses.cube=0.08977215397834927", "scene.friction_scale.cube=1.9002615929157902", "seed=1343950750"])
+    assert result.success, result.error
+    assert result.phases[0].get("handovers", 0) >= 1
