@@ -18,7 +18,7 @@ from importlib import metadata
 from typing import NoReturn
 
 from nextage_qp.errors import NextageQPError
-from nextage_qp.out_paths import name_max
+from nextage_qp.out_paths import name_limit
 
 DESCRIPTION = ("Task-space control of the Nextage dual-arm robot in MuJoCo: QP differential IK, jerk-limited "
                "references, PD torque control; YAML-configured manipulation tasks and randomised sweeps.")
@@ -92,7 +92,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if exc.errno != errno.ENAMETOOLONG:
             raise
         print(f"nextage-qp {args.command}: error: file name too long: {str(exc.filename)[:80]}... "
-              f"(at most {name_max(exc.filename)} characters a path component)", file=sys.stderr)
+              f"({name_limit(exc.filename)})", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"nextage-qp {args.command}: interrupted", file=sys.stderr)

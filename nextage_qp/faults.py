@@ -38,10 +38,7 @@ from nextage_qp.yaml_model import YamlModel
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 
 
-_Strict = YamlModel
-
-
-class ObjectPoseFaults(_Strict):
+class ObjectPoseFaults(YamlModel):
     """The simulated camera that reports every free object's pose."""
 
     rate_hz: float = Field(default=30.0, gt=0, le=1000, allow_inf_nan=False, description="Measurement rate [Hz].")
@@ -54,14 +51,14 @@ class ObjectPoseFaults(_Strict):
                            description="Probability that a measurement is lost.")
 
 
-class JointSensorFaults(_Strict):
+class JointSensorFaults(YamlModel):
     """Noise on the measured joint state (the PD law and the phases see it)."""
 
     noise_rad: float = Field(default=0.0, ge=0, le=0.05, allow_inf_nan=False, description="On positions [rad].")
     noise_rad_s: float = Field(default=0.0, ge=0, le=1.0, allow_inf_nan=False, description="On velocities [rad/s].")
 
 
-class SensorFailure(_Strict):
+class SensorFailure(YamlModel):
     """A force/torque sensor that stops working at a time: it freezes at its last value or returns NaN."""
 
     site: str = Field(description="The sensor's site (e.g. an arm's pad frame).")
@@ -69,7 +66,7 @@ class SensorFailure(_Strict):
     mode: Literal["freeze", "nan"] = "freeze"
 
 
-class WrenchFaults(_Strict):
+class WrenchFaults(YamlModel):
     """Noise on the wrist force/torque sensors, and an optional sensor failure."""
 
     noise_n: float = Field(default=0.0, ge=0, le=10.0, allow_inf_nan=False, description="Force noise [N].")
@@ -77,7 +74,7 @@ class WrenchFaults(_Strict):
     fail: SensorFailure | None = None
 
 
-class Shove(_Strict):
+class Shove(YamlModel):
     """An external impulse on a body, spread over ``duration_s``: at ``at_s`` or ``after_s`` into a phase."""
 
     body: str = name_field("object", description="The free object shoved.")
@@ -98,7 +95,7 @@ class Shove(_Strict):
         return self
 
 
-class FaultsConfig(_Strict):
+class FaultsConfig(YamlModel):
     """Every fault of a run (see the module doc); each block is optional."""
 
     object_pose: ObjectPoseFaults | None = None
@@ -107,7 +104,7 @@ class FaultsConfig(_Strict):
     shoves: list[Shove] = Field(default_factory=list)
 
 
-class EstimationConfig(_Strict):
+class EstimationConfig(YamlModel):
     """How object measurements become the poses the phases see."""
 
     object_filter: Literal["kalman", "none"] = Field(

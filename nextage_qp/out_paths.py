@@ -9,6 +9,9 @@ from __future__ import annotations
 import os
 import tempfile
 from pathlib import Path
+from typing import Any
+
+from nextage_qp.errors import ConfigError
 
 
 def nearest_existing(path: Path) -> Path:
@@ -19,12 +22,13 @@ def nearest_existing(path: Path) -> Path:
     return folder
 
 
-def name_max(filename: object) -> int:
-    """The longest file name the file system that would hold ``filename`` takes (its nearest existing folder's)."""
+def name_limit(filename: Any) -> str:
+    """The longest path component, for a message on a name too long where ``filename`` would be kept."""
     try:
-        return os.pathconf(nearest_existing(Path(os.fsdecode(filename)).absolute()), "PC_NAME_MAX")  # type: ignore
+        most = os.pathconf(nearest_existing(Path(os.fsdecode(filename)).absolute()), "PC_NAME_MAX")
     except (OSError, TypeError, ValueError):
-        return 255
+        most = 255
+    return f"at most {most} characters a path component"
 
 
 def folder_problem(folder: Path) -> str | None:
@@ -50,8 +54,6 @@ def refuse_overwriting(outputs: dict[str, Path | None], inputs: dict[str, Path |
     Raises:
         ConfigError: Naming the output, the path and what is already there.
     """
-    from nextage_qp.errors import ConfigError
-
     taken: dict[Path, str] = {}
     for name, path in inputs.items():
         if path is not None and Path(path).is_file():

@@ -15,7 +15,7 @@ import numpy as np
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.json_out import dumps
-from nextage_qp.out_paths import folder_problem, name_max
+from nextage_qp.out_paths import folder_problem, name_limit
 from nextage_qp.robot import Robot
 
 
@@ -106,8 +106,7 @@ def output_file(*suffixes: str) -> Callable[[str], Path]:
         try:
             return checked(text)
         except OSError as exc:  # a name over the file system's limit, say
-            long = exc.errno == errno.ENAMETOOLONG
-            limit = f" (at most {name_max(text)} characters a path component)" if long else ""
+            limit = f" ({name_limit(text)})" if exc.errno == errno.ENAMETOOLONG else ""
             raise argparse.ArgumentTypeError(f"{text[:80]!r}: {exc.strerror or exc}{limit}") from None
 
     def checked(text: str) -> Path:

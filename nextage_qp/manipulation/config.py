@@ -34,17 +34,14 @@ from nextage_qp.yaml_model import YamlModel
 Vec3 = tuple[float, float, float]
 
 
-_Strict = YamlModel
-
-
-class PoseOverride(_Strict):
+class PoseOverride(YamlModel):
     """A body's pose in the world: position [m] and yaw about world z [rad] (either may be left out)."""
 
     pos: Vec3 | None = None
     yaw: float | None = None
 
 
-class SceneConfig(_Strict):
+class SceneConfig(YamlModel):
     """Which scene to load and what to change in it without editing XML."""
 
     file: str = Field(description="Bundled scene name (push_cube, dock_dumbbell) or MJCF path.")
@@ -58,7 +55,7 @@ class SceneConfig(_Strict):
         default_factory=dict, description="Object -> shape, size, mass, friction, pose (nextage_qp/scene_objects.py).")
 
 
-class SuccessCriteria(_Strict):
+class SuccessCriteria(YamlModel):
     """What a successful run means.
 
     Besides these, every run must complete its phases, keep its joints inside their limits and not drop a
@@ -78,7 +75,7 @@ class RunTiming(Timing):
     settle: float = Field(default=0.5, ge=0, le=MAX_SECONDS, description="Simulated time after the last phase [s].")
 
 
-class ManipulationConfig(_Strict):
+class ManipulationConfig(YamlModel):
     """A whole manipulation run (the phase list takes any registered kind: see :func:`config_model`)."""
 
     task: str = Field(description="Name of the run in outputs.")

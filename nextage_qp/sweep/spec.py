@@ -40,10 +40,7 @@ Number = Annotated[float, Field(allow_inf_nan=False)]
 Bound = Number | list[Number]
 
 
-_Strict = YamlModel
-
-
-class Distribution(_Strict):
+class Distribution(YamlModel):
     """One distribution of a randomised key.
 
     Exactly one of: ``uniform: [lo, hi]`` (absolute), ``offset: [lo, hi]`` (added to the base value),
@@ -103,7 +100,7 @@ def _flow(value: Any) -> str:
     return yaml_scalar(value)
 
 
-class SweepFile(_Strict):
+class SweepFile(YamlModel):
     """The schema of a sweep file (see the module docstring)."""
 
     base: str = Field(description="Task config, relative to the sweep file.")

@@ -38,10 +38,7 @@ SAMPLERS = ("tpe", "cmaes")
 PARAM_KEYS = ("float", "log", "int", "choice", "also")
 
 
-_Strict = YamlModel
-
-
-class Param(_Strict):
+class Param(YamlModel):
     """One searched key and its range.
 
     Exactly one of ``float: [lo, hi]``, ``log: [lo, hi]`` (lo > 0), ``int: [lo, hi]``, ``choice: [a, b, ...]``;
@@ -94,7 +91,7 @@ class Param(_Strict):
         return self.uniform or self.log or self.integer
 
 
-class SweepEval(_Strict):
+class SweepEval(YamlModel):
     """Episodes ``0..episodes-1`` of a sweep file drawn with ``seed``: the objective's scenes."""
 
     file: str = Field(description="Sweep file, relative to the study file.")
@@ -102,7 +99,7 @@ class SweepEval(_Strict):
     seed: int = Field(default=0, ge=0, lt=2**32)
 
 
-class StepsEval(_Strict):
+class StepsEval(YamlModel):
     """Raw steps of every joint from ``home`` to +-``amplitude_deg`` (relative to home for ``relative`` joints)."""
 
     gains: str = Field(description="Base gains file: a bundled name or a path relative to the study file.")
@@ -115,7 +112,7 @@ class StepsEval(_Strict):
     scene: str = "scene"
 
 
-class HeldOut(_Strict):
+class HeldOut(YamlModel):
     """Where best and base are compared after the search: other sweep episodes, or steps of another amplitude."""
 
     episodes: int | None = Field(default=None, ge=1, le=100_000)
@@ -123,7 +120,7 @@ class HeldOut(_Strict):
     amplitude_deg: Number | None = Field(default=None, gt=0, le=180)
 
 
-class StudyFile(_Strict):
+class StudyFile(YamlModel):
     """The schema of a study file (see the module docstring)."""
 
     description: str | None = None

@@ -6,7 +6,6 @@ new kind is one module (its spec and behaviour) and one :func:`register` line.
 
 from __future__ import annotations
 
-import typing
 from types import MappingProxyType
 from typing import Any
 
@@ -37,13 +36,7 @@ def register(spec: type[Spec], phase: type[Phase]) -> None:
     if not (isinstance(spec, type) and issubclass(spec, Spec)) or not (isinstance(phase, type)
                                                                        and issubclass(phase, Phase)):
         raise TypeError(f"register({spec!r}, {phase!r}): give a Spec subclass and a Phase subclass")
-    field = spec.model_fields.get("kind")
-    args = typing.get_args(field.annotation) if field is not None else ()
-    if field is None or typing.get_origin(field.annotation) is not typing.Literal or len(args) != 1 \
-            or not isinstance(args[0], str):
-        raise TypeError(f"register: {spec.__name__}.kind must be a Literal of one string, e.g. kind: "
-                        "Literal['my_phase']")
-    kind = args[0]
+    kind = spec.kind_name()
     if kind in BUILT_IN and _REGISTRY.get(kind) not in (None, (spec, phase)):
         raise TypeError(f"register: {kind!r} is a built-in phase kind; give yours another kind name")
     _REGISTRY[kind] = (spec, phase)

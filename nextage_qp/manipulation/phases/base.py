@@ -7,6 +7,7 @@ subclasses :class:`Phase` and fills two methods, as mink's tasks fill two.
 
 from __future__ import annotations
 
+import typing
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator
 from typing import Any, ClassVar
@@ -45,8 +46,18 @@ class Spec(YamlModel):
 
     @classmethod
     def kind_name(cls) -> str:
-        """The value of the spec's ``kind`` literal."""
-        return str(cls.model_fields["kind"].annotation.__args__[0])  # type: ignore[union-attr]
+        """The value of the spec's ``kind`` literal.
+
+        Raises:
+            TypeError: ``kind`` is no ``Literal`` of one string.
+        """
+        field = cls.model_fields.get("kind")
+        args = typing.get_args(field.annotation) if field is not None else ()
+        if field is None or typing.get_origin(field.annotation) is not typing.Literal or len(args) != 1 \
+                or not isinstance(args[0], str):
+            raise TypeError(f"register: {cls.__name__}.kind must be a Literal of one string, e.g. kind: "
+                            "Literal['my_phase']")
+        return args[0]
 
 
 def names_in(model: BaseModel, key: str) -> Iterator[tuple[str, NameKind, str]]:
