@@ -4,20 +4,21 @@ A small state machine, every step driven by the live object pose:
 
 * **transit**: lift to ``clearance`` over the object, then through planned joints to ``approach`` behind its
   face, for the reachable direction nearest the line to the target (:mod:`~nextage_qp.manipulation.push_approach`).
-* **push**: the tool closes the gap slowly, then advances at a speed that falls from ``push_speed`` to
-  ``creep_speed`` over the last ``slow_down``, never more than ``preload`` into the face, at a fixed height. Once
-  in contact the direction :math:`\hat d` turns (at most ``turn_rate``) towards the object's bearing to the
-  target plus an integral bias that makes the object's own motion point at the target; inside ``freeze`` it is
-  kept. A tilting object gets no push until it is flat. The first push stops ``standoff`` short.
+* **push**: the tool closes the gap slowly, then advances at a speed that falls from ``push_speed`` to ``creep_speed``
+  over the last ``slow_down``, never more than ``preload`` into the face, at a fixed height. Once in contact the
+  direction :math:`\hat d` turns (at most ``turn_rate``) towards the object's bearing to the target plus an integral
+  bias that makes the object's own motion point at the target; inside ``freeze`` it is kept. A tilting object gets
+  no push until it is flat. The first push stops ``standoff`` short.
 * **hold**: the object comes to rest and the error is judged: within ``tolerance`` the tool retreats and the phase
   is done; short on the same line, the push resumes (up to ``nudges``); otherwise the tool retreats and approaches
   again along the error (within ``correction_fan``), up to ``attempts`` approaches. When nothing is left to try,
   an error within ``accept`` ends the phase, a larger one fails it.
 
-While the wrist feels the push, the object's estimate moves with the tool (:meth:`Push.carrier`). A robot camera's
-view may be hidden by the hand (``View.unseen_s``): with no measurement younger than ``HIDDEN_S``, the object's
-position along the push is where the contact puts it (its face on the tool), and a hold the camera cannot see backs
-off first and judges once the object is in sight (waiting at most ``LOOK_S``).
+While the wrist feels the push (or the tool is ``PRESS_M`` past the object's estimated face), the object's estimate
+moves with the tool (:meth:`Push.carrier`). A robot camera's view may be hidden by the hand (``View.unseen_s``):
+with no measurement younger than ``HIDDEN_S``, the object's position along the push is where the contact puts it
+(its face on the tool), and a hold the camera cannot see backs off first and judges once the object is in sight
+(waiting at most ``LOOK_S``).
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from nextage_qp.geometry import Pose, angle2, clamp, rot_z, rotate2, turn2, unit2, yaw_of
+from nextage_qp.geometry import Pose, angle2, clamp, rot_of, rot_z, rotate2, turn2, unit2, yaw_of
 from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.contact import PushContact
 from nextage_qp.manipulation.context import Setpoint, View
@@ -42,6 +43,7 @@ from nextage_qp.manipulation.phases.push_spec import (
     MAX_BIAS,
     MAX_HEIGHT_BIAS,
     MIN_STEER_SPEED,
+    PRESS_M,
     PUSH_ACCEL,
     STEER_GAIN,
     TIPPING_SHARE,
@@ -72,7 +74,7 @@ class Push(Phase):
         self.tool_yaw = yaw_of(rot)
         self.approaches, self.recoveries, self.full, self.contact = 0, 0, False, PushContact(self.frame)
         self.info.update(attempts=0, nudges=0, contact_onsets=0, contact_losses=0)
-        self.raised, self.looking = 0.0, False
+        self.raised, self.looking, self.pressed = 0.0, False, False
         obj, tgt, _ = self._planar(view)
         self._approach(view, unit2((tgt - obj)[:2]))
         if self.plan_failed:
@@ -82,9 +84,9 @@ class Push(Phase):
         tilted_s = self.info.get("tilt_pauses", 0) * view.dt  # ticks the push paused for a tipping object
         if tilted_s < TIPPING_SHARE * self.spec.timeout:
             return None
-        return (f"{self.spec.object} tipped under the tool for {tilted_s:.0f} s of it (tilted over "
-                f"{np.degrees(self.spec.max_tilt):.0f} deg, the push paused): the tool meets it too high to slide it "
-                f"on this table")
+        tilt = np.degrees(self.spec.max_tilt)
+        return (f"{self.spec.object} tipped under the tool for {tilted_s:.0f} s of it (tilted over {tilt:.0f} deg, the "
+                "push paused): the tool meets it too high to slide it on this table")
 
     def _planar(self, view: View) -> tuple[np.ndarray, np.ndarray, float]:
         obj, tgt = self._felt(view, view.body_pose(self.spec.object).pos), view.body_pose(self.spec.target).pos
@@ -97,7 +99,8 @@ class Push(Phase):
         for ``HIDDEN_S``, its face is on the tool along the push.
         """
         c = self.spec
-        if not (self.contact.in_contact and view.unseen_s(c.object) > HIDDEN_S) or self.stage not in ("push", "hold"):
+        pushing = self.contact.in_contact or self.pressed
+        if not (pushing and view.unseen_s(c.object) > HIDDEN_S) or self.stage not in ("push", "hold"):
             return obj  # (no contact yet when start() asks, before there is a stage)
         d = np.array([*self.d, 0.0])
         tool = view.frame_pose(self.frame).pos
@@ -146,8 +149,7 @@ class Push(Phase):
 
     @functools.cached_property
     def _pitch(self) -> np.ndarray:
-        c, s = np.cos(self.spec.pitch), np.sin(self.spec.pitch)
-        return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+        return rot_of(np.array([0.0, self.spec.pitch, 0.0]))  # about the tool's y axis
 
     def _turn_tool(self, view: View) -> None:  # towards the goal at the turn rate
         step = self.spec.turn_rate * view.dt
@@ -160,7 +162,7 @@ class Push(Phase):
 
     def carrier(self, view: View) -> tuple[str, Callable[[], Pose]] | None:
         """While the wrist feels the push, the object and the tool's advance along it, which its estimate follows."""
-        felt = self.contact.in_contact if self.contact.available else self.touched  # the wrist's sensor, else geometry
+        felt = self.contact.in_contact or self.pressed if self.contact.available else self.touched  # else geometry
         carrier = self.contact.carrier(view, self.d if self.stage in ("push", "hold") and felt else None)
         return (self.spec.object, carrier) if carrier is not None else None
 
@@ -197,7 +199,7 @@ class Push(Phase):
             self.recoveries, self.approaches = self.recoveries + 1, self.approaches - 1
 
     def _begin_push(self, touched: bool) -> None:
-        self.stage, self.v, self.touched, self.bias = "push", 0.0, touched, 0.0
+        self.stage, self.v, self.touched, self.bias, self.pressed = "push", 0.0, touched, 0.0, False
         self.blind_m, self.blind_stop = 0.0, False  # how far the tool pushed unseen [m]; whether it stopped to look
         self.contact.restart()  # the last push's contact is stale: _felt reads it before this push's first reading
         self.last_obj: np.ndarray | None = None
@@ -249,6 +251,8 @@ class Push(Phase):
         wanted = clamp(c.push_speed * (remaining + gap) / c.slow_down, c.creep_speed, c.push_speed)
         felt, k = self.contact.update(view, d), self.contact  # read every tick: _felt needs the contact's state
         self.touched = self.touched or gap < 1e-3 or felt  # geometry or the wrist's sensor
+        past = float((view.frame_pose(self.frame).pos[:2] - obj[:2]) @ d) + half  # the tool past the face: it moved it
+        self.pressed = self.pressed or (self.touched and past > PRESS_M)
         self.info.update(contact_onsets=k.onsets, contact_losses=k.losses, wrist_sensor=k.available)  # else geometry
         if not self.touched:
             wanted = min(wanted, max(c.creep_speed, gap / GAP_TIME))  # touch the object slowly

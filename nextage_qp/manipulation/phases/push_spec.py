@@ -28,6 +28,10 @@ GAP_TIME = 0.5
 HIDDEN_S = 0.2
 """While the wrist feels the push, an object no camera has measured for this long [s] is taken to be where the
 contact puts it: its face on the tool along the push."""
+PRESS_M = 0.005
+"""A tool this far [m] past the object's estimated face while the wrist feels nothing has moved it (a light object
+slides under less force than the sensor's threshold; or the estimate fell short): an object cannot be inside the tool,
+so the push then carries the estimate as if felt."""
 LOOK_S = 2.0
 """After backing off from a push the camera could not see, wait at most this long [s] for a view before judging it."""
 SEEN_S = 0.4
