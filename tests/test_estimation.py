@@ -270,6 +270,24 @@ def test_a_speed_that_wrong_measurements_gave_coasts_at_most_coast_m():
         assert np.linalg.norm(kf.estimate(kf.t + gap)[:3] - last[:3]) == pytest.approx(COAST_M, abs=1e-12)
 
 
+def test_a_turn_rate_that_the_last_views_gave_coasts_at_most_coast_rad():
+    """The last views before a gap turn the object 7 deg in a frame (a fit of a cube the hand comes down beside): the
+    estimate turns on at that rate for a moment, and never more than COAST_RAD past the last view, however long the
+    object stays unseen (a 50 deg coast made a push take a cube's face for its corner)."""
+    from nextage_qp.estimation import COAST_RAD
+
+    kf, _ = settled(3, np.array([0.5, 0.0, 0.92, 0.0, 0.0, 1.6]))
+    t = kf.t
+    assert t is not None
+    for k in range(1, 4):
+        kf.update(t + k / RATE, np.array([0.5, 0.0, 0.92, 0.0, 0.0, 1.6 + 0.12 * k]))
+    last = kf.estimate(kf.t)
+    assert abs(kf.estimate(kf.t + 0.05)[5] - last[5]) > 0.02  # it does coast at the rate it has
+    for gap in (0.5, 1.0, 5.0):  # the rate would turn it by radians in a second: it stops at COAST_RAD
+        assert abs(kf.estimate(kf.t + gap)[5] - last[5]) == pytest.approx(COAST_RAD, abs=1e-12)
+        assert np.all(np.abs(kf.estimate(kf.t + gap)[3:5] - last[3:5]) <= COAST_RAD + 1e-12)  # every axis is bounded
+
+
 def test_a_pushed_object_held_without_extrapolation_stays_where_the_tool_holds_it():
     from nextage_qp.geometry import Pose
     from nextage_qp.held import HeldEstimate
