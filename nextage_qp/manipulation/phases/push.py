@@ -95,8 +95,8 @@ class Push(Phase):
     def _felt(self, view: View, obj: np.ndarray) -> np.ndarray:
         """The object's position: ``obj`` as estimated, or where the contact puts it.
 
-        While the wrist feels the push (or the tool rests against the object after it) and no camera has measured it
-        for ``HIDDEN_S``, its face is on the tool along the push.
+        While the wrist feels the push (or the tool is ``PRESS_M`` past the estimated face) and no camera has measured
+        it for ``HIDDEN_S``, its face is on the tool along the push.
         """
         c = self.spec
         pushing = self.contact.in_contact or self.pressed
@@ -161,7 +161,7 @@ class Push(Phase):
         return self._transit(view) if self.stage == "transit" else self._push(view)
 
     def carrier(self, view: View) -> tuple[str, Callable[[], Pose]] | None:
-        """While the wrist feels the push, the object and the tool's advance along it, which its estimate follows."""
+        """While the push is felt (or pressed), the object and the tool's advance along it, which its estimate takes."""
         felt = self.contact.in_contact or self.pressed if self.contact.available else self.touched  # else geometry
         carrier = self.contact.carrier(view, self.d if self.stage in ("push", "hold") and felt else None)
         return (self.spec.object, carrier) if carrier is not None else None
