@@ -335,6 +335,35 @@ def test_look_to_judge_judges_a_push_only_from_a_view_clear_of_the_hand(look):
     assert phase.info["nudges"] == 0  # judged from afar: a push short of the target is approached again
 
 
+class SmearedAsideBesideTheHandView(ScriptedView):
+    """A camera that sees the cube 10 cm to the side while the pushing tool is within 8 cm of it (a stereo fit smeared
+    by the hand beside it) and right otherwise."""
+
+    phase: object = None
+
+    def body_pose(self, name):
+        cube = self.bodies[name]
+        near = np.linalg.norm((self.frames["left_tool"].pos - cube.pos)[:2]) < 0.08
+        if name != "cube" or getattr(self.phase, "stage", None) != "push" or not near:
+            return cube
+        return Pose(cube.pos + np.array([0.0, 0.1, 0.0]), cube.rot)
+
+
+def test_a_knock_seen_on_the_last_approach_is_judged_from_a_look():
+    """On its last approach (no recovery left), a push whose view jumps 10 cm aside beside the hand backs off and
+    judges from a view clear of it: the cube, 4.5 mm short of its target and never moved aside, is accepted rather
+    than failed at 100 mm (a stereo push failed so, 2.8 mm from its target)."""
+    view = SmearedAsideBesideTheHandView(bodies={"cube": pose(0.6955, 0.0, 0.91), "cube_target": pose(0.70, 0.0, 0.91)},
+                                         commanded={"left_tool": pose(0.5, 0.23, 1.03)},
+                                         frames={"left_tool": pose(0.5, 0.23, 1.03)})
+    view.phase = phase = make("push", frame="left_tool", object="cube", target="cube_target", attempts=1,
+                              recoveries=0)
+    phase.start(view)
+    cmd = run_until_done(phase, view, each=pushed_along_the_tool_face(view))
+    assert cmd.done and phase.info["knocked_away"] == 1 and phase.info["attempts"] == 1
+    assert phase.info["object_error_xy_m"] <= 0.005  # judged from the clear view: accepted
+
+
 def test_a_pushed_object_is_carried_only_by_the_tool_s_advance_along_the_push():
     """Sliding along the face or turning, the tool leaves a pushed object's carrier where it was (a tool recentred
     sideways in contact dragged an estimate 11 mm off a cube that stayed put); advancing, it takes it along."""

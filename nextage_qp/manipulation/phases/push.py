@@ -15,10 +15,9 @@ A small state machine, every step driven by the live object pose:
   an error within ``accept`` ends the phase, a larger one fails it.
 
 While the wrist feels the push (or the tool is ``PRESS_M`` past the object's estimated face), the object's estimate
-moves with the tool (:meth:`Push.carrier`). A robot camera's view may be hidden by the hand (``View.unseen_s``):
-with no measurement younger than ``HIDDEN_S``, the object's position along the push is where the contact puts it
-(its face on the tool), and a hold the camera cannot see backs off first and judges once the object is in sight
-(waiting at most ``LOOK_S``).
+moves with the tool (:meth:`Push.carrier`). A camera's view may be hidden by the hand (``View.unseen_s``): with no
+measurement younger than ``HIDDEN_S``, the object is where the contact puts it (its face on the tool), and a hold the
+camera cannot see, or a knock on the last approach, backs off and judges once the object is in sight (``LOOK_S``).
 """
 
 from __future__ import annotations
@@ -247,7 +246,8 @@ class Push(Phase):
         if gap > c.approach + LOST_GAP or abs(lateral) > half + LOST_GAP:  # knocked away from the tool's line
             self._knocked_away()
             self.next_d, self.full = unit2((tgt - obj)[:2]), True
-            return start_retreat(self, final=False) if self.approaches < c.attempts else finish(self, dist)
+            self.looking = self.approaches >= c.attempts  # the last: judged from a look, not a view beside the hand
+            return start_retreat(self, final=False, view=view if self.looking else None)
         wanted = clamp(c.push_speed * (remaining + gap) / c.slow_down, c.creep_speed, c.push_speed)
         felt, k = self.contact.update(view, d), self.contact  # read every tick: _felt needs the contact's state
         self.touched = self.touched or gap < 1e-3 or felt  # geometry or the wrist's sensor
