@@ -32,7 +32,7 @@ from nextage_qp.ik import FrameTarget
 from nextage_qp.manipulation.contact import PushContact
 from nextage_qp.manipulation.context import Setpoint, View
 from nextage_qp.manipulation.phases.base import Phase
-from nextage_qp.manipulation.phases.push_judge import finish, hold, no_approach, retreat, start_retreat
+from nextage_qp.manipulation.phases.push_judge import hold, look, no_approach, retreat, start_retreat
 from nextage_qp.manipulation.phases.push_spec import (
     BLIND_S,
     GAP_TIME,
@@ -168,13 +168,14 @@ class Push(Phase):
     def _transit(self, view: View) -> Command:
         """Lift straight up, then move through the planned joints of the route (the wrist turns once lifted)."""
         c = self.spec
-        obj, tgt, dist = self._planar(view)
+        obj, tgt, _ = self._planar(view)
         moved = float(np.linalg.norm(obj[:2] - self.planned_at)) > LOST_GAP
         if moved and self.recoveries < c.recoveries:  # knocked away during the transit: plan for where it is now
             self._knocked_away()
             self._on_tool(view)
-            self._approach(view, unit2((tgt - obj)[:2]), full=True)
-            return self._command(allow=False) if not self.plan_failed else finish(self, dist)
+            self.next_d, self.full = unit2((tgt - obj)[:2]), True
+            self._approach(view, self.next_d, full=True)  # none reachable: judge from a look (a smeared view?)
+            return self._command(allow=False) if not self.plan_failed else look(self, view)
         if self.lifting:
             self.lifting = not self.sp.advance(self.lift, c.speed, view.dt)
             return self._command(allow=False)
@@ -246,8 +247,7 @@ class Push(Phase):
         if gap > c.approach + LOST_GAP or abs(lateral) > half + LOST_GAP:  # knocked away from the tool's line
             self._knocked_away()
             self.next_d, self.full = unit2((tgt - obj)[:2]), True
-            self.looking = self.approaches >= c.attempts  # the last: judged from a look, not a view beside the hand
-            return start_retreat(self, final=False, view=view if self.looking else None)
+            return start_retreat(self, final=False) if self.approaches < c.attempts else look(self, view)  # the last
         wanted = clamp(c.push_speed * (remaining + gap) / c.slow_down, c.creep_speed, c.push_speed)
         felt, k = self.contact.update(view, d), self.contact  # read every tick: _felt needs the contact's state
         self.touched = self.touched or gap < 1e-3 or felt  # geometry or the wrist's sensor

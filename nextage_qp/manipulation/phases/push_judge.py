@@ -33,8 +33,7 @@ def hold(p: Push, view: View) -> Command:
         return p._command(allow=True)
     hidden = view.unseen_s(c.object) > HIDDEN_S
     if hidden or (c.look_to_judge and not p.blind_stop):  # hidden (or told to look): back off and look, then judge
-        p.looking = True
-        return start_retreat(p, final=False, view=view)
+        return look(p, view)
     if p.blind_stop:  # stopped to look, and the camera sees it: push on, steering from what it sees
         p._begin_push(touched=True)
         return p._command(allow=True)
@@ -53,6 +52,16 @@ def hold(p: Push, view: View) -> Command:
         p.next_d = unit2(e)
         return start_retreat(p, final=False)
     return finish(p, err)
+
+
+def look(p: Push, view: View) -> Command:
+    """Back off, move aside and judge the push once the object is in sight.
+
+    For a push the camera could not see, and for a knock seen when no approach is left or none reaches the object's
+    new place: the view that saw the knock may be one that the hand beside the object smeared.
+    """
+    p.looking = True
+    return start_retreat(p, final=False, view=view)
 
 
 def no_approach(p: Push, view: View) -> PhaseError:
