@@ -61,7 +61,7 @@ COAST_RAD = 0.1
 """Longest angle [rad] (per rotation axis) :meth:`PoseKalman.estimate` turns an object past its last measurement. An
 object turns while pushed, and then a contact carries its estimate, which does not turn; a free object unseen stops
 turning within a fraction of a second. A longer turn is a rate that the last views before a gap gave the filter: a
-camera's fit of a cube the hand was coming down beside jumped 7 deg in 0.08 s, and the coast turned the estimate 50
+camera's fit of a cube the hand was coming down beside jumped 7 deg in 0.08 s, and the coast turned the estimate 45
 deg in the second the hand hid it, so that the push took the cube's face for its corner."""
 
 

@@ -273,7 +273,7 @@ def test_a_speed_that_wrong_measurements_gave_coasts_at_most_coast_m():
 def test_a_turn_rate_that_the_last_views_gave_coasts_at_most_coast_rad():
     """The last views before a gap turn the object 7 deg in a frame (a fit of a cube the hand comes down beside): the
     estimate turns on at that rate for a moment, and never more than COAST_RAD past the last view, however long the
-    object stays unseen (a 50 deg coast made a push take a cube's face for its corner)."""
+    object stays unseen (a 45 deg coast made a push take a cube's face for its corner)."""
     from nextage_qp.estimation import COAST_RAD
 
     kf, _ = settled(3, np.array([0.5, 0.0, 0.92, 0.0, 0.0, 1.6]))
