@@ -173,7 +173,7 @@ class Push(Phase):
         if moved and self.recoveries < c.recoveries:  # knocked away during the transit: plan for where it is now
             self._knocked_away()
             self._on_tool(view)
-            self.next_d, self.full = unit2((tgt - obj)[:2]), True
+            self.next_d = unit2((tgt - obj)[:2])  # what a look's next approach aims at
             self._approach(view, self.next_d, full=True)  # none reachable: judge from a look (a smeared view?)
             return self._command(allow=False) if not self.plan_failed else look(self, view)
         if self.lifting:
