@@ -302,16 +302,21 @@ def test_push_hidden_by_the_hand_goes_by_the_contact_then_backs_off_to_judge(for
 
 
 class SmearedBesideTheHandView(ScriptedView):
-    """A camera that sees the cube 8 mm off, sideways, while the tool rests beside it after a push (stereo depth
-    smears the hand's edge into the object) and right otherwise; it never loses the cube."""
+    """A camera that sees the cube ``shift`` [m] off while the phase is in ``stage`` with the tool within ``within``
+    [m] of it (stereo depth smears the hand beside it into the object) and right otherwise; it never loses the cube.
+    By default 8 mm sideways while the tool rests beside it after a push."""
 
     phase: object = None
+    shift: tuple = (0.0, 0.008, 0.0)
+    stage: str = "hold"
+    within: float = np.inf
 
     def body_pose(self, name):
         cube = self.bodies[name]
-        if name != "cube" or getattr(self.phase, "stage", None) != "hold":
+        near = np.linalg.norm((self.frames["left_tool"].pos - cube.pos)[:2]) < self.within
+        if name != "cube" or getattr(self.phase, "stage", None) != self.stage or not near:
             return cube
-        return Pose(cube.pos + np.array([0.0, 0.008, 0.0]), cube.rot)
+        return Pose(cube.pos + np.array(self.shift), cube.rot)
 
 
 @pytest.mark.parametrize("look", [False, True])
@@ -335,27 +340,14 @@ def test_look_to_judge_judges_a_push_only_from_a_view_clear_of_the_hand(look):
     assert phase.info["nudges"] == 0  # judged from afar: a push short of the target is approached again
 
 
-class SmearedAsideBesideTheHandView(ScriptedView):
-    """A camera that sees the cube 10 cm to the side while the pushing tool is within 8 cm of it (a stereo fit smeared
-    by the hand beside it) and right otherwise."""
-
-    phase: object = None
-
-    def body_pose(self, name):
-        cube = self.bodies[name]
-        near = np.linalg.norm((self.frames["left_tool"].pos - cube.pos)[:2]) < 0.08
-        if name != "cube" or getattr(self.phase, "stage", None) != "push" or not near:
-            return cube
-        return Pose(cube.pos + np.array([0.0, 0.1, 0.0]), cube.rot)
-
-
 def test_a_knock_seen_on_the_last_approach_is_judged_from_a_look():
     """On its last approach (no recovery left), a push whose view jumps 10 cm aside beside the hand backs off and
     judges from a view clear of it: the cube, 4.5 mm short of its target and never moved aside, is accepted rather
     than failed at 100 mm (a stereo push failed so, 2.8 mm from its target)."""
-    view = SmearedAsideBesideTheHandView(bodies={"cube": pose(0.6955, 0.0, 0.91), "cube_target": pose(0.70, 0.0, 0.91)},
-                                         commanded={"left_tool": pose(0.5, 0.23, 1.03)},
-                                         frames={"left_tool": pose(0.5, 0.23, 1.03)})
+    view = SmearedBesideTheHandView(bodies={"cube": pose(0.6955, 0.0, 0.91), "cube_target": pose(0.70, 0.0, 0.91)},
+                                    commanded={"left_tool": pose(0.5, 0.23, 1.03)},
+                                    frames={"left_tool": pose(0.5, 0.23, 1.03)})
+    view.shift, view.stage, view.within = (0.0, 0.1, 0.0), "push", 0.08  # 10 cm aside while pushing beside it
     view.phase = phase = make("push", frame="left_tool", object="cube", target="cube_target", attempts=1,
                               recoveries=0)
     phase.start(view)
