@@ -47,6 +47,38 @@ def test_static_accuracy_stereo(shape: str, x: float) -> None:
         assert yaw_err < np.radians(5.0), f"{shape}: {np.degrees(yaw_err):.2f} deg"
 
 
+@needs_stereo
+def test_a_tracked_object_is_matched_in_a_window_as_in_the_whole_image() -> None:
+    from nextage_qp.vision.source import CameraMeasurer
+    from nextage_qp.vision.stereo import window
+
+    cfg, robot, data, q = aimed_scene("box", 0.6, -0.4, tuple(STEREO))
+    camera = CameraMeasurer(cfg.perception, robot, data, lambda t: q, seed=0)
+    try:
+        first = camera(0.0, {"cube": None})["cube"]  # not tracked yet: the whole image
+        assert first is not None
+        whole = camera.last[1]
+        second = camera(1 / 15, {"cube": first})["cube"]  # tracked: a window around it
+        part = camera.last[1]
+        pos, rot = camera.camera.pose(q)
+        win = camera.window({"cube": first}, pos, rot)
+        report = camera.report()
+    finally:
+        camera.close()
+    assert report["windowed_frames"] == 1 and win is not None
+    r0, r1, c0, c1 = win
+    assert (r1 - r0) * (c1 - c0) < 0.3 * whole.size
+    inside = np.zeros(whole.shape, dtype=bool)
+    inside[r0:r1, c0:c1] = True
+    assert np.isnan(part[~inside]).all()
+    both = inside & np.isfinite(whole) & np.isfinite(part)
+    assert both.sum() > 0.8 * np.isfinite(whole[inside]).sum()
+    assert np.mean(np.abs(whole[both] - part[both]) < 0.002) > 0.97  # the same matches, but near the window's edges
+    truth = data.xpos[robot.model.body("cube").id]
+    assert second is not None and np.linalg.norm(second[:3] - truth) < 0.005
+    assert window([(pos + 0.2 * rot[:, 2], 0.05)], camera.camera.K, pos, rot, whole.shape) is None  # behind it
+
+
 def test_a_stereo_world_is_textured_beyond_the_robot_only() -> None:
     plain = build_robot(load_config(PUSH, []), str(PUSH)).model
     cfg = load_config(PUSH, STEREO)

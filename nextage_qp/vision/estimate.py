@@ -185,7 +185,7 @@ class Estimator:
                 if share > MAX_OCCLUDED:
                     out[name] = Detection(None, "occluded", occluded=share)
                     continue
-                near = cloud[np.linalg.norm(cloud - prior[:3], axis=1) < shape.radius * 1.5 + 0.03]
+                near = cloud[np.linalg.norm(cloud - prior[:3], axis=1) < shape.search_radius]
                 out[name] = self._search(f, shape, [(near, [prior[5]], prior)], share, tilt)
                 if out[name].status == "missing" and len(near) < MIN_PIXELS:
                     lost.append(name)

@@ -59,6 +59,11 @@ class ShapeModel:
         self.bottom = float(self.samples[:, 2].min())  # lowest point below the origin [m] (< 0)
         self.radius = float(np.linalg.norm(self.samples[:, :2], axis=1).max())
 
+    @property
+    def search_radius(self) -> float:
+        """Distance [m] from a tracked object's predicted position within which the estimator looks for its points."""
+        return self.radius * 1.5 + 0.03
+
     @classmethod
     def of_body(cls, model: mujoco.MjModel, name: str, symmetry: float) -> ShapeModel:
         """The shape of the body ``name``'s colliding geoms (:func:`~nextage_qp.geometry.geom_parts`)."""

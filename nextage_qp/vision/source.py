@@ -30,7 +30,7 @@ from nextage_qp.vision.config import PerceptionConfig
 from nextage_qp.vision.estimate import MIN_SUPPORT, PARTLY, SELF_PAD, Estimator, Frame
 from nextage_qp.vision.render import RobotCamera, render_problem
 from nextage_qp.vision.shapes import ShapeModel
-from nextage_qp.vision.stereo import StereoMatcher, check_pair
+from nextage_qp.vision.stereo import MARGIN, WHOLE_EVERY, StereoMatcher, check_pair, window
 from nextage_qp.vision.visible import occlusion
 
 STATUSES = ("ok", "out_of_view", "occluded", "missing", "bad_fit")
@@ -72,6 +72,10 @@ class CameraMeasurer:
         self.symmetry = {n: robot.yaw_symmetry(n) for n in robot.object_names}
         shapes = {n: ShapeModel.of_body(model, n, self.symmetry[n]) for n in robot.object_names}
         self.estimator = Estimator(shapes, seed, SELF_PAD if stereo else 0)  # stereo cannot measure the plain links
+        self.reach = {n: max(s.search_radius, float(np.linalg.norm(s.samples, axis=1).max())) + MARGIN
+                      for n, s in shapes.items()}  # the radius of each object's stereo window [m]
+        self.windowed = 0  # stereo frames matched in a window around the tracked objects
+        self.lost = True  # an object was out of view or missing in the last frame
         kinds = (*STATUSES, "partly_occluded", "part_fitted", "unoccluded", "unoccluded_ok")
         self.counts = {n: dict.fromkeys(kinds, 0) for n in robot.object_names}
         self.ms: dict[str, list[float]] = {"render": [], "estimate": []}
@@ -106,11 +110,15 @@ class CameraMeasurer:
         unoccluded where the estimator's prediction was in view and uncovered.
         """
         t0 = time.perf_counter()
+        pos, rot = self.camera.pose(self.joints(t))
         if self.matcher is not None and self.right is not None:
-            depth = self.matcher.depth(self.camera.rgb(self.data), self.right.rgb(self.data))
+            win = self.window(priors, pos, rot)
+            self.windowed += win is not None
+            cut = self.matcher.cut(win) if win is not None else None
+            depth = self.matcher.depth(self.camera.rgb(self.data, cut), self.right.rgb(self.data, cut), win,
+                                       (self.spec.height, self.spec.width))
         else:
             depth = self.camera.depth(self.data)
-        pos, rot = self.camera.pose(self.joints(t))
         expected = self.camera.expected()
         t1 = time.perf_counter()
         frame = Frame(depth, expected, self.camera.K, pos, rot)
@@ -143,7 +151,20 @@ class CameraMeasurer:
             except OSError as exc:  # a lost frame dump is not a failed run: reported with the camera's figures
                 self.dump_error = f"perception.dump {self.cfg.dump}: cannot write: {exc.strerror or exc}"
         self.poses = {name: det.pose for name, det in detections.items()}
+        self.lost = any(det.status in ("out_of_view", "missing") for det in detections.values())
         return dict(self.poses)
+
+    def window(self, priors: Mapping[str, np.ndarray | None], pos: np.ndarray,
+               rot: np.ndarray) -> tuple[int, int, int, int] | None:
+        """The stereo window: the region the estimator searches around each tracked object, grown by ``MARGIN``.
+
+        The whole image (None) every ``WHOLE_EVERY`` frames, while an object is not tracked, and after a frame that
+        lost one (re-acquisition searches the whole view).
+        """
+        if self.lost or len(self.ms["render"]) % WHOLE_EVERY == 0 or any(p is None for p in priors.values()):
+            return None
+        regions = [(p[:3], self.reach[n]) for n, p in priors.items() if p is not None]
+        return window(regions, self.camera.K, pos, rot, (self.spec.height, self.spec.width))
 
     def dump(self, folder: Path, frame: Frame, detections: Mapping[str, Any]) -> None:
         """Write the frame's RGB, depth, clusters and fitted poses (drawn over the RGB) as PNGs into ``folder``."""
@@ -184,6 +205,7 @@ class CameraMeasurer:
                                f"{last}; nothing written to {self.cfg.dump} (set a time within the run)")
         med = {f"{k}_ms_median": float(np.median(v)) if v else None for k, v in self.ms.items()}
         return {"camera": self.camera.name, "depth": self.cfg.depth, "frames": len(self.ms["render"]), **med,
+                **({"windowed_frames": self.windowed} if self.cfg.depth == "stereo" else {}),
                 "objects": objects, **({"dump_error": self.dump_error} if self.dump_error else {})}
 
     def close(self) -> None:
