@@ -1,11 +1,13 @@
 """Wall time of a default task run from the head camera against the same run from the truth, alternately.
 
     python tools/bench_camera.py [--runs 5] [--task push_cube --task dock_dumbbell] [--against COMMIT]
+                                 [--depth rendered|stereo]
 
 Each run is a fresh ``nextage-qp run configs/TASK.yaml --json`` (``MUJOCO_GL=egl`` unless set), from the truth
 (``perception.source=truth``, the config's default) and from the camera (``--set perception.source=camera``),
 alternating so that the machine's drift affects both alike; with ``--against``, camera runs of that commit
-(exported with ``git archive``) alternate with them too. Prints every run's wall and simulated time, then per task
+(exported with ``git archive``) alternate with them too; ``--depth stereo`` makes every camera run's depth block
+matching on the head's RGB pair (the vision extra). Prints every run's wall and simulated time, then per task
 and arm the median and p99 of the wall time and of the wall time per simulated second (a run from the camera
 simulates longer: it stops to look), the camera's median render and estimate time per frame, and the ratios of the
 medians, with the machine and the versions. No test asserts any of it.
@@ -55,13 +57,16 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=5, help="alternations (default 5)")
     ap.add_argument("--task", action="append", help="bundled task config (default: push_cube and dock_dumbbell)")
     ap.add_argument("--against", help="also time camera runs of this older commit, alternately")
+    ap.add_argument("--depth", choices=("rendered", "stereo"), default="rendered",
+                    help="the camera runs' perception.depth (default rendered)")
     args = ap.parse_args()
+    camera = [*CAMERA, "--set", f"perception.depth={args.depth}"]
     tasks = args.task or ["push_cube", "dock_dumbbell"]
-    print(f"machine: {json.dumps(machine())}; MUJOCO_GL={ENV.get('MUJOCO_GL', 'egl')}")
+    print(f"machine: {json.dumps(machine())}; MUJOCO_GL={ENV.get('MUJOCO_GL', 'egl')}; depth {args.depth}")
     with tempfile.TemporaryDirectory() as old_dir:
-        arms = {"truth": (ROOT, []), "camera": (ROOT, CAMERA)}
+        arms = {"truth": (ROOT, []), "camera": (ROOT, camera)}
         if args.against:
-            arms[f"camera@{export(args.against, Path(old_dir))}"] = (Path(old_dir), CAMERA)
+            arms[f"camera@{export(args.against, Path(old_dir))}"] = (Path(old_dir), camera)
         results: dict[tuple[str, str], list[dict[str, float]]] = {}
         for i in range(args.runs):
             for task in tasks:
