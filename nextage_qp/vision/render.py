@@ -60,9 +60,10 @@ def finite_planes(model: mujoco.MjModel) -> mujoco.MjModel:
 
     The renderer bakes each plane's grid of quads into its context: an infinite floor (50 mm grid) is drawn out to
     the far clipping plane in thousands of quads, half of a depth frame's time on a software renderer, and 60 % of an
-    RGB frame's where the floor fills the view. A depth image does not see the grid: within :data:`MAX_RANGE` of a camera less than
-    ``PLANE_HALF - MAX_RANGE`` from the plane's origin it is the same to a micrometre (float32 rounding). An RGB image
-    differs in the far floor's shading alone (0.8 % of a Nextage head camera's pixels by more than 10 of 255).
+    RGB frame's where the floor fills the view. A depth image does not see the grid: within :data:`MAX_RANGE` of a
+    camera less than ``PLANE_HALF - MAX_RANGE`` from the plane's origin it is the same to a micrometre (float32
+    rounding). An RGB image differs in the far floor's shading alone (0.8 % of a Nextage head camera's pixels by more
+    than 10 of 255).
     """
     out = copy.copy(model)
     for i in np.flatnonzero(out.geom_type == mujoco.mjtGeom.mjGEOM_PLANE):
