@@ -74,10 +74,15 @@ def finite_planes(model: mujoco.MjModel) -> mujoco.MjModel:
 
 def render_camera(renderer: mujoco.Renderer, data: mujoco.MjData, cam_id: int, option: mujoco.MjvOption) -> np.ndarray:
     """The image of ``data`` a robot camera takes (``option``: :func:`shown_option`; the renderer's depth mode kept)."""
+    _scene(renderer, data, cam_id, option)
+    return renderer.render()
+
+
+def _scene(renderer: mujoco.Renderer, data: mujoco.MjData, cam_id: int, option: mujoco.MjvOption) -> None:
+    """Update the renderer's scene to what a robot camera sees of ``data``, with the :data:`FAST_CAMERA_FLAGS` off."""
     renderer.update_scene(data, camera=cam_id, scene_option=option)
     for flag in FAST_CAMERA_FLAGS:
         renderer.scene.flags[flag] = 0
-    return renderer.render()
 
 
 def render_window(renderer: mujoco.Renderer, data: mujoco.MjData, cam_id: int, option: mujoco.MjvOption,
@@ -93,9 +98,7 @@ def render_window(renderer: mujoco.Renderer, data: mujoco.MjData, cam_id: int, o
     ctx, gl = getattr(renderer, "_mjr_context", None), getattr(renderer, "_gl_context", None)
     if ctx is None or gl is None:
         return render_camera(renderer, data, cam_id, option)[r0:r1, c0:c1]
-    renderer.update_scene(data, camera=cam_id, scene_option=option)
-    for flag in FAST_CAMERA_FLAGS:
-        renderer.scene.flags[flag] = 0
+    _scene(renderer, data, cam_id, option)
     for cam in renderer.scene.camera:  # both eyes of MuJoCo's stereo pair: the window on the near plane
         n = cam.frustum_near
         left, right = (c0 - K[0, 2]) / K[0, 0] * n, (c1 - K[0, 2]) / K[0, 0] * n
@@ -140,9 +143,13 @@ class RobotCamera:
         if depth:
             out = render_camera(self.renderer, data, self.cam_id, self.option)
             return np.where(out < MAX_RANGE, out, np.nan).astype(np.float32)
+        return render_camera(self._rgb_renderer(), data, self.cam_id, self.option)
+
+    def _rgb_renderer(self) -> mujoco.Renderer:
+        """The RGB renderer, made on the first RGB image."""
         if self._rgb is None:
             self._rgb = mujoco.Renderer(self.finite, self.spec.height, self.spec.width)
-        return render_camera(self._rgb, data, self.cam_id, self.option)
+        return self._rgb
 
     def pose(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The camera's pose (position [m], 3x3 rotation) from forward kinematics of the measured joints ``q``."""
@@ -183,9 +190,7 @@ class RobotCamera:
         """
         if cut is None:
             return self._render(data, depth=False)
-        if self._rgb is None:
-            self._rgb = mujoco.Renderer(self.finite, self.spec.height, self.spec.width)
-        return render_window(self._rgb, data, self.cam_id, self.option, cut, self.K)
+        return render_window(self._rgb_renderer(), data, self.cam_id, self.option, cut, self.K)
 
     def close(self) -> None:
         """Free the renderers' GL contexts."""
