@@ -17,13 +17,14 @@ measurements.
 from __future__ import annotations
 
 from collections.abc import Collection, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import replace
 
 import numpy as np
 from scipy import ndimage
 
 from nextage_qp.geometry import nearest_equivalent
 from nextage_qp.vision.fit import fit, planar_std, residuals, table_plane
+from nextage_qp.vision.frame import Detection, Frame
 from nextage_qp.vision.pixels import backproject, plane_height
 from nextage_qp.vision.shapes import ShapeModel
 from nextage_qp.vision.visible import GAP, occlusion, seen, supported
@@ -74,29 +75,6 @@ SELF_PAD = 4
 robot's depth cannot be measured (stereo on its plain links): what falls in it is the model, never an object."""
 
 
-@dataclass(frozen=True)
-class Frame:
-    """One depth frame: depth and expected depth [m] (H, W; NaN: no return), K (3x3), camera pose (world)."""
-
-    depth: np.ndarray
-    expected: np.ndarray
-    K: np.ndarray
-    cam_pos: np.ndarray
-    cam_rot: np.ndarray  # columns: camera x (right), y (up), z (backwards), MuJoCo's convention
-
-
-@dataclass
-class Detection:
-    """An object's measurement (x, y, z, roll, pitch, yaw) or None, why, and the fit's numbers."""
-
-    pose: np.ndarray | None
-    status: str  # ok, out_of_view, occluded, missing, bad_fit
-    rms: float = float("nan")
-    points: int = 0
-    occluded: float = 0.0
-    support: float = 1.0  # share of its fitted surface in view and uncovered that the frame shows there (a fit's)
-
-
 class Estimator:
     """Poses of known shapes from depth frames (see the module docstring).
 
@@ -112,6 +90,7 @@ class Estimator:
         self.plane: tuple[np.ndarray, float] | None = None
         self.clusters = np.zeros((0, 0), dtype=int)  # labels of the last frame (0: none), for dumps
         self.free = np.zeros((0, 3))  # free-space points of the last frame
+        self.cover: np.ndarray | None = None  # the last frame's model grown by ``self_pad`` (its depth [m])
 
     def segment(self, f: Frame) -> list[np.ndarray]:
         """World points of each cluster the model does not explain (largest first)."""
@@ -125,6 +104,9 @@ class Estimator:
             if self.self_pad and self.plane is not None:  # the model's padded silhouette: the model
                 body = plane_height(f.expected, f.K, f.cam_pos, f.cam_rot, *self.plane) > ABOVE
                 unexplained &= ~ndimage.maximum_filter(body, 2 * self.self_pad + 1, mode="constant")  # dilated
+                grown = ndimage.minimum_filter(np.where(body, f.expected, np.inf), 2 * self.self_pad + 1,
+                                               mode="constant", cval=np.inf)
+                self.cover = np.fmin(f.expected, grown)  # the model grown: what covers an object, as above
         height = (plane_height(f.depth, f.K, f.cam_pos, f.cam_rot, *self.plane) if self.plane is not None
                   else np.full(f.depth.shape, np.nan))  # NaN without depth (or plane): neither on the table nor above
         with np.errstate(invalid="ignore"):
@@ -169,7 +151,10 @@ class Estimator:
         restarts there when the next frame confirms it. An object with points near its prediction that do not fit
         (a partial view) is a dropout there, never a fit of another cluster.
         """
+        self.cover = None
         clusters = self.segment(f)
+        if self.cover is not None:  # an object's view is as covered as the grown model, which hides its points
+            f = replace(f, cover=self.cover)
         cloud = np.concatenate(clusters) if clusters else np.zeros((0, 3))
         out: dict[str, Detection] = {}
         lost: list[str] = []

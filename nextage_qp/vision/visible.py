@@ -16,7 +16,7 @@ from nextage_qp.vision.pixels import project
 from nextage_qp.vision.shapes import ShapeModel
 
 if TYPE_CHECKING:
-    from nextage_qp.vision.estimate import Frame
+    from nextage_qp.vision.frame import Frame
 
 GAP = 0.01
 """A pixel nearer than the model expects by this much [m] shows something the model does not know (an object)."""
@@ -60,14 +60,15 @@ def seen(f: Frame, shape: ShapeModel, x: np.ndarray) -> tuple[float, float]:
 def occlusion(f: Frame, shape: ShapeModel, prior: np.ndarray, tilt: bool = False) -> float | None:
     """Share of the shape's surface facing the camera at ``prior`` that the robot covers (None: out of view).
 
-    From the model alone: the expected depth (robot and static scene) in front of the shape's samples. ``tilt``: at
+    From the model alone: the expected depth (robot and static scene; :attr:`Frame.model`, as grown where the
+    estimator grows it) in front of the shape's samples. ``tilt``: at
     the prior's roll and pitch too (else upright).
     """
     rows, cols, z, inside, _ = facing(f, shape, prior[:3], pose_rot(prior) if tilt else rot_z(prior[5]))
     if inside.mean() < 0.5:
         return None
     with np.errstate(invalid="ignore"):
-        covered = f.expected[rows[inside], cols[inside]] < z[inside] - GAP
+        covered = f.model[rows[inside], cols[inside]] < z[inside] - GAP
     return float(covered.mean())
 
 
@@ -89,6 +90,6 @@ def supported(f: Frame, shape: ShapeModel, x: np.ndarray) -> float:
     near = f.depth[np.clip(rows[:, None] + _AROUND[0], 0, h - 1), np.clip(cols[:, None] + _AROUND[1], 0, w - 1)]
     with np.errstate(invalid="ignore"):
         agree = (np.abs(near - z[:, None]) < AGREE).any(axis=1)  # a pixel off at the silhouette: its neighbours
-        weigh = np.where((agree | (depth > z)) & ~(f.expected[rows, cols] < z - GAP), cos, 0.0)
+        weigh = np.where((agree | (depth > z)) & ~(f.model[rows, cols] < z - GAP), cos, 0.0)
     total = weigh.sum()
     return float(weigh[agree].sum() / total) if total > 0 else 0.0
