@@ -33,7 +33,7 @@ from nextage_qp.vision.render import (
     shown_option,
 )
 from nextage_qp.vision.shapes import ShapeModel
-from nextage_qp.vision.visible import supported
+from nextage_qp.vision.visible import occlusion, supported
 
 ROOT = Path(__file__).resolve().parents[1]
 PUSH = ROOT / "configs" / "push_cube.yaml"
@@ -255,6 +255,27 @@ def test_with_a_self_pad_whatever_falls_in_the_robots_padded_silhouette_is_the_r
     padded = Estimator({"cube": shape}, seed=1, self_pad=SELF_PAD).estimate(beside, {"cube": None})["cube"]
     assert plain.status == padded.status == "ok"
     np.testing.assert_allclose(padded.pose, plain.pose, atol=2e-4)
+
+
+@needs_gl
+def test_with_a_self_pad_an_object_is_as_covered_as_the_padded_silhouette_hides_it() -> None:
+    """The pad hides an object's points beside a link as the link itself would: the view's occlusion share (whole,
+    partial or dropout) counts them, so a view with a hand a few pixels beside the object is no whole view."""
+    from nextage_qp.vision.estimate import GAP, SELF_PAD
+
+    robot, data, frame, shape = aimed_frame("box", 0.6, 0.3)
+    with np.errstate(invalid="ignore"):
+        cube = frame.expected - frame.depth >= GAP
+    rows = np.flatnonzero(cube.any(axis=1))
+    link = np.zeros_like(cube)
+    link[rows[-1] + 2:] = True  # a link in front, below the box in the image, closer to it than the pad
+    beside = replace(frame, expected=np.where(link, frame.depth - 0.05, frame.expected))
+    prior = np.array([*data.xpos[robot.model.body("cube").id], 0.0, 0.0, 0.3])
+    plain = Estimator({"cube": shape}, seed=1).estimate(beside, {"cube": prior})["cube"]
+    padded = Estimator({"cube": shape}, seed=1, self_pad=SELF_PAD).estimate(beside, {"cube": prior})["cube"]
+    assert plain.status == "ok" and plain.occluded < 0.02, plain
+    assert padded.occluded > plain.occluded + 0.05, (padded.occluded, plain.occluded)
+    assert occlusion(beside, shape, prior) == plain.occluded  # a frame without the grown model: as before
 
 
 @needs_gl
