@@ -93,7 +93,8 @@ class Estimator:
         self.cover: np.ndarray | None = None  # the last frame's model grown by ``self_pad`` (its depth [m])
 
     def segment(self, f: Frame) -> list[np.ndarray]:
-        """World points of each cluster the model does not explain (largest first)."""
+        """World points of each cluster the model does not explain (largest first); sets ``cover`` (None unpadded)."""
+        self.cover = None
         finite = np.isfinite(f.depth)
         found = np.flatnonzero(finite)  # pixels with depth, row-major
         sub = self.rng.integers(0, len(found), min(len(found), 1500)) if len(found) else np.zeros(0, int)
@@ -103,9 +104,9 @@ class Estimator:
             unexplained = finite & ~(f.expected - f.depth < GAP)
             if self.self_pad and self.plane is not None:  # the model's padded silhouette: the model
                 body = plane_height(f.expected, f.K, f.cam_pos, f.cam_rot, *self.plane) > ABOVE
-                unexplained &= ~ndimage.maximum_filter(body, 2 * self.self_pad + 1, mode="constant")  # dilated
                 grown = ndimage.minimum_filter(np.where(body, f.expected, np.inf), 2 * self.self_pad + 1,
-                                               mode="constant", cval=np.inf)
+                                               mode="constant", cval=np.inf)  # its nearest depth within the pad
+                unexplained &= ~np.isfinite(grown)  # the silhouette dilated
                 self.cover = np.fmin(f.expected, grown)  # the model grown: what covers an object, as above
         height = (plane_height(f.depth, f.K, f.cam_pos, f.cam_rot, *self.plane) if self.plane is not None
                   else np.full(f.depth.shape, np.nan))  # NaN without depth (or plane): neither on the table nor above
@@ -151,7 +152,6 @@ class Estimator:
         restarts there when the next frame confirms it. An object with points near its prediction that do not fit
         (a partial view) is a dropout there, never a fit of another cluster.
         """
-        self.cover = None
         clusters = self.segment(f)
         if self.cover is not None:  # an object's view is as covered as the grown model, which hides its points
             f = replace(f, cover=self.cover)

@@ -61,8 +61,7 @@ def occlusion(f: Frame, shape: ShapeModel, prior: np.ndarray, tilt: bool = False
     """Share of the shape's surface facing the camera at ``prior`` that the robot covers (None: out of view).
 
     From the model alone: the expected depth (robot and static scene; :attr:`Frame.model`, as grown where the
-    estimator grows it) in front of the shape's samples. ``tilt``: at
-    the prior's roll and pitch too (else upright).
+    estimator grows it) in front of the shape's samples. ``tilt``: at the prior's roll and pitch too (else upright).
     """
     rows, cols, z, inside, _ = facing(f, shape, prior[:3], pose_rot(prior) if tilt else rot_z(prior[5]))
     if inside.mean() < 0.5:
