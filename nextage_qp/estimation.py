@@ -153,7 +153,7 @@ class PoseKalman:
         dt = 0.0 if t is None or self.t is None else max(t - self.t, 0.0)
         return np.asarray(sum(w * m.predicted(dt)[1][:, 0, 0] for w, m in zip(self.mode, self.models, strict=True)))
 
-    def update(self, t: float, z: np.ndarray, *, partial: bool = False) -> bool:
+    def update(self, t: float, z: np.ndarray, *, partial: bool = False, spread: float = 1.0) -> bool:
         """Apply a measurement ``z`` (x, y, z, roll, pitch, yaw) describing time ``t`` [s]; False if gated out.
 
         ``partial``: a partial view (the hand in front of the object), whose fit errs by more than the camera's noise
@@ -161,14 +161,15 @@ class PoseKalman:
         against the resting model alone (so noisy fits after a gap in the views cannot make up a speed), and a
         rejected one does not count towards a restart (nor breaks a run of rejected clear views that does); only
         ``PARTIAL_RUN`` rejected ones in a row that agree with each other restart the filter, at rest at their mean.
+        ``spread``: this measurement's noise relative to the filter's (standard deviations; a fit to part of an object).
         """
-        z = np.asarray(z, dtype=float)
+        z, r = np.asarray(z, dtype=float), self.models[0].r * spread**2
         if self.t is None:
             self.reset(t, z)
             self.accepted += 1
             return True
         dt = max(t - self.t, 0.0)
-        if self._nis(dt, z, resting=partial) > self.gate:
+        if self._nis(dt, z, r, resting=partial) > self.gate:
             self.rejected += 1
             if partial:
                 self._partials = [*self._partials[1 - PARTIAL_RUN:], z]  # the last PARTIAL_RUN
@@ -183,7 +184,7 @@ class PoseKalman:
                 self._restart_moving()
             return False
         prior = self._mix()
-        logl = np.array([m.update(dt, z) for m in self.models])  # (models, axes)
+        logl = np.array([m.update(dt, z, r) for m in self.models])  # (models, axes)
         w = prior * np.exp(logl - logl.max(axis=0))
         self.mode = w / w.sum(axis=0)
         self.t, self._misses, self._partials = t, [], []
@@ -198,8 +199,8 @@ class PoseKalman:
         nu = d - mean
         return zs[-1] + mean if (np.sum(nu * nu / self.models[0].r, axis=1) <= self.gate).all() else None
 
-    def _nis(self, dt: float, z: np.ndarray, resting: bool = False) -> float:
-        """Normalised squared innovation of ``z`` under the predicted mixture (models by their prior), or at rest."""
+    def _nis(self, dt: float, z: np.ndarray, r: np.ndarray, resting: bool = False) -> float:
+        """Normalised squared innovation of ``z`` (noise ``r``) under the predicted mixture, or at rest."""
         w = self.trans.T @ self.mode  # (models, axes)
         if resting:
             w = np.zeros_like(w)
@@ -209,7 +210,7 @@ class PoseKalman:
         var = sum(wi * (p[:, 0, 0] + (x[:, 0] - mean) ** 2) for wi, (x, p) in zip(w, preds, strict=True))
         nu = z - mean
         nu[3:] = wrap(nu[3:])
-        return float(np.sum(nu * nu / (var + self.models[0].r)))
+        return float(np.sum(nu * nu / (var + r)))
 
     def _mix(self) -> np.ndarray:
         """IMM mixing, per axis: each model restarts from the mixture its predecessors hand it; returns the prior."""

@@ -78,9 +78,9 @@ class HeldEstimate:
                 return pose
         return self.history[0][1]
 
-    def update(self, stamp: float, z: np.ndarray) -> bool:
-        """Apply a world measurement ``z`` describing time ``stamp`` [s]; False if the gate rejected it."""
-        return self.kalman.update(stamp, self._relative(self._carrier_at(stamp), z))
+    def update(self, stamp: float, z: np.ndarray, spread: float = 1.0) -> bool:
+        """Apply a world measurement ``z`` of time ``stamp`` [s] (``spread``: PoseKalman.update's); False if gated."""
+        return self.kalman.update(stamp, self._relative(self._carrier_at(stamp), z), spread=spread)
 
     def estimate(self, t: float) -> np.ndarray:
         """World pose (x, y, z, roll, pitch, yaw) at ``t`` [s]: the latest carrier pose with the relative estimate."""

@@ -32,12 +32,12 @@ class ConstantVelocity:
     def pin(self) -> None:
         """Keep the state within the model (a no-op here; the resting model zeroes its velocity)."""
 
-    def update(self, dt: float, z: np.ndarray) -> np.ndarray:
-        """Predict by ``dt`` and apply ``z``; returns each axis's log-likelihood of ``z`` under the prediction (6,)."""
+    def update(self, dt: float, z: np.ndarray, r: np.ndarray | None = None) -> np.ndarray:
+        """Predict by ``dt``, apply ``z`` (noise ``r``, default the model's); each axis's log-likelihood (6,)."""
         x, p = self.predicted(dt)
         nu = z - x[:, 0]
         nu[3:] = wrap(nu[3:])
-        s = p[:, 0, 0] + self.r
+        s = p[:, 0, 0] + (self.r if r is None else r)
         k = p[:, :, 0] / s[:, None]  # (6, 2): gain of each axis
         self.x = x + k * nu[:, None]
         self.p = p - k[:, :, None] * p[:, None, 0, :]  # (I - K H) P

@@ -30,7 +30,7 @@ class _Track:
 
     def __init__(self, kalman: PoseKalman | None) -> None:
         self.kalman = kalman
-        self.pending: deque[tuple[float, float, np.ndarray, bool]] = deque()  # (arrival, stamp, vector, partial view)
+        self.pending: deque[tuple[float, float, np.ndarray, bool, float]] = deque()  # arrival stamp z partial spread
         self.raw: np.ndarray | None = None  # latest raw measurement delivered
         self.taken = self.dropped = 0
         self.errors = EstimateErrors()
@@ -178,18 +178,18 @@ class FaultySensors:
                 else:
                     # The camera sees the object as it is now; the controller gets it latency_s later (the very
                     # first simulated measurement is taken to exist before the run starts).
-                    partial = camera is not None and name in camera.partial  # a partial view (see PoseKalman.update)
-                    tr.pending.append((t if first else t + latency, t, z, partial))
+                    view = (name in camera.partial, camera.spread.get(name, 1.0)) if camera else (False, 1.0)
+                    tr.pending.append((t if first else t + latency, t, z, *view))  # see PoseKalman.update
                     err = z[:3] - pose.pos
                     tr.errors.measurement(float(err @ err), self._yaw_error(name, z[5], true_yaw))
             delivered = None
             while tr.pending and tr.pending[0][0] <= t + 1e-9:
-                _, stamp, z, partial = tr.pending.popleft()
+                _, stamp, z, partial, spread = tr.pending.popleft()
                 tr.raw, tr.seen, delivered = z, stamp, z
                 if tr.carried is not None:
-                    tr.carried.update(stamp, z)
+                    tr.carried.update(stamp, z, spread)
                 elif tr.kalman is not None:
-                    tr.kalman.update(stamp, z, partial=partial)
+                    tr.kalman.update(stamp, z, partial=partial, spread=spread)
             if tr.raw is None:  # a camera that has not seen it yet
                 continue
             held = tr.raw[:3] - pose.pos

@@ -343,3 +343,16 @@ def test_a_restart_at_rest_takes_a_jump_in_the_next_measurement_for_where_it_is_
     kf.update(1.0 / RATE, start + np.r_[0.01, 0.0, 0.0, 0.0, 0.0, 0.0])  # the camera sees it 10 mm away
     now = kf.estimate(kf.t)
     assert np.linalg.norm(kf.estimate(kf.t + 0.5)[:3] - now[:3]) < 1e-3  # no coasting on a made-up speed
+
+
+def test_a_view_with_a_spread_moves_the_estimate_by_as_much_less_as_its_variance_is_larger():
+    """``spread``: a fit to part of an object errs more than a clear view; it weighs less, not nothing."""
+    truth = np.array([0.5, 0.0, 0.92, 0.0, 0.0, 0.0])
+    for off in (0.006, 0.02):
+        shifts = {}
+        for spread in (1.0, 3.0):
+            kf, _ = settled(5, truth)
+            before = kf.estimate(2.0)[0]
+            assert kf.update(2.0, truth + np.r_[off, 0, 0, 0, 0, 0], spread=spread)
+            shifts[spread] = kf.estimate(2.0)[0] - before
+        assert 0 < shifts[3.0] < shifts[1.0] / 5, (off, shifts)

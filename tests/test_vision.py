@@ -467,6 +467,23 @@ def test_detections_are_counted_over_the_frames_in_which_the_object_truly_is_in_
     finally:
         source.close()
     assert counts["ok"] == 4 and source.report()["objects"]["cube"]["detected_of_unoccluded"] == 1.0
+    assert source.cover_spread == 0.0 and source.spread == {"cube": 1.0}  # rendered depth: the filter's noise as is
+
+
+@needs_gl
+def test_a_fit_that_sees_less_of_the_object_is_spread_by_the_share_hidden() -> None:
+    """``perception.cover_spread`` reaches the filter's input: a clear view (support >= 0.9) spreads by at most
+    ``cover_spread`` x 0.1."""
+    from nextage_qp.vision.config import PerceptionConfig
+    from nextage_qp.vision.source import CameraMeasurer
+
+    _, robot, data, q = aimed_scene("box", 0.45, 0.2)
+    source = CameraMeasurer(PerceptionConfig(source="camera", cover_spread=8.0), robot, data, lambda t: q, seed=0)
+    try:
+        assert source(0.0, {"cube": None})["cube"] is not None
+        assert "cube" not in source.partial and 1.0 <= source.spread["cube"] <= 1.0 + 8.0 * 0.1
+    finally:
+        source.close()
 
 
 @needs_gl
