@@ -162,14 +162,17 @@ class PoseKalman:
         rejected one does not count towards a restart (nor breaks a run of rejected clear views that does); only
         ``PARTIAL_RUN`` rejected ones in a row that agree with each other restart the filter, at rest at their mean.
         ``spread``: this measurement's noise relative to the filter's (standard deviations; a fit to part of an object).
+        It weighs the measurement, not its gate: which views are outliers, and which run of them restarts the filter,
+        is decided under the filter's own noise, or covered views that a wider gate let through would break the runs
+        that follow a moved object.
         """
-        z, r = np.asarray(z, dtype=float), self.models[0].r * spread**2
+        z = np.asarray(z, dtype=float)
         if self.t is None:
             self.reset(t, z)
             self.accepted += 1
             return True
         dt = max(t - self.t, 0.0)
-        if self._nis(dt, z, r, resting=partial) > self.gate:
+        if self._nis(dt, z, resting=partial) > self.gate:
             self.rejected += 1
             if partial:
                 self._partials = [*self._partials[1 - PARTIAL_RUN:], z]  # the last PARTIAL_RUN
@@ -184,6 +187,7 @@ class PoseKalman:
                 self._restart_moving()
             return False
         prior = self._mix()
+        r = self.models[0].r * spread**2
         logl = np.array([m.update(dt, z, r) for m in self.models])  # (models, axes)
         w = prior * np.exp(logl - logl.max(axis=0))
         self.mode = w / w.sum(axis=0)
@@ -199,8 +203,8 @@ class PoseKalman:
         nu = d - mean
         return zs[-1] + mean if (np.sum(nu * nu / self.models[0].r, axis=1) <= self.gate).all() else None
 
-    def _nis(self, dt: float, z: np.ndarray, r: np.ndarray, resting: bool = False) -> float:
-        """Normalised squared innovation of ``z`` (noise ``r``) under the predicted mixture, or at rest."""
+    def _nis(self, dt: float, z: np.ndarray, resting: bool = False) -> float:
+        """Normalised squared innovation of ``z`` under the predicted mixture (models by their prior), or at rest."""
         w = self.trans.T @ self.mode  # (models, axes)
         if resting:
             w = np.zeros_like(w)
@@ -210,7 +214,7 @@ class PoseKalman:
         var = sum(wi * (p[:, 0, 0] + (x[:, 0] - mean) ** 2) for wi, (x, p) in zip(w, preds, strict=True))
         nu = z - mean
         nu[3:] = wrap(nu[3:])
-        return float(np.sum(nu * nu / (var + r)))
+        return float(np.sum(nu * nu / (var + self.models[0].r)))
 
     def _mix(self) -> np.ndarray:
         """IMM mixing, per axis: each model restarts from the mixture its predecessors hand it; returns the prior."""

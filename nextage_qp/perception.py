@@ -178,7 +178,7 @@ class FaultySensors:
                 else:
                     # The camera sees the object as it is now; the controller gets it latency_s later (the very
                     # first simulated measurement is taken to exist before the run starts).
-                    view = (name in camera.partial, camera.spread.get(name, 1.0)) if camera else (False, 1.0)
+                    view = (False, 1.0) if camera is None else (name in camera.partial, camera.spread.get(name, 1.0))
                     tr.pending.append((t if first else t + latency, t, z, *view))  # see PoseKalman.update
                     err = z[:3] - pose.pos
                     tr.errors.measurement(float(err @ err), self._yaw_error(name, z[5], true_yaw))
