@@ -356,3 +356,9 @@ def test_a_view_with_a_spread_moves_the_estimate_by_as_much_less_as_its_variance
             assert kf.update(2.0, truth + np.r_[off, 0, 0, 0, 0, 0], spread=spread)
             shifts[spread] = kf.estimate(2.0)[0] - before
         assert 0 < shifts[3.0] < shifts[1.0] / 5, (off, shifts)
+    kf, rng = settled(5, truth)  # the gate stays the filter's own: an object moved 6 cm is followed, spread or not
+    moved = truth + np.r_[0.0, 0.06, 0, 0, 0, 0]
+    assert not kf.update(2.0, measure(rng, moved), spread=4.0)  # an outlier under the filter's own noise
+    for i in range(1, 6):
+        kf.update(2.0 + i / RATE, measure(rng, moved), spread=4.0)
+    np.testing.assert_allclose(kf.estimate(2.0 + 5 / RATE)[:3], moved[:3], atol=0.006)
