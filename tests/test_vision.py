@@ -471,7 +471,7 @@ def test_detections_are_counted_over_the_frames_in_which_the_object_truly_is_in_
 
 
 @needs_gl
-def test_a_fit_that_sees_less_of_the_object_is_spread_by_the_share_hidden() -> None:
+def test_cover_spread_reaches_the_measurer_and_a_clear_view_barely_spreads() -> None:
     """``perception.cover_spread`` reaches the filter's input: a clear view (support >= 0.9) spreads by at most
     ``cover_spread`` x 0.1."""
     from nextage_qp.vision.config import PerceptionConfig
