@@ -14,8 +14,8 @@ from pydantic import Field
 
 import nextage_qp as nq
 from nextage_qp.ik import FrameTarget
+from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
-from nextage_qp.servo import Command
 
 
 class CircleSpec(Spec):

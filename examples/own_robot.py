@@ -14,10 +14,10 @@ import numpy as np
 
 import nextage_qp as nq
 from nextage_qp.experiments.reach import run_reach
-from nextage_qp.gains import robot_gains
-from nextage_qp.kinematics import Kinematics
-from nextage_qp.robots.check import check_robot
-from nextage_qp.robots.init import draft_text, write_draft
+from nextage_qp.kinematics.frames import Kinematics
+from nextage_qp.robots.check_report import check_robot
+from nextage_qp.robots.draft import draft_text, write_draft
+from nextage_qp.robots.gains import robot_gains
 from nextage_qp.robots.survey import survey
 
 ROOT = Path(__file__).resolve().parents[1]  # the repository: its configs and test models

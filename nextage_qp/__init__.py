@@ -31,8 +31,8 @@ from nextage_qp.errors import (
     UnknownJointError,
     UnknownNameError,
 )
-from nextage_qp.robot import Robot
-from nextage_qp.scene import SceneOverrides
+from nextage_qp.robots.model import Robot
+from nextage_qp.scene.files import SceneOverrides
 
 _API = ("RunResult", "Task", "Tick", "load_robot", "load_task", "register_phase", "run_sweep", "run_task",
         "unregister_phase")

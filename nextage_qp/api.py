@@ -28,9 +28,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.manipulation import metrics
 from nextage_qp.manipulation.config import ManipulationConfig, load_config
 from nextage_qp.manipulation.phases import Phase, Spec, register, unregister
-from nextage_qp.robot import Robot
+from nextage_qp.robots.model import Robot
 
 if TYPE_CHECKING:
     from nextage_qp.manipulation.runner import Runner
@@ -56,31 +57,20 @@ class Tick:
 
 
 @dataclass(frozen=True)
-class RunResult:
-    """The outcome of one run (the record ``nextage-qp run --json`` prints is :attr:`record`).
+class RunResult(metrics.RunResult):
+    """The outcome of one run, and the finished run itself.
+
+    The record ``nextage-qp run --json`` prints is :attr:`record`; its typed fields are ``success``,
+    ``object_error_xy_m``, ``object_yaw_error_rad``, ``failed_criteria``, ``failed_phase``, ``error`` (which phase
+    failed and why, or None), ``phases`` (per phase: name, kind, status, start and duration [s] and the phase's own
+    figures), ``sim_time_s`` and ``wall_time_s`` [s].
 
     Attributes:
-        success: Every phase completed and every success criterion held.
-        object_error_xy_m: The object's planar distance to its target at the end [m].
-        object_yaw_error_rad: Its yaw error modulo its symmetry [rad].
-        failed_criteria: The criteria that did not hold.
-        error: Which phase failed and why, or None.
-        phases: Per phase: name, kind, status, start and duration [s] and the phase's own figures.
-        sim_time_s, wall_time_s: Simulated and wall time of the run [s].
         record: The whole result record.
         runner: The finished run (its recorder holds every tick's signals: ``runner.sim.recorder.arrays()``).
     """
 
-    success: bool
-    object_error_xy_m: float
-    object_yaw_error_rad: float
-    failed_criteria: list[str]
-    error: str | None
-    phases: list[dict[str, Any]]
-    sim_time_s: float
-    wall_time_s: float
-    record: dict[str, Any]
-    runner: Runner
+    runner: Runner | None = None
 
 
 class Task:
@@ -121,13 +111,7 @@ class Task:
             def hook(r: Runner, phase: Phase | None) -> None:
                 on_tick(Tick(r.sim.time, None if phase is None else phase.name, r))
 
-        record = runner.run(hook)
-        return RunResult(
-            success=bool(record["success"]), object_error_xy_m=float(record["object_error_xy_m"]),
-            object_yaw_error_rad=float(record["object_yaw_error_rad"]),
-            failed_criteria=list(record["failed_criteria"]), error=record["error"], phases=list(record["phases"]),
-            sim_time_s=float(record["sim_time_s"]), wall_time_s=float(record["wall_time_s"]), record=record,
-            runner=runner)
+        return RunResult(runner.run(hook).record, runner)
 
 
 def load_task(path: str | Path, *, overrides: Sequence[str] = ()) -> Task:

@@ -17,10 +17,10 @@ from collections.abc import Sequence
 from importlib import metadata
 from typing import NoReturn
 
-from nextage_qp.errors import NextageQPError
-from nextage_qp.out_paths import name_limit
+from nextage_qp.errors import NextageQPError, one_line
+from nextage_qp.io.outputs import name_limit
 
-DESCRIPTION = ("Task-space control of the Nextage dual-arm robot in MuJoCo: QP differential IK, jerk-limited "
+DESCRIPTION = ("Task-space control of dual-arm robots in MuJoCo: QP differential IK, jerk-limited "
                "references, PD torque control; YAML-configured manipulation tasks and randomised sweeps.")
 """What ``nextage-qp --help`` says first."""
 
@@ -32,7 +32,7 @@ class OneLineParser(argparse.ArgumentParser):
     """An argument parser whose errors are one line on stderr (exit 2), pointing at ``--help``."""
 
     def error(self, message: str) -> NoReturn:  # noqa: D102
-        self.exit(2, f"{self.prog}: error: {' '.join(message.split())}; see '{self.prog} --help'\n")
+        self.exit(2, f"{self.prog}: error: {one_line(message)}; see '{self.prog} --help'\n")
 
 
 def version() -> str:
@@ -72,7 +72,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``nextage-qp``; returns the process exit code."""
     for message in QUIET_WARNINGS:
         warnings.filterwarnings("ignore", message=message)
-    from nextage_qp.mj_warnings import capture_mujoco_warnings
+    from nextage_qp.native.mj_warnings import capture_mujoco_warnings
 
     capture_mujoco_warnings()  # a diverging simulation fails with one line quoting MuJoCo, not with its own print
     parser = build_parser()
@@ -85,7 +85,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stdout.flush()  # inside the try: a reader that left (``| head``) is caught below
         return code
     except NextageQPError as exc:
-        message = " ".join(str(exc).split())  # always one line
+        message = one_line(exc)  # always one line
         print(f"nextage-qp {args.command}: error: {message}", file=sys.stderr)
         return 2
     except OSError as exc:

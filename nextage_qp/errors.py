@@ -9,7 +9,19 @@ from collections.abc import Iterable
 
 
 class NextageQPError(Exception):
-    """Base class of every error raised by nextage_qp."""
+    """Base class of every error raised by nextage_qp.
+
+    Args:
+        message: The one-line message.
+        source: The file the error is in (a config, robot or scene file), when known.
+        key: The dotted key it is about (``scene.objects.box.size``), when known.
+        phase: The phase of a run it happened in, when known.
+    """
+
+    def __init__(self, message: str = "", *, source: str | None = None, key: str | None = None,
+                 phase: str | None = None) -> None:
+        super().__init__(message)
+        self.source, self.key, self.phase = source, key, phase
 
 
 class ConfigError(NextageQPError):
@@ -71,3 +83,8 @@ class SensorError(SimulationError):
 
 class PhaseError(NextageQPError):
     """A manipulation phase failed (timeout or unreachable target)."""
+
+
+def one_line(text: object) -> str:
+    """``text`` (an exception, a message) as one line: every run of whitespace, newlines included, one space."""
+    return " ".join(str(text).split())

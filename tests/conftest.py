@@ -4,7 +4,7 @@ import pytest
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from nextage_qp.robot import Robot
+from nextage_qp.robots.model import Robot
 
 
 @pytest.fixture(scope="session")

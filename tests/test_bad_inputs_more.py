@@ -373,7 +373,7 @@ def test_phase_kinds_are_checked_when_registered_and_removed():
 
     import nextage_qp as nq
     from nextage_qp.manipulation.phases import REGISTRY, Phase, Spec
-    from nextage_qp.manipulation.phases.push import Push, PushSpec
+    from nextage_qp.manipulation.phases.push.phase import Push, PushSpec
 
     class NoLiteral(Spec):
         kind: str = "x"
@@ -445,7 +445,7 @@ def test_robot_check_flags_a_joint_range_written_upper_bound_first(tmp_path):
     """MuJoCo leaves a joint whose range reads "2 -2" (limited="auto") unlimited without a word: robot check says so."""
     import shutil
 
-    from nextage_qp.robots.check import check_robot
+    from nextage_qp.robots.check_report import check_robot
 
     shutil.copytree(ROOT / "robots" / "nextage", tmp_path / "nextage")
     xml = tmp_path / "nextage" / "nextage.xml"

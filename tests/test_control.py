@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from tests_support import NEXTAGE_JOINTS as JOINT_NAMES
 
-from nextage_qp.control import Gains, PDController, load_gains
 from nextage_qp.errors import ConfigError
+from nextage_qp.loop.pd import Gains, PDController, load_gains
 
 N = len(JOINT_NAMES)
 

@@ -2,8 +2,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from nextage_qp.dh import PUMA560, PUMA560_A2, PUMA560_A3, PUMA560_D3, PUMA560_D4, DHRow, dh_fk, dh_transform
 from nextage_qp.errors import ConfigError
+from nextage_qp.kinematics.dh import PUMA560, PUMA560_A2, PUMA560_A3, PUMA560_D3, PUMA560_D4, DHRow, dh_fk, dh_transform
 
 
 def puma_closed_form(q):

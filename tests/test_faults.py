@@ -9,7 +9,7 @@ import yaml
 
 from nextage_qp.cli import main
 from nextage_qp.errors import ConfigError
-from nextage_qp.estimate_errors import SHOVE_SETTLE_S
+from nextage_qp.estimation.report import SHOVE_SETTLE_S
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import Runner
 
@@ -140,7 +140,7 @@ class FakeView:
     """Just enough of a View for the force-sensing helpers: time, period and one wrench."""
 
     def __init__(self, force):
-        from nextage_qp.sensors import Wrench
+        from nextage_qp.sensing.sensors import Wrench
 
         self.t, self.dt, self._wrench = 0.0, 0.004, Wrench(np.asarray(force, float), np.zeros(3))
 
@@ -149,7 +149,7 @@ class FakeView:
 
 
 def test_push_contact_onset_and_loss_from_the_wrist_force():
-    from nextage_qp.manipulation.contact import PushContact
+    from nextage_qp.manipulation.phases.push.contact import PushContact
 
     contact, view = PushContact("left_tool"), FakeView([-2.0, 0.0, 0.0])  # the cube pushes back along -x
     d = np.array([1.0, 0.0])

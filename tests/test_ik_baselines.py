@@ -5,8 +5,8 @@ import pytest
 from nextage_qp.cli import main
 from nextage_qp.ik import FrameTarget
 from nextage_qp.ik.baselines import dls_ik, lm_ik, pinv_ik
-from nextage_qp.kinematics import Kinematics
-from nextage_qp.robot import Robot
+from nextage_qp.kinematics.frames import Kinematics
+from nextage_qp.robots.model import Robot
 
 
 @pytest.fixture(scope="module")

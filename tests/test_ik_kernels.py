@@ -1,12 +1,13 @@
-"""The collision rows' compiled loops (nextage_qp.ik.kernels) against the Python loop they replace."""
+"""The collision rows' compiled loops (nextage_qp.native.kernels) against the Python loop they replace."""
 
 import numpy as np
 import pytest
 
-from nextage_qp.ik import QPIK, CollisionPairConfig, FrameTarget, IKConfig, kernels
-from nextage_qp.kinematics import Kinematics
+from nextage_qp.ik import QPIK, CollisionPairConfig, FrameTarget, IKConfig
+from nextage_qp.kinematics.frames import Kinematics
 from nextage_qp.manipulation.config import load_config
-from nextage_qp.robot import Robot
+from nextage_qp.native import kernels
+from nextage_qp.robots.model import Robot
 
 pytestmark = pytest.mark.skipif(not kernels.NATIVE, reason="MuJoCo's shared library not found next to its package")
 

@@ -8,9 +8,9 @@ from tests_support import NEXTAGE_JOINTS as JOINT_NAMES
 from nextage_qp.errors import ConfigError, UnknownFrameError, UnknownNameError
 from nextage_qp.ik import QPIK, CollisionPairConfig, FrameTarget, IKConfig, IKInfeasibleError, kinematic_model
 from nextage_qp.ik.targets import worst_errors
-from nextage_qp.kinematics import Kinematics
-from nextage_qp.robot import Robot
-from nextage_qp.scene import BodyPose, SceneOverrides
+from nextage_qp.kinematics.frames import Kinematics
+from nextage_qp.robots.model import Robot
+from nextage_qp.scene.files import BodyPose, SceneOverrides
 
 
 @pytest.fixture(scope="module")

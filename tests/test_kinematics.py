@@ -5,8 +5,8 @@ import pytest
 from tests_support import NEXTAGE_JOINTS as JOINT_NAMES
 
 from nextage_qp.errors import UnknownFrameError
-from nextage_qp.kinematics import Kinematics, chain_fk
-from nextage_qp.robots.nextage_chain import TOPOLOGY as NEXTAGE_TOPOLOGY
+from nextage_qp.kinematics.frames import Kinematics, chain_fk
+from nextage_qp.kinematics.nextage_chain import TOPOLOGY as NEXTAGE_TOPOLOGY
 
 # Spec section 1.4: world positions of the link frames.
 REF_ZERO = {
@@ -134,7 +134,7 @@ def test_pose_quaternion_is_unit_and_matches_rotation(robot):
 ])
 def test_reach_sphere_holds_every_configuration(scene, robot_name) -> None:
     """No configuration takes a frame's origin out of its reach sphere, and the sphere is not loose by much."""
-    from nextage_qp.robot import Robot
+    from nextage_qp.robots.model import Robot
 
     robot = Robot.from_scene(scene, robot=robot_name)
     kin, rng = Kinematics(robot), np.random.default_rng(2)

@@ -6,8 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from nextage_qp.ik.model import lever_bounds
-from nextage_qp.robot import Robot
+from nextage_qp.ik.kinematic_model import lever_bounds
+from nextage_qp.robots.model import Robot
 
 
 @pytest.mark.parametrize("scene", ["dock_dumbbell", "push_cube"])

@@ -9,18 +9,18 @@ import pytest
 
 from nextage_qp.cli import main
 from nextage_qp.errors import ConfigError
-from nextage_qp.gains import robot_gains
 from nextage_qp.geometry import rot_z
 from nextage_qp.ik import QPIK, FrameTarget, IKConfig
-from nextage_qp.ik.model import kinematic_model
+from nextage_qp.ik.kinematic_model import kinematic_model
+from nextage_qp.loop.simulation import Simulation
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import Runner
 from nextage_qp.mobile import Twist
 from nextage_qp.mobile.build import BASE_BODY, PLANAR_JOINTS
-from nextage_qp.mobile.paths import around
-from nextage_qp.robot import Robot
+from nextage_qp.mobile.drive_paths import around
 from nextage_qp.robots.description import load_robot
-from nextage_qp.sim import Simulation
+from nextage_qp.robots.gains import robot_gains
+from nextage_qp.robots.model import Robot
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -16,8 +16,8 @@ from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.placement import rest_height
 from nextage_qp.manipulation.runner import Runner, build_robot
 from nextage_qp.manipulation.sim_view import _support
-from nextage_qp.object_build import _prism_mesh
-from nextage_qp.scene_objects import ObjectDecl, PartDecl, standing_height, volume
+from nextage_qp.scene.build import _prism_mesh
+from nextage_qp.scene.objects import ObjectDecl, PartDecl, standing_height, volume
 
 ROOT = Path(__file__).resolve().parents[1]
 PUSH = ROOT / "configs" / "push_cube.yaml"

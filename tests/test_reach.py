@@ -6,9 +6,9 @@ import pytest
 pytest.importorskip("nextage_qp.ik")
 
 from nextage_qp.cli import main
-from nextage_qp.control import load_gains
 from nextage_qp.experiments.reach import run_reach
-from nextage_qp.trajectory import TrajectoryLimits
+from nextage_qp.loop.pd import load_gains
+from nextage_qp.loop.reference import TrajectoryLimits
 
 TARGETS = [(0.45, 0.25, 1.05), (0.40, 0.15, 1.00), (0.50, 0.30, 1.10), (0.35, 0.20, 0.98), (0.55, 0.10, 1.05)]
 LIMITS = TrajectoryLimits(max_velocity=0.8, max_acceleration=3.0, max_jerk=30.0)

@@ -6,8 +6,8 @@ import pytest
 from tests_support import NEXTAGE_JOINTS as JOINT_NAMES
 
 from nextage_qp.errors import ConfigError, UnknownJointError, UnknownNameError
-from nextage_qp.robot import Robot
-from nextage_qp.scene import BodyPose, SceneOverrides, scene_path
+from nextage_qp.robots.model import Robot
+from nextage_qp.scene.files import BodyPose, SceneOverrides, scene_path
 
 # Spec section 1.2: link masses [kg].
 MASSES = {

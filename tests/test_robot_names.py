@@ -9,7 +9,7 @@ from nextage_qp.robots.compose import robot_spec
 from nextage_qp.robots.description import load_robot
 
 PACKAGE = Path(__file__).resolve().parents[1] / "nextage_qp"
-NEXTAGE_FILES = {PACKAGE / "robots" / "nextage_chain.py"}
+NEXTAGE_FILES = {PACKAGE / "kinematics" / "nextage_chain.py"}
 """The report's transform-chain FK of the Nextage: its cross-check, the one module that may name its joints."""
 
 

@@ -12,10 +12,10 @@ import pytest
 
 from nextage_qp.cli import main
 from nextage_qp.errors import ConfigError
-from nextage_qp.robot import Robot
 from nextage_qp.robots import urdf
 from nextage_qp.robots.arms import left_by_name
-from nextage_qp.robots.check import check_robot
+from nextage_qp.robots.check_report import check_robot
+from nextage_qp.robots.model import Robot
 from nextage_qp.robots.modelfile import self_contacts
 from nextage_qp.robots.poses import find_home
 

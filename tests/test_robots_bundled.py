@@ -9,12 +9,12 @@ import pytest
 
 from nextage_qp.cli import main
 from nextage_qp.experiments.bimanual import run_bimanual
-from nextage_qp.gains import robot_gains
+from nextage_qp.loop.simulation import Simulation
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import Runner
-from nextage_qp.robot import Robot
 from nextage_qp.robots.description import load_robot
-from nextage_qp.sim import Simulation
+from nextage_qp.robots.gains import robot_gains
+from nextage_qp.robots.model import Robot
 from nextage_qp.sweep.spec import SweepSpec
 
 ROOT = Path(__file__).resolve().parents[1]

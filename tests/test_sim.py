@@ -5,11 +5,11 @@ import pytest
 from pydantic import ValidationError
 from tests_support import NEXTAGE_JOINTS as JOINT_NAMES
 
-from nextage_qp.control import Gains, PDController, load_gains
 from nextage_qp.errors import SimulationError
-from nextage_qp.robot import Robot
-from nextage_qp.sim import Simulation, Timing
-from nextage_qp.trajectory import TrajectoryLimits
+from nextage_qp.loop.pd import Gains, PDController, load_gains
+from nextage_qp.loop.reference import TrajectoryLimits
+from nextage_qp.loop.simulation import Simulation, Timing
+from nextage_qp.robots.model import Robot
 
 N = len(JOINT_NAMES)
 
@@ -127,7 +127,7 @@ def test_ctrl_dt_must_be_multiple_of_sim_dt():
 def test_obstacle_contacts_are_counted_per_physics_step(gains):
     """With the wall moved onto the left wrist, every physics step in contact counts once."""
     from nextage_qp.manipulation.metrics import OutcomeMonitor
-    from nextage_qp.scene import BodyPose, SceneOverrides
+    from nextage_qp.scene.files import BodyPose, SceneOverrides
 
     wall = SceneOverrides(poses={"obstacle": BodyPose(pos=(0.505, 0.23, 1.03), yaw=0.0)})
     robot = Robot.from_scene("dock_dumbbell", wall)
@@ -151,9 +151,9 @@ def test_obstacle_contacts_are_counted_per_physics_step(gains):
 
 def test_compiled_physics_loop_equals_the_python_loop(gains):
     """The compiled substep loop leaves the state, forces and obstacle-contact count of the Python loop, to the bit."""
-    from nextage_qp import stepping
+    from nextage_qp.loop import stepping
     from nextage_qp.manipulation.metrics import OutcomeMonitor
-    from nextage_qp.scene import BodyPose, SceneOverrides
+    from nextage_qp.scene.files import BodyPose, SceneOverrides
 
     if not stepping.NATIVE:
         pytest.skip("MuJoCo's shared library not found: the simulation steps from Python only")
@@ -212,8 +212,8 @@ def test_frames_recorded_raw_read_back_as_unit_quaternions():
 def test_object_nan_fails_with_mujocos_warning_and_writes_no_log_file(gains, tmp_path, monkeypatch):
     import mujoco
 
-    from nextage_qp.mj_warnings import capture_mujoco_warnings
-    from nextage_qp.robot import Robot
+    from nextage_qp.native.mj_warnings import capture_mujoco_warnings
+    from nextage_qp.robots.model import Robot
 
     monkeypatch.chdir(tmp_path)
     previous = mujoco.get_mju_user_warning()

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from nextage_qp.cli import main
-from nextage_qp.control import load_gains
 from nextage_qp.experiments.step_response import run_step, step_metrics
+from nextage_qp.loop.pd import load_gains
 
 JOINTS = ["CHEST_JOINT0", *(f"LARM_JOINT{i}" for i in range(6))]
 

@@ -13,9 +13,9 @@ from nextage_qp.errors import ConfigError
 from nextage_qp.geometry import wrap
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import Runner, build_robot
-from nextage_qp.vision.cameras import CameraFile
-from nextage_qp.vision.stereo import check_pair
-from nextage_qp.vision.texture import MATERIAL
+from nextage_qp.robots.cameras import CameraFile
+from nextage_qp.scene.texture import MATERIAL
+from nextage_qp.sensing.camera.stereo import check_pair
 
 CV2 = importlib.util.find_spec("cv2") is not None
 needs_stereo = pytest.mark.skipif(PROBLEM is not None or not CV2,
@@ -27,7 +27,7 @@ STEREO = ["perception.source=camera", "perception.depth=stereo"]
 @pytest.mark.parametrize("shape", list(SHAPES))
 @pytest.mark.parametrize("x", [0.3, 0.6])
 def test_static_accuracy_stereo(shape: str, x: float) -> None:
-    from nextage_qp.vision.source import CameraMeasurer
+    from nextage_qp.sensing.camera.source import CameraMeasurer
 
     yaw = 0.3 if x < 0.5 else -0.4
     cfg, robot, data, q = aimed_scene(shape, x, yaw, tuple(STEREO))
@@ -49,8 +49,8 @@ def test_static_accuracy_stereo(shape: str, x: float) -> None:
 
 @needs_stereo
 def test_a_tracked_object_is_matched_in_a_window_as_in_the_whole_image() -> None:
-    from nextage_qp.vision.source import CameraMeasurer
-    from nextage_qp.vision.stereo import window
+    from nextage_qp.sensing.camera.source import CameraMeasurer
+    from nextage_qp.sensing.camera.stereo import window
 
     cfg, robot, data, q = aimed_scene("box", 0.6, -0.4, tuple(STEREO))
     camera = CameraMeasurer(cfg.perception, robot, data, lambda t: q, seed=0)
@@ -123,7 +123,7 @@ def test_stereo_config_errors_are_one_line() -> None:
 def test_stereo_without_opencv_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
     import builtins
 
-    from nextage_qp.vision.stereo import StereoMatcher
+    from nextage_qp.sensing.camera.stereo import StereoMatcher
 
     real = builtins.__import__
 
@@ -140,7 +140,7 @@ def test_stereo_without_opencv_names_the_extra(monkeypatch: pytest.MonkeyPatch) 
 def test_stereo_module_has_no_simulator_reads() -> None:
     import ast
 
-    import nextage_qp.vision.stereo as stereo
+    import nextage_qp.sensing.camera.stereo as stereo
 
     tree = ast.parse(Path(stereo.__file__).read_text())
     imported = {a.name.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}

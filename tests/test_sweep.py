@@ -72,7 +72,7 @@ def test_yaml_scalar_reads_back_bit_exact(value):
 
 @pytest.mark.parametrize("value", [0.1, 1e-05, 1e20, "default", "1e5", "yes", "on", "a,b", [1.0, "no"]])
 def test_yaml_scalar_reads_back_through_the_override_loader(value):
-    from nextage_qp.yaml_file import load_yaml
+    from nextage_qp.io.yaml_file import load_yaml
 
     assert load_yaml(yaml_scalar(value)) == value  # what --set and the sweep's overrides are parsed with
 

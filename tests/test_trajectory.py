@@ -4,8 +4,7 @@ from pydantic import ValidationError
 from tests_support import NEXTAGE_JOINTS as JOINT_NAMES
 
 from nextage_qp.errors import NextageQPError, TrajectoryError
-from nextage_qp.trajectory import JointTrajectory, TrajectoryLimits
-from nextage_qp.trajectory_offline import chain_waypoints, plan_segment
+from nextage_qp.loop.reference import JointTrajectory, TrajectoryLimits, chain_waypoints, plan_segment
 
 N = len(JOINT_NAMES)
 LIMITS = TrajectoryLimits(max_velocity=0.8, max_acceleration={"LARM_JOINT1": 2.0}, max_jerk=30.0)

@@ -13,8 +13,8 @@ import pytest
 import yaml
 
 from nextage_qp.cli import main
-from nextage_qp.control import load_gains
 from nextage_qp.errors import ConfigError
+from nextage_qp.loop.pd import load_gains
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.tune.study import Study
 

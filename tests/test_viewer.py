@@ -72,12 +72,12 @@ def test_video_without_a_gl_backend_is_one_error_before_the_run(tmp_path, monkey
         VideoRecorder(runner, tmp_path / "v.mp4")
 
 
-@pytest.mark.skipif(__import__("nextage_qp.vision.render", fromlist=["render_problem"]).render_problem() is not None,
+@pytest.mark.skipif(__import__("nextage_qp.sensing.camera.render", fromlist=["render_problem"]).render_problem() is not None,
                     reason="offscreen rendering unavailable")
 def test_video_of_a_camera_run_shows_the_head_view_with_the_fitted_pose(tmp_path):
     import imageio.v3 as iio
 
-    from nextage_qp.vision.draw import COLOURS
+    from nextage_qp.sensing.camera.draw import COLOURS
     from nextage_qp.viz.video import VideoRecorder
 
     runner = Runner(load_config("push_cube", ["perception.source=camera"]), "push_cube")

@@ -18,12 +18,12 @@ from nextage_qp.ik.config import IKConfig
 from nextage_qp.ik.look_at import watch
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import Runner, build_robot
-from nextage_qp.vision import estimate as estimate_module
-from nextage_qp.vision.cameras import DepthNoise
-from nextage_qp.vision.estimate import MIN_SUPPORT, Estimator, Frame
-from nextage_qp.vision.fit import table_plane
-from nextage_qp.vision.pixels import backproject, plane_height, project
-from nextage_qp.vision.render import (
+from nextage_qp.robots.cameras import DepthNoise
+from nextage_qp.sensing.camera import estimate as estimate_module
+from nextage_qp.sensing.camera.estimate import MIN_SUPPORT, Estimator, Frame
+from nextage_qp.sensing.camera.fit import table_plane
+from nextage_qp.sensing.camera.pixels import backproject, plane_height, project
+from nextage_qp.sensing.camera.render import (
     MAX_RANGE,
     PLANE_HALF,
     RobotCamera,
@@ -32,8 +32,8 @@ from nextage_qp.vision.render import (
     render_problem,
     shown_option,
 )
-from nextage_qp.vision.shapes import ShapeModel
-from nextage_qp.vision.visible import occlusion, supported
+from nextage_qp.sensing.camera.shapes import ShapeModel
+from nextage_qp.sensing.camera.visible import occlusion, supported
 
 ROOT = Path(__file__).resolve().parents[1]
 PUSH = ROOT / "configs" / "push_cube.yaml"
@@ -238,7 +238,7 @@ def test_with_a_self_pad_whatever_falls_in_the_robots_padded_silhouette_is_the_r
     """Stereo cannot measure the robot's plain links: depth there may put a phantom in front of the model. With
     ``self_pad`` (stereo) the robot's silhouette grown by that many pixels is the robot whatever its depth; without it
     (rendered depth) only depth in front of the model is an object. A silhouette beyond the pad changes nothing."""
-    from nextage_qp.vision.estimate import GAP, SELF_PAD
+    from nextage_qp.sensing.camera.estimate import GAP, SELF_PAD
 
     _, _, frame, shape = aimed_frame("box", 0.6, 0.3)
     with np.errstate(invalid="ignore"):
@@ -261,7 +261,7 @@ def test_with_a_self_pad_whatever_falls_in_the_robots_padded_silhouette_is_the_r
 def test_with_a_self_pad_an_object_is_as_covered_as_the_padded_silhouette_hides_it() -> None:
     """The pad hides an object's points beside a link as the link itself would: the view's occlusion share (whole,
     partial or dropout) counts them, so a view with a hand a few pixels beside the object is no whole view."""
-    from nextage_qp.vision.estimate import GAP, SELF_PAD
+    from nextage_qp.sensing.camera.estimate import GAP, SELF_PAD
 
     robot, data, frame, shape = aimed_frame("box", 0.6, 0.3)
     with np.errstate(invalid="ignore"):
@@ -388,8 +388,8 @@ def test_each_pixels_height_over_a_plane_is_that_of_its_back_projected_point() -
 
 def test_a_partial_view_that_leaves_the_box_free_to_slide_is_not_a_measurement() -> None:
     """Only the top and one side seen (the rest hidden): the fit can slide along that side; planar_std says so."""
-    from nextage_qp.vision.fit import planar_std
-    from nextage_qp.vision.shapes import Part
+    from nextage_qp.sensing.camera.fit import planar_std
+    from nextage_qp.sensing.camera.shapes import Part
 
     box = ShapeModel([Part("box", np.array([0.035, 0.035, 0.035]), np.zeros(3), np.eye(3))], np.pi / 2)
     rng = np.random.default_rng(0)
@@ -426,8 +426,8 @@ def test_the_default_push_from_the_head_camera_reaches_its_target() -> None:
 def test_a_frame_dump_asked_for_after_the_run_ended_is_reported_not_silently_dropped() -> None:
     from types import SimpleNamespace
 
-    from nextage_qp.vision.config import PerceptionConfig
-    from nextage_qp.vision.source import CameraMeasurer
+    from nextage_qp.sensing.camera.source import CameraMeasurer
+    from nextage_qp.sensing.perception_config import PerceptionConfig
 
     cfg = PerceptionConfig(source="camera", dump="/tmp/frame", dump_at_s=50.0)
     source = object.__new__(CameraMeasurer)  # the report's state only: no renderer needed
@@ -446,8 +446,8 @@ def test_detections_are_counted_over_the_frames_in_which_the_object_truly_is_in_
     """The detection rate's frames are classed by the object's true pose (after the estimate), not by the estimator's
     prediction: an object outside the view is no missed detection."""
     from nextage_qp.geometry import Pose, rot_z
-    from nextage_qp.vision.config import PerceptionConfig
-    from nextage_qp.vision.source import CameraMeasurer
+    from nextage_qp.sensing.camera.source import CameraMeasurer
+    from nextage_qp.sensing.perception_config import PerceptionConfig
 
     _, robot, data, q = aimed_scene("box", 0.45, 0.2)
     source = CameraMeasurer(PerceptionConfig(source="camera"), robot, data, lambda t: q, seed=0)
@@ -474,8 +474,8 @@ def test_detections_are_counted_over_the_frames_in_which_the_object_truly_is_in_
 def test_cover_spread_reaches_the_measurer_and_a_clear_view_barely_spreads() -> None:
     """``perception.cover_spread`` reaches the filter's input: a clear view (support >= 0.9) spreads by at most
     ``cover_spread`` x 0.1."""
-    from nextage_qp.vision.config import PerceptionConfig
-    from nextage_qp.vision.source import CameraMeasurer
+    from nextage_qp.sensing.camera.source import CameraMeasurer
+    from nextage_qp.sensing.perception_config import PerceptionConfig
 
     _, robot, data, q = aimed_scene("box", 0.45, 0.2)
     source = CameraMeasurer(PerceptionConfig(source="camera", cover_spread=8.0), robot, data, lambda t: q, seed=0)

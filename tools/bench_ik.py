@@ -24,8 +24,8 @@ import numpy as np
 
 from nextage_qp.ik import QPIK, CollisionPairConfig, FrameTarget, IKConfig, IKResult
 from nextage_qp.ik.baselines import dls_ik, lm_ik, pinv_ik
-from nextage_qp.kinematics import Kinematics
-from nextage_qp.robot import Robot
+from nextage_qp.kinematics.frames import Kinematics
+from nextage_qp.robots.model import Robot
 
 
 def wrists(robot: Robot) -> tuple[str, str]:

@@ -35,15 +35,15 @@ from importlib import metadata  # noqa: E402
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-from nextage_qp import stepping  # noqa: E402
-from nextage_qp.control import load_gains  # noqa: E402
 from nextage_qp.experiments.reach import run_reach  # noqa: E402
 from nextage_qp.ik import QPIK, FrameTarget, IKConfig  # noqa: E402
+from nextage_qp.loop import stepping  # noqa: E402
+from nextage_qp.loop.pd import load_gains  # noqa: E402
+from nextage_qp.loop.servo import Command, Servo  # noqa: E402
+from nextage_qp.loop.simulation import Simulation, StageTimer  # noqa: E402
 from nextage_qp.manipulation.config import load_config  # noqa: E402
 from nextage_qp.manipulation.runner import Runner  # noqa: E402
-from nextage_qp.robot import Robot  # noqa: E402
-from nextage_qp.servo import Command, Servo  # noqa: E402
-from nextage_qp.sim import Simulation, StageTimer  # noqa: E402
+from nextage_qp.robots.model import Robot  # noqa: E402
 
 TARGETS = [(0.45, 0.25, 1.05), (0.40, 0.15, 1.00), (0.50, 0.30, 1.10), (0.35, 0.20, 0.98), (0.55, 0.10, 1.05)]
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from nextage_qp.control import load_gains
+from nextage_qp.loop.pd import load_gains
 
 
 def _steps(details: dict) -> dict[tuple[str, float], dict]:

@@ -19,7 +19,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.cli import main as cli
-from nextage_qp.robot import Robot
+from nextage_qp.robots.model import Robot
 
 
 def targets(robot: Robot, arm: str, n: int, rng: np.random.Generator, sigma: float = 0.3) -> list[np.ndarray]:

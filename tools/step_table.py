@@ -15,8 +15,8 @@ import json
 import numpy as np
 
 from nextage_qp.experiments.step_response import run_step
-from nextage_qp.gains import robot_gains
-from nextage_qp.robot import Robot
+from nextage_qp.robots.gains import robot_gains
+from nextage_qp.robots.model import Robot
 
 
 def main() -> None:

@@ -14,9 +14,9 @@ from typing import Any
 import numpy as np
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.json_out import dumps
-from nextage_qp.out_paths import folder_problem, name_limit
-from nextage_qp.robot import Robot
+from nextage_qp.io.json_out import dumps
+from nextage_qp.io.outputs import folder_problem, name_limit
+from nextage_qp.robots.model import Robot
 
 
 def help_text(doc: str | None) -> str | None:
@@ -147,7 +147,7 @@ def scene_robot(args: argparse.Namespace) -> Robot:
 
 def sim_gains(args: argparse.Namespace, robot: Robot) -> Any:
     """The gains of ``--gains`` for the robot (none: the robot file's own)."""
-    from nextage_qp.gains import load_gains, robot_gains
+    from nextage_qp.robots.gains import load_gains, robot_gains
 
     return robot_gains(robot) if args.gains is None else load_gains(args.gains, robot)
 

@@ -7,7 +7,7 @@ import argparse
 import numpy as np
 
 from nextage_qp.commands.common import add_scene_arg, parse_joint_assignments, print_json, scene_robot
-from nextage_qp.kinematics import Kinematics
+from nextage_qp.kinematics.frames import Kinematics
 
 
 def register(sub: argparse._SubParsersAction) -> None:

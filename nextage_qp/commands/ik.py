@@ -12,8 +12,8 @@ from nextage_qp.commands.common import COORD, add_scene_arg, number, out_console
 from nextage_qp.errors import ConfigError
 from nextage_qp.ik import QPIK, FrameTarget, IKConfig, IKResult
 from nextage_qp.ik.baselines import dls_ik, lm_ik, pinv_ik
-from nextage_qp.kinematics import Kinematics
-from nextage_qp.robot import Robot
+from nextage_qp.kinematics.frames import Kinematics
+from nextage_qp.robots.model import Robot
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

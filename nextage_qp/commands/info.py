@@ -8,7 +8,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from nextage_qp.commands.common import add_robot_arg, out_console, print_json, scene_robot
-from nextage_qp.describe import describe
+from nextage_qp.robots.describe import describe
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -9,8 +9,8 @@ import numpy as np
 
 from nextage_qp.commands.common import COORD, add_sim_args, help_text, number, print_outcome, scene_robot, sim_gains
 from nextage_qp.experiments.reach import run_reach
-from nextage_qp.kinematics import Kinematics
-from nextage_qp.trajectory import TrajectoryLimits
+from nextage_qp.kinematics.frames import Kinematics
+from nextage_qp.loop.reference import TrajectoryLimits
 
 REACHED_M = 0.002
 """Final position error [m] within which ``reach`` counts the target as reached (exit 0; otherwise exit 1)."""

@@ -38,9 +38,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run_init(args: argparse.Namespace) -> int:
     """Write the draft robot file; print what was found and where it went."""
-    from nextage_qp.robot import Robot
-    from nextage_qp.robots.check import check_robot
-    from nextage_qp.robots.init import draft_text, write_draft
+    from nextage_qp.robots.check_report import check_robot
+    from nextage_qp.robots.draft import draft_text, write_draft
+    from nextage_qp.robots.model import Robot
     from nextage_qp.robots.survey import joint_names, survey
 
     model = Path(args.model)
@@ -79,7 +79,7 @@ def run_init(args: argparse.Namespace) -> int:
 
 def run_check(args: argparse.Namespace) -> int:
     """Print the diagnosis; exit 1 when it found problems."""
-    from nextage_qp.robots.check import check_robot
+    from nextage_qp.robots.check_report import check_robot
 
     report = check_robot(args.file)
     if args.json:

@@ -15,11 +15,10 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from nextage_qp.commands.common import PLAIN_PROGRESS_S, PLOT_SUFFIXES, SEED, out_console, output_file, print_json
-from nextage_qp.errors import ConfigError
+from nextage_qp.errors import ConfigError, one_line
+from nextage_qp.io.outputs import refuse_overwriting
 from nextage_qp.manipulation.config import jitter_overrides, load_config
 from nextage_qp.manipulation.runner import Runner
-from nextage_qp.out_paths import refuse_overwriting
-from nextage_qp.sweep.episode import unmet_criteria
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -99,27 +98,28 @@ def run(args: argparse.Namespace) -> int:
 
         result = runner.run(on_tick)
     written, failed = _write_outputs(runner, args, recorder_video, recording)
+    record = result.as_dict()
     if written:
-        result["outputs"] = written
+        record["outputs"] = written
     if failed:
-        result["output_errors"] = failed
+        record["output_errors"] = failed
     if viewer is not None:
         viewer.close()
     if args.json:
-        print_json(result)
+        print_json(record)
     else:
-        _print_summary(result, out_console())
-    camera = ((result.get("estimation") or {}).get("camera") or {})
+        _print_summary(record, out_console())
+    camera = ((record.get("estimation") or {}).get("camera") or {})
     if camera.get("dump_error"):  # the frame dump asked for was not written (the run goes on without it)
         print(f"nextage-qp run: warning: {camera['dump_error']}", file=sys.stderr)
     if failed:
         print(f"nextage-qp run: error: {'; '.join(failed)}", file=sys.stderr)
         return 2
-    if result["error"]:
-        print(f"nextage-qp run: error: {' '.join(result['error'].split())}", file=sys.stderr)
-    elif not result["success"]:  # every phase done, a criterion not met: say which
-        print(f"nextage-qp run: failed: {unmet_criteria(result)}", file=sys.stderr)
-    return 0 if result["success"] else 1
+    if result.error:
+        print(f"nextage-qp run: error: {one_line(result.error)}", file=sys.stderr)
+    elif not result.success:  # every phase done, a criterion not met: say which
+        print(f"nextage-qp run: failed: {result.unmet_criteria()}", file=sys.stderr)
+    return 0 if result.success else 1
 
 
 def _check_log_summary(log: Path) -> None:

@@ -25,9 +25,9 @@ from nextage_qp.commands.common import (
     output_file,
 )
 from nextage_qp.errors import ConfigError
-from nextage_qp.estimate_errors import SHOVE_SETTLE_S
-from nextage_qp.json_out import dumps
-from nextage_qp.out_paths import refuse_overwriting
+from nextage_qp.estimation.report import SHOVE_SETTLE_S
+from nextage_qp.io.json_out import dumps
+from nextage_qp.io.outputs import refuse_overwriting
 from nextage_qp.sweep.episode import Episode
 from nextage_qp.sweep.run import plan, run_sweep
 from nextage_qp.sweep.spec import SweepSpec

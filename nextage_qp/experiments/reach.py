@@ -6,13 +6,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from nextage_qp.control import Gains
 from nextage_qp.errors import ConfigError
 from nextage_qp.ik import QPIK, FrameTarget, IKConfig
-from nextage_qp.robot import Robot
-from nextage_qp.servo import Command, Servo
-from nextage_qp.sim import Simulation, Timing
-from nextage_qp.trajectory import TrajectoryLimits
+from nextage_qp.loop.pd import Gains
+from nextage_qp.loop.reference import TrajectoryLimits
+from nextage_qp.loop.servo import Command, Servo
+from nextage_qp.loop.simulation import Simulation, Timing
+from nextage_qp.robots.model import Robot
 
 
 class ReachResult(NamedTuple):

@@ -6,11 +6,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from nextage_qp.control import Gains
 from nextage_qp.errors import ConfigError
-from nextage_qp.per_joint import descends
-from nextage_qp.robot import Robot
-from nextage_qp.sim import Simulation
+from nextage_qp.io.per_joint import descends
+from nextage_qp.loop.pd import Gains
+from nextage_qp.loop.simulation import Simulation
+from nextage_qp.robots.model import Robot
 
 
 class StepMetrics(NamedTuple):

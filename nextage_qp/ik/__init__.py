@@ -2,8 +2,8 @@
 
 from nextage_qp.ik.collision import ActiveCollisionLimit
 from nextage_qp.ik.config import CollisionPairConfig, IKConfig
+from nextage_qp.ik.kinematic_model import kinematic_model
 from nextage_qp.ik.limits import JointBoxLimit
-from nextage_qp.ik.model import kinematic_model
 from nextage_qp.ik.qp import QPIK
 from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, RelativeTarget, target_errors
 

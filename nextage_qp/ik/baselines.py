@@ -21,9 +21,9 @@ from collections.abc import Callable, Sequence
 import mujoco
 import numpy as np
 
-from nextage_qp.ik.model import Frame, chain_dofs, kinematic_model, resolve_frame
+from nextage_qp.ik.kinematic_model import Frame, chain_dofs, kinematic_model, resolve_frame
 from nextage_qp.ik.targets import FrameTarget, IKResult, worst_errors
-from nextage_qp.robot import Robot
+from nextage_qp.robots.model import Robot
 
 
 @functools.lru_cache(maxsize=8)
@@ -64,7 +64,7 @@ class _Problem:
         return np.concatenate(parts)
 
     def jacobian(self) -> np.ndarray:
-        """Rows matching :meth:`error`, over all 15 joints."""
+        """Rows matching :meth:`error`, over all the robot's joints."""
         rows = []
         for target, frame in zip(self.targets, self.frames, strict=True):
             if frame.kind == "site":
@@ -122,7 +122,7 @@ def pinv_ik(
 
     Each target is solved over the joints that move its frame (for an arm's frame: the arm and the torso joints
     above it), one :math:`J^+ e` step per subgoal and then refinement steps on the final goal; a joint that
-    several targets share (the Nextage's chest) gets the mean of the separate solves.
+    several targets share (a torso joint) gets the mean of the separate solves.
     """
     start = time.perf_counter()
     q0 = np.asarray(q0, dtype=float)
@@ -186,7 +186,7 @@ def dls_ik(
     pos_tol: float = 1e-4,
     rot_tol: float = 1e-3,
 ) -> IKResult:
-    r"""Damped least squares over all 15 joints with damping :math:`\lambda` [m or rad]."""
+    r"""Damped least squares over all the robot's joints with damping :math:`\lambda` [m or rad]."""
 
     def step(p: _Problem, q: np.ndarray) -> np.ndarray:
         jac, err = p.jacobian(), p.error()

@@ -8,7 +8,7 @@ Two bounds, both exact (a pair is never closer than its bound):
 * **Bounding spheres**: the centres' distance less both bounding radii.
 
 The per-step test of every pair (:meth:`PairBounds.near_reach`) and :meth:`PairBounds.remember` are compiled loops
-(:mod:`nextage_qp.ik.kernels`); elsewhere gathers use ``take``, several times faster than fancy indexing on arrays
+(:mod:`nextage_qp.native.kernels`); elsewhere gathers use ``take``, several times faster than fancy indexing on arrays
 this small.
 """
 
@@ -17,7 +17,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from nextage_qp.ik import kernels
+from nextage_qp.native import kernels
 
 
 class PairBounds:
@@ -88,7 +88,7 @@ class PairBounds:
         """Pairs whose bound is below ``within`` [m] (per pair) and that can bind within a step of the box.
 
         Adds every geom's motion to its travel (as :meth:`update`), then tests the travel bound first and the
-        spheres after it (compiled: :func:`~nextage_qp.ik.kernels.near_pairs`). A pair the spheres rule out is not
+        spheres after it (compiled: :func:`~nextage_qp.native.kernels.near_pairs`). A pair the spheres rule out is not
         stored (:meth:`remember`): its travel bound stays as it was, and next time the spheres rule it out again if
         they did now (their gap shrinks no faster than the travel grows). Then the reach bound: ``lever`` (pairs,
         nv) is how far each dof's step brings a pair's geoms together [m per rad], ``step`` (nv,) the box's step

@@ -26,10 +26,10 @@ from mink.limits.collision_avoidance_limit import (
 )
 from mink.limits.limit import Constraint
 
-from nextage_qp.ik import kernels
 from nextage_qp.ik.broadphase import PairBounds
+from nextage_qp.ik.kinematic_model import lever_bounds, moved_by_a_joint
 from nextage_qp.ik.limits import JointBoxLimit
-from nextage_qp.ik.model import lever_bounds, moved_by_a_joint
+from nextage_qp.native import kernels
 
 
 class ActiveCollisionLimit(mink.Limit):

@@ -11,8 +11,8 @@ from typing import Literal
 import qpsolvers
 from pydantic import Field, field_validator, model_validator
 
-from nextage_qp.robot import GroupSpec
-from nextage_qp.yaml_model import YamlModel
+from nextage_qp.io.schema import YamlModel
+from nextage_qp.robots.model import GroupSpec
 
 
 class CollisionPairConfig(YamlModel):
@@ -122,7 +122,7 @@ class IKConfig(YamlModel):
     trust_region: bool = Field(
         default=False, description=(
             "Servo: halve a fast IK step that turns back on the last one under an unchanged command (damps the "
-            "IK's limit cycle at slow control rates; see nextage_qp/servo.py)."),
+            "IK's limit cycle at slow control rates; see nextage_qp/loop/servo.py)."),
     )
 
     @field_validator("solver")
@@ -141,7 +141,7 @@ class IKConfig(YamlModel):
         return value
 
     def group_specs(self) -> dict[str, GroupSpec]:
-        """The extra collision groups as :class:`~nextage_qp.robot.GroupSpec` values."""
+        """The extra collision groups as :class:`~nextage_qp.robots.model.GroupSpec` values."""
         return {name: GroupSpec(g.bodies, g.subtrees) for name, g in self.collision_groups.items()}
 
     @model_validator(mode="after")

@@ -19,9 +19,7 @@ from nextage_qp.errors import UnknownNameError
 from nextage_qp.ik.backend import QPSolver
 from nextage_qp.ik.collision import ActiveCollisionLimit
 from nextage_qp.ik.config import IKConfig
-from nextage_qp.ik.limits import JointBoxLimit
-from nextage_qp.ik.memo import SolveMemo
-from nextage_qp.ik.model import (
+from nextage_qp.ik.kinematic_model import (
     PLANAR_JOINTS,
     Frame,
     ObjectPoses,
@@ -30,17 +28,19 @@ from nextage_qp.ik.model import (
     resolve_frame,
     set_object_poses,
 )
+from nextage_qp.ik.limits import JointBoxLimit
+from nextage_qp.ik.memo import SolveMemo
 from nextage_qp.ik.objective import Objective
 from nextage_qp.ik.search import Descent
 from nextage_qp.ik.solve import OfflineSolver
 from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, RelativeTarget
 from nextage_qp.ik.tasks import TaskCache
 from nextage_qp.mobile.rows import BaseRows
-from nextage_qp.robot import Robot, per_joint
+from nextage_qp.robots.model import Robot, per_joint
 
 
 class QPIK(OfflineSolver):
-    """QP differential IK over the 15 robot joints (mink tasks, box limits, active collision rows).
+    """QP differential IK over the robot's joints (mink tasks, box limits, active collision rows).
 
     Args:
         robot: The robot and its scene (objects become mocap bodies of the IK model).
@@ -140,7 +140,7 @@ class QPIK(OfflineSolver):
         extra: Sequence[mink.Task] = (),
         base: bool = False,
     ) -> np.ndarray:
-        """One IK step: the joint velocity v [rad/s] (15,) minimising the task costs for a step of ``dt`` [s].
+        """One IK step: the joint velocity v [rad/s] minimising the task costs for a step of ``dt`` [s].
 
         ``allow`` names collision groups whose pairs are not avoided on this step (e.g. the object a push is
         in contact with); ``posture`` replaces the configured posture target on this step (e.g. a configuration a

@@ -17,9 +17,9 @@ import numpy as np
 
 from nextage_qp.ik.collision import ActiveCollisionLimit
 from nextage_qp.ik.config import IKConfig
+from nextage_qp.ik.kinematic_model import Frame, ObjectPoses, chain_dofs, set_object_poses
 from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.ik.memo import SolveMemo
-from nextage_qp.ik.model import Frame, ObjectPoses, chain_dofs, set_object_poses
 from nextage_qp.ik.safe_step import advance
 from nextage_qp.ik.search import Descent, Search
 from nextage_qp.ik.starts import Starts
@@ -84,18 +84,16 @@ class OfflineSolver:
         a descent on the relaxed problem without collision rows first, whose steps cost a fraction as much (no
         distance queries, no collision-safe halving). A relaxed descent that misses the targets by more than
         ``RELAXED_MARGIN`` times the accepted errors gives its start up: collision rows only shrink what a descent
-        can reach (``tools/gate_stats.py``: in 20 episodes of the push sweep, of 959 starts so missed, the
-        collision-aware descent reached the targets from none). A restart's relaxed descent that reaches them clear
-        of every watched pair is an answer in itself (it meets every constraint the rows keep). One that reaches them
-        only through a collision gives its start up too, a trade of reach for time: the collision-aware descent
-        reached the targets from 31 of 362 such starts (the same episodes), at a descent of the costly steps each,
-        and the planner's caller tries its next route instead (the push and dock sweeps held). The first start
+        can reach. A restart's relaxed descent that reaches them clear of every watched pair is an answer in itself
+        (it meets every constraint the rows keep). One that reaches them only through a collision gives its start up
+        too, a trade of reach for time (the collision-aware descent seldom reaches the targets from such a start, at
+        a descent of the costly steps each), and the planner's caller tries its next route instead. The first start
         always gets the collision-aware descent when its relaxed one came near, so that answer keeps clear along the
         way from ``q0`` too. When no start comes near, the result is ``q0`` itself (``stalled``).
 
         Args:
             targets: Frame targets, solved together in one QP per step.
-            q0: Start configuration [rad] (15,).
+            q0: Start configuration [rad] (one value per robot joint).
             max_iters: Iteration cap per descent (default ``config.max_iters``).
             extra_tasks: Further mink tasks added to every step.
             object_poses: Object name -> (pos, quat wxyz) for collision avoidance.

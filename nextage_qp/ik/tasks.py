@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.ik.model import Frame
+from nextage_qp.ik.kinematic_model import Frame
 from nextage_qp.ik.targets import FrameTarget, RelativeTarget
 
 

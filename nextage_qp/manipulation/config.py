@@ -18,18 +18,18 @@ import yaml
 from pydantic import Field, create_model, model_validator
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.faults import EstimationConfig, FaultsConfig
 from nextage_qp.ik import IKConfig
+from nextage_qp.io.schema import YamlModel
+from nextage_qp.io.yaml_file import load_yaml, read_yaml_mapping, validate, yaml_error_line
+from nextage_qp.loop.reference import TrajectoryLimits
+from nextage_qp.loop.simulation import Timing
 from nextage_qp.manipulation.phases import REGISTRY, Spec
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, name_field
-from nextage_qp.robots.schema import MountFile
-from nextage_qp.scene import package_root
-from nextage_qp.scene_objects import ObjectDecl
-from nextage_qp.sim import Timing
-from nextage_qp.trajectory import TrajectoryLimits
-from nextage_qp.vision.config import PerceptionConfig
-from nextage_qp.yaml_file import load_yaml, read_yaml_mapping, validate, yaml_error_line
-from nextage_qp.yaml_model import YamlModel
+from nextage_qp.robots.robot_file import MountFile
+from nextage_qp.scene.files import package_root
+from nextage_qp.scene.objects import ObjectDecl
+from nextage_qp.sensing.faults import EstimationConfig, FaultsConfig
+from nextage_qp.sensing.perception_config import PerceptionConfig
 
 Vec3 = tuple[float, float, float]
 
@@ -52,7 +52,7 @@ class SceneConfig(YamlModel):
         default_factory=dict, description="Body -> factor on the sliding friction of all its contacts (default 1, "
                                           "at most 20).")
     objects: dict[str, ObjectDecl] = Field(
-        default_factory=dict, description="Object -> shape, size, mass, friction, pose (nextage_qp/scene_objects.py).")
+        default_factory=dict, description="Object -> shape, size, mass, friction, pose (nextage_qp/scene/objects.py).")
 
 
 class SuccessCriteria(YamlModel):

@@ -1,7 +1,7 @@
 """What a phase sees: a read-only :class:`View` of the run, the :class:`Grip` a clamp leaves, and moving setpoints.
 
 Phases never touch the simulation, the IK or mink: they read the view and return a
-:class:`~nextage_qp.servo.Command`. :class:`~.sim_view.SimView` is the view of a running simulation; tests script
+:class:`~nextage_qp.loop.servo.Command`. :class:`~.sim_view.SimView` is the view of a running simulation; tests script
 their own.
 """
 
@@ -18,8 +18,8 @@ from nextage_qp.errors import InfeasibleError, PhaseError
 from nextage_qp.geometry import Pose, rot_z, yaw_of
 from nextage_qp.ik import FrameTarget, RelativeTarget
 from nextage_qp.mobile.base import MobileBase
-from nextage_qp.mobile.kinematics import Pose2
-from nextage_qp.sensors import Wrench
+from nextage_qp.mobile.drive_models import Pose2
+from nextage_qp.sensing.sensors import Wrench
 
 
 @dataclass
@@ -84,11 +84,11 @@ class Grip:
 ROUND_HEADINGS = np.pi / 4
 """Spacing [rad] of the headings tried for an object that looks the same at any yaw (yaw symmetry 0)."""
 
-class View(Protocol):
-    """The read-only run state a phase works from.
+
+class RunState(Protocol):
+    """The run as time passes: the clock, the clamp in force, and whether the robot has settled.
 
     Attributes:
-        t: Simulated time [s].
         dt: Control period [s].
         grip: The current clamp, or None.
     """
@@ -99,6 +99,16 @@ class View(Protocol):
 
     dt: float
     grip: Grip | None
+
+    def settled(self) -> bool:
+        """True when the reference has caught up with the commanded joints and the robot is nearly still."""
+
+    def tracking_error(self) -> float:
+        """Largest gap between the measured and the commanded joints [rad]."""
+
+
+class Poses(Protocol):
+    """Where things are: measured, commanded and at given joints, and how old an object's measurement is."""
 
     def body_pose(self, name: str) -> Pose:
         """Measured world pose of a free object; the fixed pose of any other body (target, obstacle)."""
@@ -112,11 +122,15 @@ class View(Protocol):
     def joint_positions(self, names: tuple[str, ...]) -> np.ndarray:
         """Measured positions [rad] of the named joints."""
 
-    def settled(self) -> bool:
-        """True when the reference has caught up with the commanded joints and the robot is nearly still."""
+    def pose_at(self, frame: str, q: np.ndarray) -> Pose:
+        """World pose of a frame at joints ``q`` (e.g. a planned configuration)."""
 
-    def tracking_error(self) -> float:
-        """Largest gap between the measured and the commanded joints [rad]."""
+    def unseen_s(self, obj: str) -> float:
+        """Time [s] since the moment the latest measurement of an object's pose describes (0: poses are the truth)."""
+
+
+class Geometry(Protocol):
+    """The shapes of the scene: objects' extents, grips, resting heights, the table and obstacles."""
 
     def extent(self, obj: str, direction: np.ndarray) -> float:
         """Half-extent [m] of an object's collision geoms along a world direction (its pushing half-width)."""
@@ -127,24 +141,6 @@ class View(Protocol):
         Returns (height of the clamp over the object's origin, half-width there); the height by default the middle
         of the widest part (the highest of several: a dumbbell's top plate).
         """
-
-    def joint_names(self) -> tuple[str, ...]:
-        """The robot's joints, in the order of the joint vectors :meth:`plan` returns."""
-
-    def pose_at(self, frame: str, q: np.ndarray) -> Pose:
-        """World pose of a frame at joints ``q`` (e.g. a planned configuration)."""
-
-    def check_reach(self, frame: str, pos: np.ndarray, where: str) -> None:
-        """Raise :class:`~nextage_qp.errors.InfeasibleError` when no joint configuration brings the frame to ``pos``."""
-
-    def default_posture(self) -> np.ndarray:
-        """The joints [rad] the IK's redundancy heads for when a command names no posture."""
-
-    def pad_frames(self) -> tuple[str, ...]:
-        """The robot's clamping frames, one per arm, the first arm's (on the +y side) first."""
-
-    def wrench(self, site: str) -> Wrench:
-        """Measured contact wrench on a site's body, world frame: force [N] and torque about the site [N m]."""
 
     def rest_height(self, obj: str, on: str | None = None) -> float:
         """Height [m] of an object's origin standing upright on the table, or on the object ``on`` (a stack)."""
@@ -161,23 +157,24 @@ class View(Protocol):
     def weight(self, obj: str) -> float:
         """An object's weight [N]: its mass as the task declares it (its body and those below it) times gravity."""
 
-    def unseen_s(self, obj: str) -> float:
-        """Time [s] since the moment the latest measurement of an object's pose describes (0: poses are the truth)."""
-
-    def base(self) -> MobileBase | None:
-        """The robot's wheeled base (its type, limits and geometry), or None for a fixed robot."""
-
-    def base_pose(self) -> Pose2 | None:
-        """Where the base's odometry says it is (the controller's world), or None for a fixed robot."""
-
     def footprint(self, name: str) -> tuple[float, float, float, float]:
         """A body's footprint on the floor as a circle about its origin: x, y, radius [m], and its top's height [m]."""
 
-    def base_radius(self, below: float = np.inf) -> float:
-        """How far [m] the robot on its base reaches from the base's reference point, as it stands now.
 
-        Only its parts that reach down below the height ``below`` [m] count.
-        """
+class Reach(Protocol):
+    """What the arms reach: the joints, the IK's default posture, the clamping frames, planned joints."""
+
+    def joint_names(self) -> tuple[str, ...]:
+        """The robot's joints, in the order of the joint vectors :meth:`plan` returns."""
+
+    def default_posture(self) -> np.ndarray:
+        """The joints [rad] the IK's redundancy heads for when a command names no posture."""
+
+    def pad_frames(self) -> tuple[str, ...]:
+        """The robot's clamping frames, one per arm, the first arm's (on the +y side) first."""
+
+    def check_reach(self, frame: str, pos: np.ndarray, where: str) -> None:
+        """Raise :class:`~nextage_qp.errors.InfeasibleError` when no joint configuration brings the frame to ``pos``."""
 
     def plan(self, targets: Sequence[FrameTarget], start: np.ndarray | None = None,
              allow: frozenset[str] = frozenset(), pos_tol: float | None = None,
@@ -192,12 +189,39 @@ class View(Protocol):
         """
 
 
-def refusal(view: View) -> type[PhaseError] | type[InfeasibleError]:
+class Forces(Protocol):
+    """What the wrists feel."""
+
+    def wrench(self, site: str) -> Wrench:
+        """Measured contact wrench on a site's body, world frame: force [N] and torque about the site [N m]."""
+
+
+class Base(Protocol):
+    """A mobile robot's base: what it is, where its odometry says it is, how far the robot on it reaches."""
+
+    def base(self) -> MobileBase | None:
+        """The robot's wheeled base (its type, limits and geometry), or None for a fixed robot."""
+
+    def base_pose(self) -> Pose2 | None:
+        """Where the base's odometry says it is (the controller's world), or None for a fixed robot."""
+
+    def base_radius(self, below: float = np.inf) -> float:
+        """How far [m] the robot on its base reaches from the base's reference point, as it stands now.
+
+        Only its parts that reach down below the height ``below`` [m] count.
+        """
+
+
+class View(RunState, Poses, Geometry, Reach, Forces, Base, Protocol):
+    """The read-only run state a phase works from: every concern above (a helper asks for the few it uses)."""
+
+
+def refusal(view: RunState) -> type[PhaseError] | type[InfeasibleError]:
     """The error for a phase that finds its task impossible: a refusal (exit 2) while nothing has moved yet."""
     return InfeasibleError if view.t == 0.0 else PhaseError
 
 
-def reference(view: View, relative_to: str) -> tuple[np.ndarray, float]:
+def reference(view: Poses, relative_to: str) -> tuple[np.ndarray, float]:
     """Position [m] and yaw [rad] of a reference body, or the world origin."""
     if relative_to == "world":
         return np.zeros(3), 0.0

@@ -12,7 +12,7 @@ from collections.abc import Iterator, Mapping
 from typing import Any
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.robot import Robot
+from nextage_qp.robots.model import Robot
 
 SLACK = 1e-9
 """An angle this far past a limit [rad] still counts as in range (a keyframe written at the limit)."""

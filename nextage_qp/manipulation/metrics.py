@@ -5,6 +5,7 @@ Metrics are measured on the simulator's truth (contacts, true poses), never on w
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -12,12 +13,12 @@ import mujoco
 import numpy as np
 
 from nextage_qp.geometry import wrap
-from nextage_qp.ik import kernels
+from nextage_qp.loop.simulation import Simulation
 from nextage_qp.manipulation.config import SuccessCriteria
 from nextage_qp.manipulation.context import Grip
-from nextage_qp.robot import Robot
-from nextage_qp.scene import touch_sensor
-from nextage_qp.sim import Simulation
+from nextage_qp.native import kernels
+from nextage_qp.robots.model import Robot
+from nextage_qp.scene.files import touch_sensor
 
 
 @dataclass
@@ -82,7 +83,7 @@ class OutcomeMonitor:
 
         The obstacle's contacts are counted at every physics step only while something is within the watched
         clearance of the obstacle (:meth:`on_tick` decides). Where the model has the obstacle's contact sensor
-        (:func:`~nextage_qp.scene.touch_sensor`) the simulation's physics loop reads it (``sim.touch_adr``), else
+        (:func:`~nextage_qp.scene.files.touch_sensor`) the simulation's physics loop reads it (``sim.touch_adr``), else
         :meth:`on_substep` reads MuJoCo's contact list (a hook :meth:`on_tick` adds and removes).
         """
         sim.hooks.append(self.on_tick)
@@ -268,3 +269,90 @@ def summarize(
         "criteria": verdict,
         "error": error,
     }
+
+
+@dataclass(frozen=True)
+class RunResult(Mapping[str, Any]):
+    """The outcome of one run: typed fields over its result record (what ``nextage-qp run --json`` prints).
+
+    Read as a mapping, it is that record (``result["object_error_m"]``); the fields every consumer needs are typed.
+
+    Attributes:
+        record: The whole result record (:func:`summarize`).
+    """
+
+    record: Mapping[str, Any]
+
+    @property
+    def success(self) -> bool:
+        """Every phase completed and every success criterion held."""
+        return bool(self.record["success"])
+
+    @property
+    def error(self) -> str | None:
+        """Which phase failed and why, or None."""
+        return self.record["error"]
+
+    @property
+    def failed_criteria(self) -> list[str]:
+        """The criteria that did not hold, in order."""
+        return list(self.record["failed_criteria"])
+
+    @property
+    def failed_phase(self) -> str | None:
+        """The phase the run failed in, or None."""
+        return next((p["name"] for p in self.record["phases"] if p["status"] == "failed"), None)
+
+    @property
+    def object_error_xy_m(self) -> float:
+        """The object's planar distance to its target at the end [m]."""
+        return float(self.record["object_error_xy_m"])
+
+    @property
+    def object_yaw_error_rad(self) -> float:
+        """The object's yaw error modulo its symmetry [rad]."""
+        return float(self.record["object_yaw_error_rad"])
+
+    @property
+    def phases(self) -> list[dict[str, Any]]:
+        """Per phase: name, kind, status, start and duration [s] and the phase's own figures."""
+        return list(self.record["phases"])
+
+    @property
+    def sim_time_s(self) -> float:
+        """Simulated time of the run [s]."""
+        return float(self.record["sim_time_s"])
+
+    @property
+    def wall_time_s(self) -> float:
+        """Wall time of the run [s]."""
+        return float(self.record["wall_time_s"])
+
+    def unmet_criteria(self) -> str:
+        """``criteria not met: NAME VALUE > LIMIT, ...``: the criteria it failed, in order."""
+        return unmet_criteria(self.record)
+
+    def as_dict(self) -> dict[str, Any]:
+        """A copy of the record, for JSON."""
+        return dict(self.record)
+
+    def __getitem__(self, key: str) -> Any:
+        return self.record[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.record)
+
+    def __len__(self) -> int:
+        return len(self.record)
+
+
+def unmet_criteria(record: Mapping[str, Any]) -> str:
+    """``criteria not met: NAME VALUE > LIMIT, ...`` of a result record (the criteria it failed, in order)."""
+    return "criteria not met: " + ", ".join(_criterion_text(record, n) for n in record.get("failed_criteria", []))
+
+
+def _criterion_text(record: Mapping[str, Any], name: str) -> str:
+    crit = record.get("criteria", {}).get(name, {})
+    if "value" in crit and "limit" in crit:
+        return f"{name} {crit['value']:.4g} > {crit['limit']:.4g}"
+    return name

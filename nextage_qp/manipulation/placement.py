@@ -16,8 +16,8 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError, InfeasibleError
-from nextage_qp.kinematics import Kinematics
-from nextage_qp.robot import Robot
+from nextage_qp.kinematics.frames import Kinematics
+from nextage_qp.robots.model import Robot
 
 OVERLAP_TOLERANCE = 1e-4
 """Penetration [m] below which two geoms count as touching, not overlapping."""
@@ -155,7 +155,7 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
 def _within_reach(robot: Robot, q: np.ndarray, obj_geoms: list[int], rest: np.ndarray, source: str, obj: str) -> None:
     """Refuse a target no hand can come near: beyond every arm frame's reach sphere by more than the object's extent.
 
-    The spheres are :meth:`~nextage_qp.kinematics.Kinematics.reach`'s (a mobile base's frames reach anywhere).
+    The spheres are :meth:`~nextage_qp.kinematics.frames.Kinematics.reach`'s (a mobile base's frames reach anywhere).
     """
     m, kin = robot.model, Kinematics(robot)
     extent = max((float(np.linalg.norm(m.geom_pos[g]) + m.geom_rbound[g]) for g in obj_geoms), default=0.0)

@@ -16,8 +16,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from nextage_qp.ik import FrameTarget
+from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import Setpoint, View
-from nextage_qp.servo import Command
 
 REACHED = 0.005
 """A waypoint counts as reached when every frame is this close to where the planned joints put it [m] and the robot

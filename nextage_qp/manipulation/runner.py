@@ -3,7 +3,7 @@ r"""Execute a manipulation config.
 The runner only sequences phases; the servo, the simulation and the metrics do the rest.
 
 Each control tick the current phase reads the :class:`~.sim_view.SimView` and returns a command; the
-:class:`~nextage_qp.servo.Servo` turns it into commanded joints for Ruckig; the simulation runs one control
+:class:`~nextage_qp.loop.servo.Servo` turns it into commanded joints for Ruckig; the simulation runs one control
 period of PD-controlled physics; the outcome monitor watches contacts and the clamp.
 """
 
@@ -18,27 +18,26 @@ from typing import Any
 import numpy as np
 
 from nextage_qp.errors import ConfigError, InfeasibleError, NextageQPError, PhaseError, UnknownNameError
-from nextage_qp.estimate_errors import SHOVE_SETTLE_S
-from nextage_qp.gains import load_gains, robot_gains
+from nextage_qp.estimation.report import SHOVE_SETTLE_S
 from nextage_qp.ik import QPIK
 from nextage_qp.ik.look_at import watch
+from nextage_qp.loop.servo import HOLD, Command, Servo
+from nextage_qp.loop.simulation import Simulation
 from nextage_qp.manipulation.config import ManipulationConfig
 from nextage_qp.manipulation.joint_checks import check_angles
-from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, summarize
+from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, RunResult, summarize
 from nextage_qp.manipulation.phases import Phase, build, names_in
 from nextage_qp.manipulation.placement import Placement, check_placement
 from nextage_qp.manipulation.sim_view import SimView
 from nextage_qp.mobile.build import BASE_BODY
 from nextage_qp.mobile.odometry import base_report
-from nextage_qp.object_checks import check_clear
-from nextage_qp.perception_setup import attach_camera, log_estimates, perception_of, source_of
-from nextage_qp.robot import Robot, tool_frames
-from nextage_qp.robots.check import check_own_names
+from nextage_qp.robots.check_report import check_own_names
 from nextage_qp.robots.description import load_robot
-from nextage_qp.robots.groups import scene_bodies
-from nextage_qp.scene import BodyPose, SceneOverrides
-from nextage_qp.servo import HOLD, Command, Servo
-from nextage_qp.sim import Simulation
+from nextage_qp.robots.gains import load_gains, robot_gains
+from nextage_qp.robots.model import Robot, scene_bodies, tool_frames
+from nextage_qp.scene.checks import check_clear
+from nextage_qp.scene.files import BodyPose, SceneOverrides
+from nextage_qp.sensing.setup import attach_camera, log_estimates, perception_of, source_of
 
 TickCallback = Callable[["Runner", Phase | None], None]
 SEARCH_S = 3.0
@@ -76,7 +75,7 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
     check_own_names(robot)  # the robot file's own names: its error, not the task config's
     check_names(cfg, robot, source)
     check_angles(cfg, robot, source)
-    check_clear(robot, source)
+    check_clear(robot.model, robot.joint_names, robot.object_names, source)
     return robot
 
 
@@ -160,8 +159,8 @@ class Runner:
         if self.view.grip is not None:
             self.monitor.check_hold(self.sim, self.view.grip)
 
-    def run(self, on_tick: TickCallback | None = None) -> dict[str, Any]:
-        """Run every phase, then settle; returns the result summary (also on failure, with ``error``)."""
+    def run(self, on_tick: TickCallback | None = None) -> RunResult:
+        """Run every phase, then settle; returns the result (also on failure, with ``error``)."""
         wall0 = time.perf_counter()
         view = self.view
         try:
@@ -192,7 +191,7 @@ class Runner:
                         raise PhaseError(f"phase {rec.name!r} ({spec.kind}) timed out after {spec.timeout:g} s "
                                          f"of simulated time{': ' + cause if cause else ''}; "
                                          f"last state: {_brief(phase.info)}"
-                                         f"{''.join(held)}")
+                                         f"{''.join(held)}", phase=rec.name)
                 rec.status, rec.duration_s, rec.info = "done", self.sim.time - rec.start_s, dict(phase.info)
             self.current, self._phase = None, None
             end = self.sim.time + self.cfg.timing.settle
@@ -204,7 +203,7 @@ class Runner:
             if isinstance(exc, InfeasibleError) and self.sim.time == 0.0:
                 raise  # refused before anything moved (exit 2, like an overlapping target)
             self.error = str(exc)
-            if self._phase is not None and not self.error.startswith("phase "):  # say which phase it ended in
+            if self._phase is not None and exc.phase is None:  # say which phase it ended in
                 self.error = f"phase {self._phase[0]!r} ({self._phase[1]}): {self.error}"
             for rec in self.records:
                 if rec.status == "running":
@@ -217,7 +216,7 @@ class Runner:
                 log_estimates(self.sensors, self.sim.recorder)
             if self.camera is not None:
                 self.camera.close()
-        return self.summary()
+        return RunResult(self.summary())
 
     def _look_point(self) -> np.ndarray:
         """Where the head looks: the middle of the task's object and target, as estimated.

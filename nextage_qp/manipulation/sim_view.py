@@ -10,16 +10,16 @@ import numpy as np
 from nextage_qp.errors import UnknownNameError
 from nextage_qp.geometry import GeomPart, Pose, cross, geom_parts
 from nextage_qp.ik import QPIK, FrameTarget
-from nextage_qp.kinematics import Kinematics
+from nextage_qp.kinematics.frames import Kinematics
+from nextage_qp.loop.servo import Servo
+from nextage_qp.loop.simulation import Simulation
 from nextage_qp.manipulation.context import Grip
 from nextage_qp.manipulation.placement import obstacle_top, rest_height, table_top
 from nextage_qp.mobile.base import MobileBase
-from nextage_qp.mobile.kinematics import Pose2
+from nextage_qp.mobile.drive_models import Pose2
 from nextage_qp.mobile.odometry import to_odometry
-from nextage_qp.robot import Robot
-from nextage_qp.sensors import Wrench
-from nextage_qp.servo import Servo
-from nextage_qp.sim import Simulation
+from nextage_qp.robots.model import Robot
+from nextage_qp.sensing.sensors import Wrench
 
 REACH_POS_TOL = 0.003
 """Position error [m] within which :meth:`SimView.plan` counts a target as reached."""

@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.io.per_joint import descends
 from nextage_qp.mobile.base_file import BaseFile
 from nextage_qp.mobile.build import (
     BASE_BODY,
@@ -25,8 +26,7 @@ from nextage_qp.mobile.build import (
     planar_pose,
     start_pose,
 )
-from nextage_qp.mobile.kinematics import Bicycle, DiffDrive, Pose2, Twist
-from nextage_qp.per_joint import descends
+from nextage_qp.mobile.drive_models import Bicycle, DiffDrive, Pose2, Twist
 
 HOLD_GAIN = 10.0
 """Gain [1/s] with which a standing base's driven joints return to the angles they hold."""

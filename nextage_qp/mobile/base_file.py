@@ -23,7 +23,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from nextage_qp.yaml_model import YamlModel
+from nextage_qp.io.schema import YamlModel
 
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 

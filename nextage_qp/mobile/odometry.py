@@ -16,7 +16,7 @@ import numpy as np
 
 from nextage_qp.geometry import Pose, rot_z
 from nextage_qp.mobile.base import MobileBase
-from nextage_qp.mobile.kinematics import Pose2, Twist, integrate
+from nextage_qp.mobile.drive_models import Pose2, Twist, integrate
 
 
 class Odometry:

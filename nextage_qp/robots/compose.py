@@ -14,12 +14,13 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from nextage_qp.errors import ConfigError
+from nextage_qp.errors import ConfigError, one_line
 from nextage_qp.mobile.build import add_base, add_base_actuators
-from nextage_qp.object_build import declare_objects, rest_on_table
+from nextage_qp.robots.cameras import add_cameras
 from nextage_qp.robots.description import RobotDescription
-from nextage_qp.scene import SceneOverrides, apply_overrides, load_scene, quiet_prefix_warning
-from nextage_qp.vision.cameras import add_cameras
+from nextage_qp.scene.build import declare_objects, rest_on_table
+from nextage_qp.scene.compile import quiet_prefix_warning
+from nextage_qp.scene.files import SceneOverrides, apply_overrides, load_scene
 
 _ASSETS = ("meshes", "textures", "materials", "hfields", "skins")
 
@@ -38,7 +39,7 @@ def robot_spec(desc: RobotDescription) -> mujoco.MjSpec:
         try:
             spec = mujoco.MjSpec.from_file(str(desc.model))
         except ValueError as exc:
-            raise ConfigError(f"{desc.source}: model {desc.model}: {' '.join(str(exc).split())}") from None
+            raise ConfigError(f"{desc.source}: model {desc.model}: {one_line(exc)}") from None
     if desc.angle is not None:
         spec.compiler.degree = desc.angle == "degree"
     bodies = {b.name for b in spec.bodies if b.name}
@@ -138,7 +139,7 @@ def compose(desc: RobotDescription, scene: str | Path, overrides: SceneOverrides
     if overrides.objects:
         rest_on_table(parent, overrides.objects, markers)
     if overrides.speckle:
-        from nextage_qp.vision.texture import speckle
+        from nextage_qp.scene.texture import speckle
 
         speckle(parent, robot_bodies)
     return parent

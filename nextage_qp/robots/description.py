@@ -8,11 +8,11 @@ from pathlib import Path
 from typing import Any
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.io.yaml_file import read_yaml_mapping, validate
 from nextage_qp.mobile.base_file import BaseFile
-from nextage_qp.robots.paths import PREFIX, missing_package_hint, resolve_package, split_package
-from nextage_qp.robots.schema import FrameFile, GainRule, GroupFile, MountFile, RobotFile
-from nextage_qp.vision.cameras import CameraFile
-from nextage_qp.yaml_file import read_yaml_mapping, validate
+from nextage_qp.robots.cameras import CameraFile
+from nextage_qp.robots.package_urls import PREFIX, missing_package_hint, resolve_package, split_package
+from nextage_qp.robots.robot_file import FrameFile, GainRule, GroupFile, MountFile, RobotFile
 
 DEFAULT_ROBOT = "nextage"
 """The robot a config or command uses when it names none."""
@@ -93,7 +93,7 @@ class RobotDescription:
 
 def robots_dir() -> Path:
     """The folder of the bundled robot files (``robots/`` in a checkout, ``robots_data/`` when installed)."""
-    from nextage_qp.scene import package_root
+    from nextage_qp.scene.files import package_root
 
     root = package_root()
     for name in ("robots_data", "robots"):
@@ -172,7 +172,7 @@ def _read_extended(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
 
 
 def load_robot(ref: str | Path | None = None) -> RobotDescription:
-    """Load and validate a robot file (see :mod:`nextage_qp.robots.schema`).
+    """Load and validate a robot file (see :mod:`nextage_qp.robots.robot_file`).
 
     Raises:
         ConfigError: The file is missing or malformed: one line naming the file, the dotted key and what is valid.

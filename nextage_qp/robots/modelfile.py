@@ -13,16 +13,11 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from nextage_qp.errors import ConfigError
+from nextage_qp.errors import ConfigError, one_line
 from nextage_qp.robots.urdf import KEEP_FRAMES, MeshIssue, read_urdf, resolve_meshes, set_compiler, spec_from_tree
 
 MASS_WORDS = ("mass", "inertia")
 """Words of MuJoCo's compile errors about a body's mass or inertia."""
-
-
-def one_line(exc: BaseException) -> str:
-    """An exception's message on one line."""
-    return " ".join(str(exc).split())
 
 
 def model_spec(path: Path, package_paths: tuple[Path, ...], source: str, *, lenient: bool = False,

@@ -8,8 +8,8 @@ from typing import Literal
 import mujoco
 import numpy as np
 
-from nextage_qp.robots.checks import MOVING, Finding
 from nextage_qp.robots.description import RobotDescription
+from nextage_qp.robots.model_checks import MOVING, Finding
 from nextage_qp.robots.modelfile import model_torque_limit, self_contacts
 
 MIN_MASS = 1e-6

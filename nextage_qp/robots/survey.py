@@ -22,7 +22,7 @@ from nextage_qp.robots.modelfile import (
     self_contacts,
 )
 from nextage_qp.robots.poses import Home, find_home, lowest_point
-from nextage_qp.robots.schema import GainRule, MountFile
+from nextage_qp.robots.robot_file import GainRule, MountFile
 
 MOVING = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 GENERIC_STEMS = ("robot", "model", "scene", "main")

@@ -2,7 +2,8 @@
 
 MuJoCo reads a URDF itself but resolves no ``package://`` path, reads no COLLADA (``.dae``) mesh and, by default,
 fuses every link hung on a fixed joint into its parent (``tool0`` and the like vanish). :func:`urdf_spec` rewrites the
-URDF first: each mesh file becomes an absolute path (``package://`` through :mod:`nextage_qp.robots.paths`, relative
+URDF first: each mesh file becomes an absolute path (``package://`` through :mod:`nextage_qp.robots.package_urls`,
+relative
 paths against the URDF's folder), each ``.dae`` (and ASCII STL) a binary STL converted with ``trimesh`` (the
 ``mesh`` extra) in a cache folder, and a ``<mujoco><compiler fusestatic="false" .../></mujoco>`` element keeps
 fixed links as bodies.
@@ -23,8 +24,8 @@ from typing import Any, NamedTuple
 
 import mujoco
 
-from nextage_qp.errors import ConfigError
-from nextage_qp.robots.paths import PREFIX, missing_package_hint, resolve_package, split_package
+from nextage_qp.errors import ConfigError, one_line
+from nextage_qp.robots.package_urls import PREFIX, missing_package_hint, resolve_package, split_package
 
 MESH_SUFFIXES = (".stl", ".obj", ".msh")
 """Mesh files MuJoCo reads."""
@@ -55,7 +56,7 @@ def read_urdf(path: Path, source: str) -> ET.Element:
     try:
         root = ET.parse(path).getroot()
     except (OSError, ET.ParseError) as exc:
-        raise ConfigError(f"{source}: model {path}: not a readable URDF ({' '.join(str(exc).split())})") from None
+        raise ConfigError(f"{source}: model {path}: not a readable URDF ({one_line(exc)})") from None
     if root.tag != "robot":
         raise ConfigError(f"{source}: model {path}: a URDF's top element is <robot>, got <{root.tag}>")
     return root
@@ -118,7 +119,7 @@ def convert_mesh(path: Path) -> Path:
         mesh.export(str(tmp), file_type="stl")
         tmp.replace(out)
     except Exception as exc:  # trimesh raises many kinds; the message says which
-        raise ConfigError(f"cannot convert it to STL: {' '.join(str(exc).split())}") from None
+        raise ConfigError(f"cannot convert it to STL: {one_line(exc)}") from None
     return out
 
 
@@ -164,7 +165,8 @@ def resolve_meshes(root: ET.Element, folder: Path, package_paths: tuple[Path, ..
                    drop: bool = False) -> list[MeshIssue]:
     """Rewrite every mesh filename of a URDF tree to a file MuJoCo reads; return the meshes that cannot be.
 
-    ``package://`` paths are resolved with :func:`~nextage_qp.robots.paths.resolve_package`, relative paths against
+    ``package://`` paths are resolved with :func:`~nextage_qp.robots.package_urls.resolve_package`, relative paths
+    against
     ``folder``; COLLADA and ASCII STL meshes are converted to binary STL (:func:`convert_mesh`). With ``drop``, the
     visual or collision element of an unusable mesh is removed (so the rest still compiles); without, it stays.
     """
@@ -203,7 +205,7 @@ def spec_from_tree(root: ET.Element, path: Path, source: str) -> mujoco.MjSpec:
     try:
         return mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode"))
     except ValueError as exc:
-        raise ConfigError(f"{source}: model {path}: MuJoCo cannot import it: {' '.join(str(exc).split())}") from None
+        raise ConfigError(f"{source}: model {path}: MuJoCo cannot import it: {one_line(exc)}") from None
 
 
 def urdf_spec(path: Path, package_paths: tuple[Path, ...], source: str) -> mujoco.MjSpec:

@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from nextage_qp.errors import ConfigError
+from nextage_qp.errors import ConfigError, one_line
 from nextage_qp.sweep.episode import Episode, EpisodeTask, failed_episode, run_episode
 
 EpisodeFn = Callable[[EpisodeTask], Episode]
@@ -99,7 +99,7 @@ def ray_init(workers: int | None, address: str | None = None) -> bool:
                  log_to_driver=False, runtime_env={"env_vars": dict(THREAD_ENV)})
     except Exception as exc:
         raise ConfigError(f"--backend ray: cannot start or reach Ray at {address or 'a local instance'}: "
-                          f"{' '.join(str(exc).split())}") from None
+                          f"{one_line(exc)}") from None
     return True
 
 
@@ -133,7 +133,7 @@ def run_ray(tasks: Sequence[EpisodeTask], workers: int | None, on_done: OnDone, 
                     episode = ray.get(ref, timeout=60)
                 except (RayError, GetTimeoutError) as exc:
                     episode = failed_episode(task, f"Ray task failed: {type(exc).__name__}: "
-                                             f"{' '.join(str(exc).split())[:300]}", time.monotonic() - t0)
+                                             f"{one_line(exc)[:300]}", time.monotonic() - t0)
                 on_done(episode)
             now = time.monotonic()
             for ref, (task, t0) in list(running.items()):

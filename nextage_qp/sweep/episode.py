@@ -13,7 +13,7 @@ import traceback
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from nextage_qp.errors import ConfigError, NextageQPError
+from nextage_qp.errors import ConfigError, NextageQPError, one_line
 
 STATUSES = ("success", "failed", "refused", "error")
 """``success``/``failed``: the task ran and met / missed its criteria; ``refused``: the run rejected its scene
@@ -101,7 +101,7 @@ def run_episode(task: EpisodeTask) -> Episode:
     """Run one episode in this process and return its record (never raises)."""
     from nextage_qp.manipulation.config import load_config
     from nextage_qp.manipulation.runner import Runner
-    from nextage_qp.mj_warnings import capture_mujoco_warnings
+    from nextage_qp.native.mj_warnings import capture_mujoco_warnings
 
     capture_mujoco_warnings()  # in a worker process: MuJoCo's own prints would interleave with the progress
 
@@ -121,33 +121,21 @@ def run_episode(task: EpisodeTask) -> Episode:
                                        f"at t={r.sim.time:.2f} s of simulated time")
 
         result = runner.run(guard)
-        record.result = result
-        record.failed_criteria = list(result.get("failed_criteria", []))
-        record.failed_phase = next((p["name"] for p in result["phases"] if p["status"] == "failed"), None)
-        if result["success"]:
+        record.result = result.as_dict()
+        record.failed_criteria = result.failed_criteria
+        record.failed_phase = result.failed_phase
+        if result.success:
             record.status = "success"
         else:
             record.status = "error" if stopped else "failed"
-            record.reason = result["error"] or unmet_criteria(result)
+            record.reason = result.error or result.unmet_criteria()
     except ConfigError as exc:
-        record.status, record.reason = "refused", " ".join(str(exc).split())
+        record.status, record.reason = "refused", one_line(exc)
     except Exception as exc:
         last = traceback.extract_tb(exc.__traceback__)[-1]
         record.reason = f"{type(exc).__name__}: {exc} (at {os.path.basename(last.filename)}:{last.lineno})"
     record.wall_time_s = time.perf_counter() - start
     return record
-
-
-def unmet_criteria(result: dict[str, Any]) -> str:
-    """``criteria not met: NAME VALUE > LIMIT, ...`` of a run's result (the criteria it failed, in order)."""
-    return "criteria not met: " + ", ".join(_criterion_text(result, n) for n in result.get("failed_criteria", []))
-
-
-def _criterion_text(result: dict[str, Any], name: str) -> str:
-    crit = result.get("criteria", {}).get(name, {})
-    if "value" in crit and "limit" in crit:
-        return f"{name} {crit['value']:.4g} > {crit['limit']:.4g}"
-    return name
 
 
 def failed_episode(task: EpisodeTask, reason: str, wall_time_s: float, worker: str = "") -> Episode:

@@ -10,7 +10,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel
 
-from nextage_qp.yaml_file import load_yaml
+from nextage_qp.io.yaml_file import load_yaml
 
 
 def yaml_scalar(value: Any) -> str:

@@ -28,13 +28,13 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from nextage_qp.errors import ConfigError, InfeasibleError
+from nextage_qp.io.schema import YamlModel
+from nextage_qp.io.yaml_file import read_yaml_mapping, validate
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import build_robot
 from nextage_qp.robots.description import DEFAULT_ROBOT
 from nextage_qp.sweep.keys import key_hash, lookup, scene_default, yaml_scalar
 from nextage_qp.sweep.nested import check_nested, draw_nested, extremes
-from nextage_qp.yaml_file import read_yaml_mapping, validate
-from nextage_qp.yaml_model import YamlModel
 
 Number = Annotated[float, Field(allow_inf_nan=False)]
 Bound = Number | list[Number]

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from nextage_qp.json_out import dumps
+from nextage_qp.io.json_out import dumps
 from nextage_qp.sweep.episode import STATUSES, Episode
 from nextage_qp.sweep.nested import choice_label
 from nextage_qp.sweep.run import replay_commands

@@ -36,7 +36,7 @@ def finish(study: Study, s: Any, out: Path, storage_url: str, *, workers: int, b
     """Evaluate best and base on the held-out set, write ``best.yaml``, ``summary.json`` and the plots."""
     from optuna.trial import TrialState
 
-    from nextage_qp.json_out import dumps
+    from nextage_qp.io.json_out import dumps
     from nextage_qp.viz.tune import plot_history, plot_importances
 
     complete = [t for t in s.trials if t.state == TrialState.COMPLETE]

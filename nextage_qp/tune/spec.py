@@ -29,8 +29,8 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, model_validator
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.yaml_file import read_yaml_mapping, validate
-from nextage_qp.yaml_model import YamlModel
+from nextage_qp.io.schema import YamlModel
+from nextage_qp.io.yaml_file import read_yaml_mapping, validate
 
 Number = Annotated[float, Field(allow_inf_nan=False)]
 OBJECTIVES = {"sweep": ("failures_then_p95_error",), "steps": ("settling_time",)}

@@ -20,13 +20,13 @@ from typing import Any
 
 import numpy as np
 
-from nextage_qp.control import Gains, GainsFile, gains_path
-from nextage_qp.errors import ConfigError
+from nextage_qp.errors import ConfigError, one_line
+from nextage_qp.io.yaml_file import read_yaml_mapping, validate
+from nextage_qp.loop.pd import Gains, GainsFile, gains_path
 from nextage_qp.sweep.episode import Episode
 from nextage_qp.sweep.keys import lookup
 from nextage_qp.tune.evaluate import Score, apply_params
 from nextage_qp.tune.spec import StepsEval
-from nextage_qp.yaml_file import read_yaml_mapping, validate
 
 STEP_WALL_LIMIT = 60.0
 """Wall-time limit of one step run [s] (a run takes well under a second)."""
@@ -60,7 +60,7 @@ _ROBOTS: dict[str, Any] = {}
 def run_step_task(task: StepTask) -> Episode:
     """Run one step in this process (never raises): ``success`` when it meets its criteria."""
     from nextage_qp.experiments.step_response import run_step
-    from nextage_qp.robot import Robot
+    from nextage_qp.robots.model import Robot
 
     start = time.perf_counter()
     record = Episode(task.index, 0, task.params, [], status="error", worker=f"{socket.gethostname()}:{os.getpid()}")
@@ -73,7 +73,7 @@ def run_step_task(task: StepTask) -> Episode:
         record.failed_criteria = missed
         record.reason = ", ".join(missed) or None
     except Exception as exc:
-        record.reason = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+        record.reason = f"{type(exc).__name__}: {one_line(exc)}"
     record.wall_time_s = time.perf_counter() - start
     return record
 
@@ -97,7 +97,7 @@ class StepsEvaluator:
     episode_fn = staticmethod(run_step_task)
 
     def __init__(self, evaluation: StepsEval, held_amplitude_deg: float | None, folder: Path) -> None:
-        from nextage_qp.robot import Robot
+        from nextage_qp.robots.model import Robot
 
         self.eval = evaluation
         self.robot = Robot.from_scene(evaluation.scene)

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from nextage_qp.errors import ConfigError
+from nextage_qp.errors import ConfigError, one_line
 from nextage_qp.sweep.run import run_sweep
 from nextage_qp.tune.evaluate import Evaluator, Score
 from nextage_qp.tune.spec import Param, StudyFile, read_study
@@ -116,7 +116,7 @@ def open_storage(url: str) -> Any:
             return RDBStorage(url, heartbeat_interval=HEARTBEAT_S, grace_period=3 * HEARTBEAT_S,
                               heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(max_retry=1))
         except Exception as exc:
-            raise ConfigError(f"--storage {url}: cannot open it: {' '.join(str(exc).split())[:200]}") from None
+            raise ConfigError(f"--storage {url}: cannot open it: {one_line(exc)[:200]}") from None
 
 
 def sampler(study: Study, n_existing: int) -> Any:

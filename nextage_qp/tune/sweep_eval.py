@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from nextage_qp.errors import ConfigError
+from nextage_qp.io.yaml_file import read_yaml_mapping
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.sweep.episode import Episode, EpisodeTask, run_episode
 from nextage_qp.sweep.keys import lookup, yaml_scalar
@@ -28,7 +29,6 @@ from nextage_qp.sweep.spec import SweepSpec
 from nextage_qp.sweep.summary import error_limit, object_error, wilson
 from nextage_qp.tune.evaluate import Score, apply_params, relocate
 from nextage_qp.tune.spec import HeldOut, SweepEval
-from nextage_qp.yaml_file import read_yaml_mapping
 
 MISSING_ERROR_M = 1.0
 """Object error counted for an episode that produced no result (an exception, the wall-time limit) [m]."""

@@ -23,7 +23,7 @@ def plot_step_response(
     """Position with reference and target, velocity and torque of one joint against time (cf. report Fig. 8).
 
     Args:
-        arrays: A :class:`~nextage_qp.sim.Recorder`'s arrays (``t``, ``q``, ``q_ref``, ``qd``, ``tau``).
+        arrays: A :class:`~nextage_qp.loop.simulation.Recorder`'s arrays (``t``, ``q``, ``q_ref``, ``qd``, ``tau``).
         joint_index: Index of the joint in the q vector.
         joint: Joint name (labels).
         target: Step target [rad].

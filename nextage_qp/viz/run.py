@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 import mujoco
 import numpy as np
 
-from nextage_qp.robot import tool_frames as robot_tool_frames
+from nextage_qp.robots.model import tool_frames as robot_tool_frames
 
 if TYPE_CHECKING:
     from nextage_qp.manipulation.runner import Runner

@@ -38,15 +38,15 @@ class HeadView:
 
     @staticmethod
     def of(measurer: Any) -> HeadView:
-        """The view of a :class:`~nextage_qp.vision.source.CameraMeasurer`'s camera."""
+        """The view of a :class:`~nextage_qp.sensing.camera.source.CameraMeasurer`'s camera."""
         cam = measurer.camera
         return HeadView(cam.name, cam.spec.width, cam.spec.height, cam.K, dict(measurer.estimator.shapes))
 
     def view(self, renderer: mujoco.Renderer, data: mujoco.MjData, poses: dict[str, Any]) -> Any:
         """The camera's image of ``data`` (as the robot's camera renders it) with ``poses`` drawn over it."""
-        from nextage_qp.vision.draw import draw_poses
-        from nextage_qp.vision.estimate import Frame
-        from nextage_qp.vision.render import render_camera, shown_option
+        from nextage_qp.sensing.camera.draw import draw_poses
+        from nextage_qp.sensing.camera.estimate import Frame
+        from nextage_qp.sensing.camera.render import render_camera, shown_option
 
         cam = mujoco.mj_name2id(renderer.model, mujoco.mjtObj.mjOBJ_CAMERA, self.camera)
         image = render_camera(renderer, data, cam, shown_option())

@@ -12,11 +12,11 @@ from typing import Any
 from nextage_qp.manipulation.phases.base import Phase, Spec, names_in
 from nextage_qp.manipulation.phases.carry import Carry, CarrySpec
 from nextage_qp.manipulation.phases.drive import Drive, DriveSpec
-from nextage_qp.manipulation.phases.grasp import Grasp, GraspSpec
+from nextage_qp.manipulation.phases.grasp.phase import Grasp, GraspSpec
 from nextage_qp.manipulation.phases.joints import Joints, JointsSpec
 from nextage_qp.manipulation.phases.move import Move, MoveSpec
 from nextage_qp.manipulation.phases.place import Place, PlaceSpec
-from nextage_qp.manipulation.phases.push import Push, PushSpec
+from nextage_qp.manipulation.phases.push.phase import Push, PushSpec
 from nextage_qp.manipulation.phases.release import Release, ReleaseSpec
 from nextage_qp.manipulation.phases.wait import Wait, WaitSpec
 

@@ -14,13 +14,13 @@ from typing import Any, ClassVar
 
 from pydantic import BaseModel, Field, model_validator
 
-from nextage_qp.errors import PhaseError
+from nextage_qp.errors import InfeasibleError, NextageQPError, PhaseError
 from nextage_qp.geometry import Pose
+from nextage_qp.io.schema import YamlModel
+from nextage_qp.io.yaml_file import MAX_SECONDS, NameKind, name_field
+from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.clamp import Clamp
-from nextage_qp.manipulation.context import Grip, View
-from nextage_qp.servo import Command
-from nextage_qp.yaml_file import MAX_SECONDS, NameKind, name_field
-from nextage_qp.yaml_model import YamlModel
+from nextage_qp.manipulation.context import Grip, View, refusal
 
 __all__ = ["MAX_SECONDS", "NameKind", "Phase", "Spec", "name_field"]
 
@@ -127,9 +127,20 @@ class Phase(ABC):
         """
         return None
 
+    def failure(self, message: str, error: type[PhaseError] | type[InfeasibleError] = PhaseError) -> NextageQPError:
+        """The error that fails this phase: ``message`` after the phase's name and kind, the phase in its field.
+
+        ``error``: :class:`InfeasibleError` for a refusal before anything moved (:func:`~.context.refusal`).
+        """
+        return error(f"phase {self.name!r} ({self.spec.kind}): {message}", phase=self.name)
+
+    def refusal(self, view: View, message: str) -> NextageQPError:
+        """The error of a phase that finds its task impossible: a refusal (exit 2) while nothing has moved yet."""
+        return self.failure(message, refusal(view))
+
     def held(self, view: View, obj: str, relative_cost: float) -> Clamp:
         """The clamp on ``obj`` that an earlier grasp left, driven with ``relative_cost``; fails without one."""
         grip = view.grip
         if grip is None or grip.object != obj:
-            raise PhaseError(f"phase {self.name!r}: {self.spec.kind} needs {obj!r} clamped by a grasp phase first")
+            raise self.failure(f"needs {obj!r} clamped by a grasp phase first")
         return Clamp(grip, relative_cost)

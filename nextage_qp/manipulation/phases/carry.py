@@ -8,10 +8,10 @@ import numpy as np
 from pydantic import Field
 
 from nextage_qp.geometry import yaw_of
+from nextage_qp.io.schema import YamlModel
+from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import Setpoint, View, resolve_point
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
-from nextage_qp.servo import Command
-from nextage_qp.yaml_model import YamlModel
 
 Vec3 = tuple[float, float, float]
 

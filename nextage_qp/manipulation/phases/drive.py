@@ -25,15 +25,14 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import rot_z
 from nextage_qp.ik import FrameTarget
-from nextage_qp.manipulation.context import View, reference, refusal
+from nextage_qp.loop.servo import Command
+from nextage_qp.manipulation.context import View, reference
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
 from nextage_qp.mobile.build import BASE_BODY
-from nextage_qp.mobile.kinematics import Pose2, relative
-from nextage_qp.mobile.paths import Motion, around, dubins, polyline_motion
-from nextage_qp.servo import Command
+from nextage_qp.mobile.drive_models import Pose2, relative
+from nextage_qp.mobile.drive_paths import Motion, around, dubins, polyline_motion
 
 
 class DriveSpec(Spec):
@@ -67,7 +66,7 @@ class Drive(Phase):
         c = self.spec
         base, pose = view.base(), view.base_pose()
         if base is None or pose is None:
-            raise refusal(view)(f"phase {self.name!r} (drive): the robot has no base (robot file: base:)")
+            raise self.refusal(view, "the robot has no base (robot file: base:)")
         ref, ref_yaw = reference(view, c.relative_to)
         cos_r, sin_r = math.cos(ref_yaw), math.sin(ref_yaw)
         gx = ref[0] + cos_r * c.offset[0] - sin_r * c.offset[1]
@@ -88,8 +87,8 @@ class Drive(Phase):
             pre = np.array([self.goal.x - c.approach * math.cos(yaw), self.goal.y - c.approach * math.sin(yaw)])
             points = around(np.array([pose.x, pose.y]), pre, circles)
             if points is None:
-                raise refusal(view)(
-                    f"phase {self.name!r} (drive): no path keeps the base clear of {', '.join(c.avoid)} to the goal "
+                raise self.refusal(
+                    view, f"no path keeps the base clear of {', '.join(c.avoid)} to the goal "
                     f"({self.goal.x:.2f}, {self.goal.y:.2f}): the start or the approach point is within an "
                     f"obstacle's clearance (circles {[tuple(round(v, 2) for v in k) for k in circles]})")
             if c.approach > 0:
@@ -115,7 +114,7 @@ class Drive(Phase):
         self.info.update(error_m=round(dist, 4), yaw_error_rad=round(turn, 4))
         done = t >= self.motion.duration and dist <= c.tolerance and turn <= c.yaw_tolerance and view.settled()
         if t > self.motion.duration + max(5.0, 0.5 * self.motion.duration) and not done:
-            raise PhaseError(f"phase {self.name!r} (drive): the base is {dist * 1e3:.0f} mm and "
+            raise self.failure(f"the base is {dist * 1e3:.0f} mm and "
                              f"{math.degrees(turn):.1f} deg from its goal {self.motion.duration:.1f} s after the "
                              "plan ended (odometry)")
         target = FrameTarget(BASE_BODY, pos=np.array([ref.x, ref.y, 0.0]), rot=rot_z(ref.yaw), position_cost=c.cost,

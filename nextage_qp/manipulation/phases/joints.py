@@ -7,9 +7,9 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
+from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import View
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
-from nextage_qp.servo import Command
 
 
 class JointsSpec(Spec):

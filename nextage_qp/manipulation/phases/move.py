@@ -8,10 +8,11 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
+from nextage_qp.errors import InfeasibleError
+from nextage_qp.io.schema import YamlModel
+from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import Setpoint, View, frame_target, resolve_point
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
-from nextage_qp.servo import Command
-from nextage_qp.yaml_model import YamlModel
 
 Vec3 = tuple[float, float, float]
 Metres = Annotated[float, Field(ge=-10.0, le=10.0)]
@@ -81,7 +82,10 @@ class Move(Phase):
     def start(self, view: View) -> None:  # noqa: D102
         self.points = [Setpoint(view.commanded_pose(t.frame).pos) for t in self.spec.targets]
         for t in self.spec.targets:  # a goal beyond the frame's reach sphere: refused, rather than a timeout
-            view.check_reach(t.frame, resolve_point(view, t)[0], f"phase {self.name!r} (move): {t.frame}")
+            try:
+                view.check_reach(t.frame, resolve_point(view, t)[0], t.frame)
+            except InfeasibleError as exc:
+                raise self.failure(str(exc), InfeasibleError) from None
 
     def update(self, view: View) -> Command:  # noqa: D102
         targets, done = [], True

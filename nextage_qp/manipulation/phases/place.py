@@ -27,11 +27,10 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from nextage_qp.errors import PhaseError
 from nextage_qp.geometry import clamp, nearest_equivalent, wrap, yaw_of
+from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import ROUND_HEADINGS, Setpoint, View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
-from nextage_qp.servo import Command
 
 CONTACT = 0.001
 """The object counts as set down when its height is this close to its resting height [m]."""
@@ -121,7 +120,7 @@ class Place(Phase):
                                                  allow=frozenset({c.object}), pos_tol=HOVER_TOL) is not None:
                     self.info["place_yaw_rad"] = round(yaw, 4)
                     return yaw, low
-        raise PhaseError(f"phase {self.name!r} (place): the clamp cannot reach {c.target}'s pose with "
+        raise self.failure(f"the clamp cannot reach {c.target}'s pose with "
                          f"{c.object} at any of its {count} equivalent yaws")
 
     def update(self, view: View) -> Command:  # noqa: D102
@@ -169,7 +168,7 @@ class Place(Phase):
             tilt = np.degrees(np.arccos(np.clip(rot[2, 2], -1.0, 1.0)))
             pads = self.clamp.pads(self.sp.pos, self.yaw)[0]
             lag = max(float(view.frame_pose(t.frame).pos[2] - np.asarray(t.pos)[2]) for t in pads)
-            raise PhaseError(f"phase {self.name!r} (place): set-down stalled: {self.spec.object} is still "
+            raise self.failure(f"set-down stalled: {self.spec.object} is still "
                              f"{(obj[2] - self.rest) * 1e3:.0f} mm over its resting height, tilted {tilt:.0f} deg, "
                              f"{STALL:g} s after the clamp's setpoint reached the bottom of its descent (a pad "
                              f"{lag * 1e3:.0f} mm above its target)")

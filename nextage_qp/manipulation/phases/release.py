@@ -8,10 +8,10 @@ import numpy as np
 from pydantic import Field
 
 from nextage_qp.ik import FrameTarget
-from nextage_qp.manipulation.context import Grip, Setpoint, View
+from nextage_qp.loop.servo import Command
+from nextage_qp.manipulation.context import Forces, Grip, Setpoint, View
 from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
-from nextage_qp.manipulation.phases.grasp import SIDES, squeeze_force
-from nextage_qp.servo import Command
+from nextage_qp.manipulation.phases.grasp.phase import SIDES, squeeze_force
 
 UNLOAD_SPEED = 0.005
 """Speed [m/s] at which the pads go down to hand the object's weight to the table."""
@@ -111,7 +111,7 @@ class Release(Phase):
         self.info["eased_mm"] = [round(e * 1e3, 2) for e in self.eased]
         return not squeezing
 
-    def _unloaded(self, view: View) -> bool:
+    def _unloaded(self, view: Forces) -> bool:
         """True once the pads no longer hold the object up (their contact forces no longer point down)."""
         load = sum(float(view.wrench(f).force[2]) for f in self.frames)
         return load >= -UNLOADED

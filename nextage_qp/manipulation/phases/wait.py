@@ -6,9 +6,9 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
+from nextage_qp.loop.servo import HOLD, Command
 from nextage_qp.manipulation.context import View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec
-from nextage_qp.servo import HOLD, Command
 
 
 class WaitSpec(Spec):

@@ -1,0 +1,1 @@
+"""``grasp``: the phase (:mod:`.phase`) and its spec (:mod:`.spec`)."""

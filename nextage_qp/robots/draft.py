@@ -1,0 +1,179 @@
+"""``robot init``: a robot file drafted from a model (MJCF or URDF), ready to run and to review.
+
+What the draft holds (see :mod:`nextage_qp.robots.survey` for how each is found): the arms, left first, with their
+end-effector frame; the shared joints as ``torso`` and other branches as groups; collision groups per arm
+(``NAME_arm``, ``NAME_upper_arm``, ``NAME_forearm``, ``NAME_hand``) and ``torso``; ``home`` (the model's keyframe,
+else a pose free of self-contact); the pairs still in contact there as ``exclude``; gains from the rule; torque
+limits where the model gives none; ``angle: radian`` where the MJCF needs it; a mount that puts the lowest collision
+geometry on the floor.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import textwrap
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from nextage_qp.errors import ConfigError
+from nextage_qp.io.yaml_file import load_yaml, validate
+from nextage_qp.robots.modelfile import descendants, model_torque_limit
+from nextage_qp.robots.poses import TORQUE_FACTOR, TORQUE_FLOOR_NM, default_torque_limit, static_torques
+from nextage_qp.robots.robot_file import GainRule, RobotFile
+from nextage_qp.robots.survey import Survey, home_values, joint_names, lowest_z, model_reference
+
+WIDTH = 118
+"""Longest line the draft writes."""
+_PLAIN = re.compile(r"[A-Za-z_][A-Za-z0-9_./\-]*")
+_WORDS = {"true", "false", "yes", "no", "on", "off", "null", "none", "y", "n"}
+
+
+def collision_groups(s: Survey) -> dict[str, dict[str, list[str]]]:
+    """Collision groups of the arms and the torso.
+
+    Per arm ``NAME_arm`` (its subtree), ``NAME_upper_arm`` and ``NAME_forearm`` (the chain's bodies split in
+    halves, the forearm from the elbow on), ``NAME_hand`` (the last moving body and below); ``torso``: the
+    colliding bodies no arm holds.
+    """
+    m = s.model
+    groups: dict[str, dict[str, list[str]]] = {}
+    in_arms: set[int] = set()
+    for arm in s.arms.arms:
+        chain = [b for b in arm.bodies if m.body(b).name]
+        if not chain:
+            continue
+        subtree = descendants(m, chain[0])
+        in_arms |= set(subtree)
+        groups[f"{arm.name}_arm"] = {"subtrees": [m.body(chain[0]).name]}
+        if len(chain) >= 2:
+            elbow = chain[len(chain) // 2]
+            fore = set(descendants(m, elbow))
+            groups[f"{arm.name}_upper_arm"] = {"bodies": [m.body(b).name for b in subtree if b not in fore
+                                                          and m.body(b).name]}
+            groups[f"{arm.name}_forearm"] = {"subtrees": [m.body(elbow).name]}
+        groups[f"{arm.name}_hand"] = {"subtrees": [m.body(chain[-1]).name]}
+    colliding = {int(m.geom_bodyid[g]) for g in range(m.ngeom) if m.geom_contype[g] or m.geom_conaffinity[g]}
+    torso = [m.body(b).name for b in range(1, m.nbody) if b not in in_arms and b in colliding and m.body(b).name]
+    if torso:
+        groups["torso"] = {"bodies": torso}
+    return groups
+
+
+def torque_limits(s: Survey) -> tuple[dict[str, float], dict[str, float]]:
+    """Torque limits [N m] the robot file must give.
+
+    Returns:
+        The model's own limits (a URDF's effort) of the joints without an actuator (the motor added for them takes
+        its limit from the robot file), and defaults (:func:`default_torque_limit`) where the model gives none.
+    """
+    m = s.model
+    driven = {int(m.actuator_trnid[a, 0]) for a in range(m.nu)
+              if int(m.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT)}
+    given = {m.joint(j).name: limit for j in s.joints if j not in driven
+             and (limit := model_torque_limit(m, j)) is not None}
+    missing = [j for j in s.joints if model_torque_limit(m, j) is None]
+    peaks = static_torques(m, missing, s.home.qpos) if missing else np.zeros(0)
+    return given, {m.joint(j).name: default_torque_limit(float(p)) for j, p in zip(missing, peaks, strict=True)}
+
+
+def _scalar(value: object) -> str:
+    if isinstance(value, float):
+        return repr(round(value, 6)) if value == value else ".nan"
+    text = str(value)
+    return text if _PLAIN.fullmatch(text) and text.lower() not in _WORDS else '"' + text.replace('"', '\\"') + '"'
+
+
+def _comment(text: str) -> list[str]:
+    return textwrap.wrap(text, WIDTH, initial_indent="# ", subsequent_indent="#   ")
+
+
+def _flow(items: list[str], indent: int) -> str:
+    """``[a, b, ...]`` wrapped at :data:`WIDTH` under the opening bracket."""
+    lines, line = [], "["
+    for k, item in enumerate(items):
+        piece = item + (", " if k < len(items) - 1 else "]")
+        if len(line) + len(piece) + indent > WIDTH and line != "[":
+            lines.append(line.rstrip())
+            line = " " * (indent + 1)
+            indent = 0
+        line += piece
+    return "\n".join([*lines, line if items else "[]"])
+
+
+def draft_text(s: Survey, out: Path) -> str:
+    """The robot file for survey ``s``, to be written at ``out`` (YAML with comments)."""
+    shown = s.path.name
+    lines = [f"# Robot file drafted by `nextage-qp robot init` from {shown}.",
+             "# Review: the arms (names, joints, wrist frame; tool and pad default to the wrist), home, the excluded",
+             "# contact pairs, the collision groups, the torque limits and the mount; then run",
+             f"# `nextage-qp robot check {out.name}`. Keys: docs/robots.md.",
+             f"name: {_scalar(s.name)}", f"model: {_scalar(model_reference(s.path, out.parent))}"]
+    if s.angle:
+        lines += [*_comment(f"angle: {s.angle_why}"), f"angle: {s.angle}"]
+    low = lowest_z(s)
+    if low is not None and low < 0:
+        lift = math.ceil(-low * 1000) / 1000
+        lines += [*_comment(f"mount: lifts the lowest collision geometry at home ({low:.3f} m) onto the floor "
+                            "(z = 0) [m]"), f"mount: {{pos: [0.0, 0.0, {lift!r}]}}"]
+    lines.append("arms:  # the first arm is the one on the +y side")
+    for arm in s.arms.arms:
+        lines += [f"  - name: {arm.name}",
+                  f"    joints: {_flow([_scalar(n) for n in joint_names(s, arm.joints)], 12)}",
+                  f"    wrist: {_scalar(arm.wrist)}  # the last frame on the arm's last link"]
+    groups = ({"torso": s.arms.torso} if s.arms.torso else {}) | s.arms.groups
+    if groups:
+        lines.append("joint_groups:")
+        lines += [f"  {k}: {_flow([_scalar(n) for n in joint_names(s, v)], len(k) + 4)}" for k, v in groups.items()]
+    lines.append("collision_groups:")
+    for name, group in collision_groups(s).items():
+        key, names = next(iter(group.items()))
+        head = f"  {name}: {{{key}: "
+        lines.append(head + _flow([_scalar(n) for n in names], len(head)) + "}")
+    if s.home.contacts:
+        pairs = [f"[{_scalar(a)}, {_scalar(b)}]" for a, b in s.home.contacts]
+        lines.append(f"exclude: {_flow(pairs, 9)}  # in contact at home")
+    lines.append("keyframes:")
+    if s.keyframe == "home":
+        lines.append("  home: model  # the model's keyframe 'home'")
+    else:
+        values = home_values(s)
+        items = [f"{_scalar(k)}: {_scalar(v)}" for k, v in values.items() if v != 0.0]
+        lines.append(f"  # home: {s.home.how}; joints not named are 0")
+        lines.append("  home: {" + _flow(items, 9)[1:-1] + "}" if items else "  home: {}")
+    rule = GainRule()
+    lines += ["# gains: kp = I w^2, kd = 2 zeta I w - d on each joint's reflected inertia I at home",
+              f"gains: {{bandwidth: {rule.bandwidth!r}, damping_ratio: {rule.damping_ratio!r}}}"]
+    from_model, defaults = torque_limits(s)
+    if from_model or defaults:
+        lines.append("torque_limits:  # [N m]")
+    if from_model:
+        lines.append("  # the model's own limits (a URDF's effort) for the joints it gives no actuator")
+        lines += [f"  {_scalar(k)}: {v!r}" for k, v in from_model.items()]
+    if defaults:
+        lines += [f"  {c}" for c in _comment(
+            f"the model gives these joints no limit: {TORQUE_FACTOR:g} x the largest gravity torque over home and 8 "
+            f"random poses, at least {TORQUE_FLOOR_NM:g} N m; replace them with the real ones")]
+        lines += [f"  {_scalar(k)}: {v!r}" for k, v in defaults.items()]
+    text = "\n".join(lines) + "\n"
+    validate(RobotFile, load_yaml(text), str(out))  # what is written must read back
+    return text
+
+
+def write_draft(text: str, out: Path, *, force: bool = False) -> None:
+    """Write the draft to ``out``.
+
+    Raises:
+        ConfigError: ``out`` exists and ``force`` is not given, or it cannot be written.
+    """
+    if out.is_dir():
+        raise ConfigError(f"{out}: is a folder; give a file name ending in .yaml")
+    if out.exists() and not force:
+        raise ConfigError(f"{out}: exists; give --force to overwrite it, or --out another file")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"{out}: cannot write: {exc.strerror or exc}") from None

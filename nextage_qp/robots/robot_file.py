@@ -1,0 +1,167 @@
+"""The robot file: one YAML per robot, validated like every config (unknown keys, bad numbers: one line, exit 2).
+
+A robot file names the model (MJCF or URDF) and says what the framework needs to know that the model does not:
+
+.. code-block:: yaml
+
+    name: twin
+    model: twin/twin.xml             # MJCF or URDF, relative to this file (or package://NAME/PATH)
+    arms:                            # shoulder to wrist; the first arm is the one on the +y side
+      - name: left
+        joints: [l_shoulder_pan, l_shoulder_lift, l_elbow, l_wrist_pitch, l_wrist_roll]
+        wrist: l_flange              # end-effector frames: the model's sites or bodies, or frames added below
+        tool: l_tool                 # the face that pushes
+        pad: l_pad                   # the face that clamps
+      - name: right
+        joints: [r_shoulder_pan, r_shoulder_lift, r_elbow, r_wrist_pitch, r_wrist_roll]
+        wrist: r_flange
+    joint_groups: {torso: [waist]}
+    frames:                          # frames the file adds: a site on a body, at an offset
+      l_tool: {body: l_wrist_roll_link, pos: [0.06, 0, 0]}
+      l_pad: {body: l_wrist_roll_link, pos: [0.03, -0.02, 0], quat: [0.7071, 0.7071, 0, 0]}
+    collision_groups:
+      left_arm: {subtrees: [l_shoulder_link]}
+      torso: {bodies: [base, chest]}
+    exclude: [[chest, l_shoulder_link]]
+    keyframes: {home: model}         # the model's own keyframe, or joint -> rad (others 0)
+    gains: gains/twin.yaml           # a gains file, or the rule on the joints' reflected inertia (the default)
+    torque_limits: 40.0              # N m, one value or per joint; the file's value wins over the model's
+    velocity_limits: 2.0             # rad/s, one value or per joint: caps the trajectory's limits
+    cameras: {head: {body: head_link, pos: [0.1, 0, 0.05], pitch: 0.3, fovx: 70}}  # see nextage_qp.robots.cameras
+    base: {type: diff_drive, wheel_radius: 0.1, track: 0.7}   # a wheeled base under it: nextage_qp.mobile.base_file
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Literal
+
+from pydantic import Field, ValidationInfo, field_validator, model_validator
+
+from nextage_qp.io.schema import YamlModel
+from nextage_qp.mobile.base_file import BaseFile
+from nextage_qp.robots.cameras import CameraFile
+
+Name = Annotated[str, Field(min_length=1)]
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+
+class ArmFile(YamlModel):
+    """One arm: its joints (shoulder to wrist) and the frames the phases use on it."""
+
+    name: Name = Field(description="Arm name, e.g. left; arm groups are named NAME_arm.")
+    joints: tuple[Name, ...] = Field(min_length=1, description="Joints, shoulder to wrist.")
+    wrist: Name = Field(description="Wrist frame (a site or body of the model, or a frame of this file).")
+    tool: Name | None = Field(default=None, description="Frame whose face pushes (default: the wrist).")
+    pad: Name | None = Field(default=None, description="Frame on the clamping face (default: the wrist).")
+
+
+class FrameFile(YamlModel):
+    """A frame the robot file adds to the model: a site on a body, at an offset in the body's frame."""
+
+    body: Name
+    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    quat: tuple[float, float, float, float] = Field(
+        default=(1.0, 0.0, 0.0, 0.0), description="Orientation in the body (w, x, y, z)."
+    )
+
+    @model_validator(mode="after")
+    def _rotation(self) -> FrameFile:
+        if math.hypot(*self.quat) < 1e-6:
+            raise ValueError(f"quat must be a non-zero quaternion (w, x, y, z), got {list(self.quat)}; "
+                             "[1, 0, 0, 0] keeps the body's axes")
+        return self
+
+
+class GroupFile(YamlModel):
+    """A collision group: bodies, and whole subtrees (a body and every body below it)."""
+
+    bodies: tuple[Name, ...] = ()
+    subtrees: tuple[Name, ...] = ()
+
+    @model_validator(mode="after")
+    def _not_empty(self) -> GroupFile:
+        if not self.bodies and not self.subtrees:
+            raise ValueError("a collision group needs bodies or subtrees")
+        return self
+
+
+class GainRule(YamlModel):
+    """PD gains from each joint's reflected inertia at ``home``: ``kp = I w^2``, ``kd = 2 zeta I w - d``."""
+
+    bandwidth: Positive = Field(default=30.0, le=500.0, description="Closed-loop natural frequency w [rad/s].")
+    damping_ratio: Positive = Field(default=1.0, le=5.0, description="zeta.")
+    gravity_compensation: bool = True
+
+
+class MountFile(YamlModel):
+    """Where the robot's root sits in the world of a task scene."""
+
+    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    yaw: float = Field(default=0.0, ge=-7.0, le=7.0, description="[rad]")
+
+
+class RobotFile(YamlModel):
+    """The schema of a robot file (see the module docstring)."""
+
+    name: Name
+    model: Name = Field(description="MJCF or URDF file, relative to the robot file, or package://NAME/PATH.")
+    angle: Literal["radian", "degree"] | None = Field(
+        default=None, description="Angle unit of the model where it does not say (MJCF default: degree)."
+    )
+    package_paths: tuple[Name, ...] = Field(
+        default=(), description="Folders a URDF's package:// paths are resolved against (relative to this file)."
+    )
+    mount: MountFile = MountFile()
+    arms: tuple[ArmFile, ...] = Field(min_length=1)
+    joint_groups: dict[Name, tuple[Name, ...]] = Field(
+        default_factory=dict, description="Other joints by group, e.g. torso, head."
+    )
+    frames: dict[Name, FrameFile] = Field(default_factory=dict)
+    collision_groups: dict[Name, GroupFile] = Field(default_factory=dict)
+    exclude: tuple[tuple[Name, Name], ...] = Field(default=(), description="Body pairs that never collide.")
+    keyframes: dict[Name, Literal["model"] | dict[Name, float]] = Field(
+        default_factory=dict, description="home (and others): the model's keyframe, or joint -> rad (others 0)."
+    )
+    gains: Name | GainRule = Field(
+        default_factory=GainRule, description="A gains file (relative to this file) or the rule."
+    )
+    gains_dir: Name | None = Field(default=None, description="Folder of bundled gains files named in configs.")
+    torque_limits: float | dict[Name, Positive] | None = Field(
+        default=None, description="[N m], one value or per joint; wins over the model's actuator limits."
+    )
+    velocity_limits: float | dict[Name, Positive] | None = Field(
+        default=None, description="[rad/s], one value or per joint: caps the joint references' velocity."
+    )
+    cameras: dict[Name, CameraFile] = Field(
+        default_factory=dict, description="Cameras on the robot (nextage_qp.robots.cameras), by name."
+    )
+    base: BaseFile | None = Field(default=None, description="A wheeled base under the robot (nextage_qp.mobile).")
+
+    @field_validator("torque_limits", "velocity_limits", mode="before")
+    @classmethod
+    def _limits(cls, value: object, info: ValidationInfo) -> object:
+        unit = "N m" if info.field_name == "torque_limits" else "rad/s"
+        items = value.items() if isinstance(value, dict) else [(None, value)] if value is not None else []
+        for joint, v in items:
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
+                where = f" for joint {joint!r}" if joint is not None else ""
+                raise ValueError(f"{v!r}{where} is not a limit: give a finite number > 0 [{unit}], one value or "
+                                 f"joint -> value")
+        return value
+
+    @model_validator(mode="after")
+    def _names_once(self) -> RobotFile:
+        seen: dict[str, str] = {}
+        places = [(f"arms[{i}].joints", j) for i, arm in enumerate(self.arms) for j in arm.joints]
+        places += [(f"joint_groups.{g}", j) for g, joints in self.joint_groups.items() for j in joints]
+        for where, joint in places:
+            if joint in seen:
+                raise ValueError(f"joint {joint!r} is listed twice ({seen[joint]} and {where})")
+            seen[joint] = where
+        arms = [a.name for a in self.arms]
+        if len(set(arms)) != len(arms):
+            raise ValueError(f"arm names must differ, got {arms}")
+        if "home" not in self.keyframes:
+            raise ValueError("keyframes needs 'home' (the model's keyframe: home: model; or joint -> rad)")
+        return self

@@ -1,0 +1,1 @@
+"""Scenes: scene files and overrides, objects declared as data, building them with MjSpec, checks, friction."""

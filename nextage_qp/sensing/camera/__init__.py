@@ -1,0 +1,1 @@
+"""Robot cameras: rendering, depth noise and stereo, object poses fitted to depth frames."""

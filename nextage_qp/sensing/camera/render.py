@@ -1,0 +1,200 @@
+"""A robot camera rendered offscreen: depth (with the sensor's noise), RGB, and what the robot's model expects to see.
+
+:class:`RobotCamera` is the world side of perception: it renders the simulated world from a camera of the robot file
+(markers and collision geoms hidden, no shadows or reflections, as software rendering wants). It also renders the
+*expected background*: the robot's own model at its measured joints with the known static scene (table,
+obstacles) and without the free objects, from the camera pose forward kinematics of the measured joints gives. The
+estimator (:mod:`nextage_qp.sensing.camera.estimate`) gets the images, the intrinsics and that pose, nothing else.
+"""
+
+from __future__ import annotations
+
+import copy
+
+import mujoco
+import numpy as np
+
+from nextage_qp.errors import one_line
+from nextage_qp.robots.cameras import CameraFile
+
+SHOWN_GROUPS = (0, 2)
+"""Geom groups a robot camera sees: scene geoms (0) and visual meshes (2); markers (1), collision geoms (3) and
+debug sites (4+) are the simulator's, not the world's."""
+MAX_RANGE = 3.0
+"""Depth beyond this is no return [m]."""
+PLANE_HALF = 1000.0
+"""Half-size [m] of the finite plane a robot camera renders for an infinite one (:func:`finite_planes`)."""
+AWAY = -50.0
+"""Height [m] the free objects are moved to in the expected-background model (out of every view)."""
+
+
+PACKAGES = "Debian libegl1 libegl-mesa0 libgl1-mesa-dri (MUJOCO_GL=egl) or libosmesa6 (MUJOCO_GL=osmesa)"
+"""What headless rendering needs on a machine without a display."""
+
+
+def render_problem() -> str | None:
+    """None if offscreen rendering works here, else one line saying why and which packages it needs."""
+    try:
+        r = mujoco.Renderer(mujoco.MjModel.from_xml_string("<mujoco/>"), 16, 16)
+        r.close()
+    except Exception as exc:
+        return f"offscreen rendering unavailable ({one_line(exc)}); install {PACKAGES}"
+    return None
+
+
+FAST_CAMERA_FLAGS = (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION, mujoco.mjtRndFlag.mjRND_SKYBOX)
+"""Rendering a robot camera turns these off (software rendering)."""
+
+
+def shown_option() -> mujoco.MjvOption:
+    """What a robot camera sees: the :data:`SHOWN_GROUPS` of geoms, no sites."""
+    opt = mujoco.MjvOption()
+    opt.geomgroup[:] = 0
+    for g in SHOWN_GROUPS:
+        opt.geomgroup[g] = 1
+    opt.sitegroup[:] = 0
+    return opt
+
+
+def finite_planes(model: mujoco.MjModel) -> mujoco.MjModel:
+    """A copy of ``model`` for a robot camera: its infinite planes made :data:`PLANE_HALF` wide and one quad each.
+
+    The renderer bakes each plane's grid of quads into its context: an infinite floor (50 mm grid) is drawn out to
+    the far clipping plane in thousands of quads, half of a depth frame's time on a software renderer, and 60 % of an
+    RGB frame's where the floor fills the view. A depth image does not see the grid: within :data:`MAX_RANGE` of a
+    camera less than ``PLANE_HALF - MAX_RANGE`` from the plane's origin it is the same to a micrometre (float32
+    rounding). An RGB image differs in the far floor's shading alone (0.8 % of a Nextage head camera's pixels by more
+    than 10 of 255).
+    """
+    out = copy.copy(model)
+    for i in np.flatnonzero(out.geom_type == mujoco.mjtGeom.mjGEOM_PLANE):
+        if min(out.geom_size[i, 0], out.geom_size[i, 1]) <= 0:
+            out.geom_size[i] = PLANE_HALF
+    return out
+
+
+def render_camera(renderer: mujoco.Renderer, data: mujoco.MjData, cam_id: int, option: mujoco.MjvOption) -> np.ndarray:
+    """The image of ``data`` a robot camera takes (``option``: :func:`shown_option`; the renderer's depth mode kept)."""
+    _scene(renderer, data, cam_id, option)
+    return renderer.render()
+
+
+def _scene(renderer: mujoco.Renderer, data: mujoco.MjData, cam_id: int, option: mujoco.MjvOption) -> None:
+    """Update the renderer's scene to what a robot camera sees of ``data``, with the :data:`FAST_CAMERA_FLAGS` off."""
+    renderer.update_scene(data, camera=cam_id, scene_option=option)
+    for flag in FAST_CAMERA_FLAGS:
+        renderer.scene.flags[flag] = 0
+
+
+def render_window(renderer: mujoco.Renderer, data: mujoco.MjData, cam_id: int, option: mujoco.MjvOption,
+                  cut: tuple[int, int, int, int], K: np.ndarray) -> np.ndarray:
+    """Rows ``r0:r1`` and columns ``c0:c1`` (``cut``) of the RGB image :func:`render_camera` gives, rendered alone.
+
+    The camera's frustum is narrowed to the window and drawn into a viewport of its size, so a software renderer
+    fills only its pixels (a window of a sixth of a 640 x 480 head image: 2.4 ms against 10.3 ms for the whole);
+    the pixels are those of the whole image's window (within rasterisation rounding: at most 10 of 255, on 2-7 % of
+    them). A renderer without its own GL context (a build whose internals differ) renders the whole image and cuts it.
+    """
+    r0, r1, c0, c1 = cut
+    ctx, gl = getattr(renderer, "_mjr_context", None), getattr(renderer, "_gl_context", None)
+    if ctx is None or gl is None:
+        return render_camera(renderer, data, cam_id, option)[r0:r1, c0:c1]
+    _scene(renderer, data, cam_id, option)
+    for cam in renderer.scene.camera:  # both eyes of MuJoCo's stereo pair: the window on the near plane
+        n = cam.frustum_near
+        left, right = (c0 - K[0, 2]) / K[0, 0] * n, (c1 - K[0, 2]) / K[0, 0] * n
+        cam.frustum_center, cam.frustum_width = (left + right) / 2, (right - left) / 2
+        cam.frustum_bottom, cam.frustum_top = (K[1, 2] - r1) / K[1, 1] * n, (K[1, 2] - r0) / K[1, 1] * n
+    rect = mujoco.MjrRect(0, 0, c1 - c0, r1 - r0)
+    gl.make_current()
+    mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, ctx)
+    mujoco.mjr_render(rect, renderer.scene, ctx)
+    out = np.empty((r1 - r0, c1 - c0, 3), dtype=np.uint8)
+    mujoco.mjr_readPixels(out, None, rect, ctx)
+    return np.flipud(out)  # OpenGL's rows run bottom up
+
+
+class RobotCamera:
+    """Renders one camera of the robot (see the module docstring).
+
+    Args:
+        model: The compiled task scene with the robot and its cameras.
+        name: The camera's name.
+        spec: The camera's robot-file entry.
+        robot: The :class:`~nextage_qp.robots.model.Robot` (joint addresses, free objects).
+        seed: Seed of the depth noise.
+    """
+
+    def __init__(self, model: mujoco.MjModel, name: str, spec: CameraFile, robot, seed: int) -> None:
+        self.model, self.name, self.spec, self.robot = model, name, spec, robot
+        self.cam_id = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, name))
+        self.K = spec.intrinsics
+        self.finite = finite_planes(model)
+        self.renderer = mujoco.Renderer(self.finite, spec.height, spec.width)
+        self.renderer.enable_depth_rendering()
+        self._rgb: mujoco.Renderer | None = None  # made on the first RGB image
+        self.option = shown_option()
+        self.rng = np.random.default_rng(seed)
+        self.kin = mujoco.MjData(model)  # the robot's own model at its measured joints, objects away
+        for obj in robot.object_names:
+            s = robot.object_qpos_slice(obj)
+            self.kin.qpos[s.start + 2] = AWAY
+
+    def _render(self, data: mujoco.MjData, depth: bool) -> np.ndarray:
+        if depth:
+            out = render_camera(self.renderer, data, self.cam_id, self.option)
+            return np.where(out < MAX_RANGE, out, np.nan).astype(np.float32)
+        return render_camera(self._rgb_renderer(), data, self.cam_id, self.option)
+
+    def _rgb_renderer(self) -> mujoco.Renderer:
+        """The RGB renderer, made on the first RGB image."""
+        if self._rgb is None:
+            self._rgb = mujoco.Renderer(self.finite, self.spec.height, self.spec.width)
+        return self._rgb
+
+    def pose(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The camera's pose (position [m], 3x3 rotation) from forward kinematics of the measured joints ``q``."""
+        self.robot.set_q(self.kin, q)
+        mujoco.mj_kinematics(self.model, self.kin)
+        mujoco.mj_camlight(self.model, self.kin)
+        return self.kin.cam_xpos[self.cam_id].copy(), self.kin.cam_xmat[self.cam_id].reshape(3, 3).copy()
+
+    def expected(self) -> np.ndarray:
+        """Depth [m] the model expects at the pose of the last :meth:`pose`: the robot and the static scene only."""
+        return self._render(self.kin, depth=True)
+
+    def depth(self, data: mujoco.MjData) -> np.ndarray:
+        """The sensor's depth image [m] of the world ``data`` (NaN: no return), with its noise model."""
+        return self.noisy(self._render(data, depth=True))
+
+    def noisy(self, z: np.ndarray) -> np.ndarray:
+        """``z`` with axial noise growing with the distance squared and missing pixels at depth edges."""
+        n = self.spec.depth_noise
+        if n.sigma_m == 0 and n.per_m2 == 0 and n.edge_dropout == 0:
+            return z
+        out = z + self.rng.standard_normal(z.shape).astype(np.float32) * (n.sigma_m + n.per_m2 * z * z)
+        if n.edge_dropout > 0:
+            step = np.zeros(z.shape, dtype=bool)
+            with np.errstate(invalid="ignore"):
+                dy, dx = np.abs(np.diff(z, axis=0)) > n.edge_m, np.abs(np.diff(z, axis=1)) > n.edge_m
+            step[1:] |= dy
+            step[:-1] |= dy
+            step[:, 1:] |= dx
+            step[:, :-1] |= dx
+            out[step & (self.rng.random(z.shape) < n.edge_dropout)] = np.nan
+        return out
+
+    def rgb(self, data: mujoco.MjData, cut: tuple[int, int, int, int] | None = None) -> np.ndarray:
+        """The camera's RGB image (H, W, 3) uint8 of the world ``data``.
+
+        With ``cut``: only its rows ``r0:r1`` and columns ``c0:c1`` (:func:`render_window`).
+        """
+        if cut is None:
+            return self._render(data, depth=False)
+        return render_window(self._rgb_renderer(), data, self.cam_id, self.option, cut, self.K)
+
+    def close(self) -> None:
+        """Free the renderers' GL contexts."""
+        self.renderer.close()
+        if self._rgb is not None:
+            self._rgb.close()

@@ -1,0 +1,245 @@
+"""``perception.source: camera``: object measurements from the robot camera's depth frames.
+
+The depth is the camera's own (``perception.depth: rendered``, an RGB-D sensor) or block matching on two RGB
+cameras (``stereo``, :mod:`nextage_qp.sensing.camera.stereo`), in the left camera's view.
+
+:class:`CameraMeasurer` renders a frame of the world (:class:`~nextage_qp.sensing.camera.render.RobotCamera`), computes
+the camera's pose from the *measured* joints, and hands images, intrinsics and pose to the
+:class:`~nextage_qp.sensing.camera.estimate.Estimator`; the poses it returns go through the same latency queue and
+Kalman filter as the simulated camera's (:class:`~nextage_qp.sensing.faulty.FaultySensors`). It counts, per object,
+frames seen, detections, predicted occlusions and the time per frame spent rendering and estimating. For the
+detection rate it classes each frame by where the object truly is (given for that count alone, after the estimate):
+*unoccluded* when at least half of its camera-facing surface is inside the image and the robot's model covers at
+most ``PARTLY`` of it, whatever the estimator believed (an object still outside the view as the head turns to it is
+no missed detection; one the estimator thinks hidden, but in plain view, is).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Collection, Mapping
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from nextage_qp.errors import ConfigError
+from nextage_qp.geometry import Pose, pose_vector
+from nextage_qp.sensing.camera.estimate import MIN_SUPPORT, PARTLY, SELF_PAD, Estimator, Frame
+from nextage_qp.sensing.camera.render import RobotCamera, render_problem
+from nextage_qp.sensing.camera.shapes import ShapeModel
+from nextage_qp.sensing.camera.stereo import MARGIN, WHOLE_EVERY, StereoMatcher, check_pair, window
+from nextage_qp.sensing.camera.visible import occlusion
+from nextage_qp.sensing.perception_config import PerceptionConfig
+
+COVER_SPREAD = {"rendered": 0.0, "stereo": 8.0}
+"""Default ``perception.cover_spread`` per depth source: the filter's assumed noise grows by 1 + spread x the share
+of the object a fit does not see. Stereo fits degrade fast as the hand covers an object (block matching smears the
+hand's depth into the object's); rendered depth degrades slowly, which the partial views' gate absorbs
+(docs/perception.md)."""
+
+STATUSES = ("ok", "out_of_view", "occluded", "missing", "bad_fit")
+IN_VIEW = ("ok", "missing", "bad_fit")
+"""The outcomes of a frame in which an object was in view and not hidden behind the robot (a detection is due)."""
+
+
+class CameraMeasurer:
+    """Measurements of every free object from one robot camera (see the module docstring).
+
+    Args:
+        cfg: The config's perception block.
+        robot: The :class:`~nextage_qp.robots.model.Robot` (its description's cameras, its objects' shape models).
+        data: The simulation's data: the world the camera renders (and nothing else reads).
+        joints: The measured joint positions at a time [s].
+        seed: The run's seed.
+        source: Where the config came from (for messages).
+    """
+
+    def __init__(self, cfg: PerceptionConfig, robot: Any, data: mujoco.MjData, joints: Callable[[float], np.ndarray],
+                 seed: int, source: str = "<config>") -> None:
+        cams = dict(robot.description.cameras) if robot.description is not None else {}
+        stereo = cfg.depth == "stereo"
+        for key, name in ((("stereo", n) for n in cfg.stereo) if stereo else [("camera", cfg.camera)]):
+            if name not in cams:
+                raise ConfigError(f"{source}: perception.{key}: {name!r} is not a camera of robot {robot.name!r}; "
+                                  f"valid: {', '.join(sorted(cams)) or '(the robot file has none)'}")
+        problem = render_problem()
+        if problem is not None:
+            raise ConfigError(f"{source}: perception.source: camera: {problem}")
+        name = cfg.stereo[0] if stereo else cfg.camera  # the camera whose view the depth is in
+        self.cfg, self.spec, self.data, self.joints = cfg, cams[name], data, joints
+        model = robot.model
+        self.camera = RobotCamera(model, name, self.spec, robot, seed)
+        self.right: RobotCamera | None = None
+        self.matcher: StereoMatcher | None = None
+        if stereo:
+            self.right, self.matcher = stereo_pair(model, robot, cams, cfg.stereo, self.camera, seed, source)
+        self.symmetry = {n: robot.yaw_symmetry(n) for n in robot.object_names}
+        shapes = {n: ShapeModel.of_body(model, n, self.symmetry[n]) for n in robot.object_names}
+        self.estimator = Estimator(shapes, seed, SELF_PAD if stereo else 0)  # stereo cannot measure the plain links
+        self.reach = {n: max(s.search_radius, float(np.linalg.norm(s.samples, axis=1).max())) + MARGIN
+                      for n, s in shapes.items()}  # the radius of each object's stereo window [m]
+        self.windowed = 0  # stereo frames matched in a window around the tracked objects
+        self.lost = True  # an object was out of view or missing in the last frame
+        kinds = (*STATUSES, "partly_occluded", "part_fitted", "unoccluded", "unoccluded_ok")
+        self.counts = {n: dict.fromkeys(kinds, 0) for n in robot.object_names}
+        self.ms: dict[str, list[float]] = {"render": [], "estimate": []}
+        self.dumped = cfg.dump is None
+        self.dump_error: str | None = None
+        self.last: tuple[float, np.ndarray] | None = None
+        self.poses: dict[str, np.ndarray | None] = {}
+        """Each object's pose vector fitted in the latest frame (None: not seen in it); for videos."""
+        self.views: dict[str, list[tuple[float, bool]]] = {n: [] for n in robot.object_names}
+        """Per object, each frame's time [s] and whether it was unoccluded in it (as counted: see the module doc)."""
+        self.partial: set[str] = set()
+        """The objects of the latest frame fitted from a partial view (the robot's model covers more than ``PARTLY``
+        of them, or the frame shows less than ``MIN_SUPPORT`` of the fitted surface where the fit puts it): the filter
+        lets such a view confirm an object's pose, not move it (``PoseKalman.update``)."""
+        self.spread: dict[str, float] = {}
+        """The latest frame's fits' noise relative to a clear view's (``perception.cover_spread``)."""
+        self.cover_spread = COVER_SPREAD[cfg.depth] if cfg.cover_spread is None else cfg.cover_spread
+
+    @property
+    def rate_hz(self) -> float:
+        """Frame rate [Hz]."""
+        return self.spec.rate_hz
+
+    @property
+    def latency_s(self) -> float:
+        """Age of a measurement when it reaches the filter [s]."""
+        return self.spec.latency_s
+
+    def __call__(self, t: float, priors: Mapping[str, np.ndarray | None], held: Collection[str] = (),
+                 truth: Mapping[str, Pose] | None = None) -> dict[str, np.ndarray | None]:
+        """Measured pose vectors (x, y, z, roll, pitch, yaw) at ``t`` [s], None where the object was not seen.
+
+        ``held``: objects the robot holds (fitted with their roll and pitch, see :meth:`Estimator.estimate`).
+        ``truth``: the objects' true poses, for the detection count alone (see the module doc); without them a frame is
+        unoccluded where the estimator's prediction was in view and uncovered.
+        """
+        t0 = time.perf_counter()
+        pos, rot = self.camera.pose(self.joints(t))
+        if self.matcher is not None and self.right is not None:
+            win = self.window(priors, pos, rot)
+            self.windowed += win is not None
+            cut = self.matcher.cut(win) if win is not None else None
+            depth = self.matcher.depth(self.camera.rgb(self.data, cut), self.right.rgb(self.data, cut), win,
+                                       (self.spec.height, self.spec.width))
+        else:
+            depth = self.camera.depth(self.data)
+        expected = self.camera.expected()
+        t1 = time.perf_counter()
+        frame = Frame(depth, expected, self.camera.K, pos, rot)
+        self.last = (t, depth)  # the latest depth image [m] and its time [s] (for recordings)
+        detections = self.estimator.estimate(frame, priors, held)
+        self.ms["render"].append((t1 - t0) * 1e3)
+        self.ms["estimate"].append((time.perf_counter() - t1) * 1e3)
+        self.partial, self.spread = set(), {}
+        for name, det in detections.items():
+            counts = self.counts[name]
+            counts[det.status] += 1
+            fitted = det.status == "ok"
+            covered, part = fitted and det.occluded > PARTLY, fitted and det.support < MIN_SUPPORT
+            counts["partly_occluded"] += int(covered)
+            counts["part_fitted"] += int(part)
+            if covered or part:
+                self.partial.add(name)
+            if fitted:  # the share of the object the fit does not see: covered by the robot, or missing from the frame
+                self.spread[name] = 1.0 + self.cover_spread * (1.0 - (1.0 - det.occluded) * det.support)
+            if truth is not None and name in truth:  # after the estimate: the estimator never sees it
+                share = occlusion(frame, self.estimator.shapes[name], pose_vector(truth[name]), tilt=True)
+                clear = share is not None and share <= PARTLY
+            else:
+                clear = det.status in IN_VIEW and det.occluded <= PARTLY
+            counts["unoccluded"] += int(clear)
+            self.views[name].append((t, clear))
+            counts["unoccluded_ok"] += int(clear and det.status == "ok")
+        if not self.dumped and t + 1e-9 >= self.cfg.dump_at_s:
+            self.dumped = True
+            try:
+                self.dump(Path(str(self.cfg.dump)), frame, detections)
+            except OSError as exc:  # a lost frame dump is not a failed run: reported with the camera's figures
+                self.dump_error = f"perception.dump {self.cfg.dump}: cannot write: {exc.strerror or exc}"
+        self.poses = {name: det.pose for name, det in detections.items()}
+        self.lost = any(det.status in ("out_of_view", "missing") for det in detections.values())
+        return dict(self.poses)
+
+    def window(self, priors: Mapping[str, np.ndarray | None], pos: np.ndarray,
+               rot: np.ndarray) -> tuple[int, int, int, int] | None:
+        """The stereo window: the region the estimator searches around each tracked object, grown by ``MARGIN``.
+
+        The whole image (None) every ``WHOLE_EVERY`` frames, while an object is not tracked, and after a frame that
+        lost one (re-acquisition searches the whole view).
+        """
+        if self.lost or len(self.ms["render"]) % WHOLE_EVERY == 0 or any(p is None for p in priors.values()):
+            return None
+        regions = [(p[:3], self.reach[n]) for n, p in priors.items() if p is not None]
+        return window(regions, self.camera.K, pos, rot, (self.spec.height, self.spec.width))
+
+    def dump(self, folder: Path, frame: Frame, detections: Mapping[str, Any]) -> None:
+        """Write the frame's RGB, depth, clusters and fitted poses (drawn over the RGB) as PNGs into ``folder``."""
+        import imageio.v3 as iio
+
+        from nextage_qp.sensing.camera.draw import draw_poses
+
+        folder.mkdir(parents=True, exist_ok=True)
+        rgb = self.camera.rgb(self.data)
+        z = np.nan_to_num(frame.depth, nan=0.0)
+        iio.imwrite(folder / "rgb.png", rgb)
+        iio.imwrite(folder / "depth.png", (255 * np.clip(z / max(float(z.max()), 1e-6), 0, 1)).astype(np.uint8))
+        labels = self.estimator.clusters
+        palette = np.random.default_rng(1).integers(60, 255, (int(labels.max()) + 1, 3)).astype(np.uint8)
+        palette[0] = 0
+        iio.imwrite(folder / "clusters.png", palette[labels])
+        shapes = {n: self.estimator.shapes[n] for n in detections}
+        iio.imwrite(folder / "fit.png", draw_poses(rgb, frame, shapes, {n: d.pose for n, d in detections.items()}))
+
+    def report(self) -> dict[str, Any]:
+        """Frames, per object its frames by outcome, its detection rate, and the median ms per frame.
+
+        ``partly_occluded``: detected though the robot covered more than ``PARTLY`` of it; ``part_fitted``: detected
+        by a fit the frame shows less than ``MIN_SUPPORT`` of (both partial views); ``unoccluded``: frames in
+        which it was in view and the robot covered at most ``PARTLY`` of it (at its true pose, see the module doc;
+        ``unoccluded_ok``: detected in them). ``detected_of_unoccluded`` is the detection rate over those;
+        ``detected_of_in_view`` over every frame in which the estimator predicted it in view and covered at most
+        ``MAX_OCCLUDED`` (partly occluded ones too).
+        """
+        objects = {}
+        for name, c in self.counts.items():
+            seen, clear = sum(c[s] for s in IN_VIEW), c["unoccluded"]
+            objects[name] = {**c, "detected_of_in_view": c["ok"] / seen if seen else None,
+                             "detected_of_unoccluded": c["unoccluded_ok"] / clear if clear else None}
+        if not self.dumped and not self.dump_error:  # the run ended before the time of the frame asked for
+            last = f"{self.last[0]:g} s" if self.last is not None else "its start"
+            self.dump_error = (f"perception.dump_at_s {self.cfg.dump_at_s:g} s: the camera's last frame was at "
+                               f"{last}; nothing written to {self.cfg.dump} (set a time within the run)")
+        med = {f"{k}_ms_median": float(np.median(v)) if v else None for k, v in self.ms.items()}
+        return {"camera": self.camera.name, "depth": self.cfg.depth, "frames": len(self.ms["render"]), **med,
+                **({"windowed_frames": self.windowed} if self.cfg.depth == "stereo" else {}),
+                "objects": objects, **({"dump_error": self.dump_error} if self.dump_error else {})}
+
+    def close(self) -> None:
+        """Free the renderers."""
+        self.camera.close()
+        if self.right is not None:
+            self.right.close()
+
+
+def stereo_pair(model: mujoco.MjModel, robot: Any, cams: Mapping[str, Any], names: tuple[str, str],
+                left: RobotCamera, seed: int, source: str) -> tuple[RobotCamera, StereoMatcher]:
+    """The right camera of a stereo pair and the matcher, after checking the pair is rectified as mounted.
+
+    Raises:
+        ConfigError: The cameras are on different bodies, or not a rectified pair (:func:`check_pair`).
+    """
+    specs = [cams[n] for n in names]
+    if specs[0].body != specs[1].body:
+        raise ConfigError(f"{source}: perception.stereo: {names[0]!r} and {names[1]!r} must be on one body, got "
+                          f"{specs[0].body!r} and {specs[1].body!r}")
+    try:
+        baseline = check_pair(specs[0], specs[1], specs[0].rot(), specs[1].rot(),
+                              np.subtract(specs[1].pos, specs[0].pos), names)
+    except ConfigError as exc:
+        raise ConfigError(f"{source}: {exc}") from None
+    return RobotCamera(model, names[1], specs[1], robot, seed), StereoMatcher(left.K, baseline)

@@ -1,0 +1,45 @@
+"""The ``perception:`` block of a task config: where the object poses the phases see come from.
+
+.. code-block:: yaml
+
+    perception:
+      source: camera         # truth | simulated (faults.object_pose's model) | camera (rendered images)
+      camera: head_rgbd      # a camera of the robot file
+      depth: rendered        # rendered (an RGB-D sensor) | stereo (block matching on the two RGB cameras below)
+      stereo: [head_left, head_right]
+      look_at: true          # the head keeps the task's object and target in view (a low-weight IK task)
+      dump: runs/frame       # write one frame's RGB, depth, clusters and fitted pose as PNGs
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from nextage_qp.io.schema import YamlModel
+
+
+class PerceptionConfig(YamlModel):
+    """See the module docstring."""
+
+    source: Literal["truth", "simulated", "camera"] | None = Field(
+        default=None, description="truth; simulated: faults.object_pose's noise, latency and dropouts; camera: poses "
+        "estimated from the robot camera's images. Default: simulated with faults.object_pose, else truth.")
+    camera: str = Field(default="head_rgbd", min_length=1, description="The robot file's camera that gives depth.")
+    depth: Literal["rendered", "stereo"] = Field(
+        default="rendered", description="rendered: the camera's depth with its noise model; stereo: block matching on "
+        "the two RGB cameras of `stereo` (nextage_qp.sensing.camera.stereo; the world's surfaces get a random-dot "
+        "texture).")
+    stereo: tuple[str, str] = Field(default=("head_left", "head_right"),
+                                    description="Left and right RGB cameras of a rectified pair (depth: stereo).")
+    look_at: bool = Field(default=True, description="The head keeps the object and target in view (camera only).")
+    look_cost: float = Field(default=0.05, ge=0, le=10.0, description="Weight of the look-at task.")
+    noise_pos_m: float = Field(default=0.002, gt=0, le=0.1, description="Position noise the filter assumes [m].")
+    noise_rot_rad: float = Field(default=0.02, gt=0, le=0.5, description="Rotation noise the filter assumes [rad].")
+    cover_spread: float | None = Field(
+        default=None, ge=0, le=100, allow_inf_nan=False, description="The noise the filter assumes of a fit grows "
+        "by 1 + cover_spread * the share of the object it does not see (the robot covers it, the frame lacks it). "
+        "Default: 8 with stereo depth (block matching smears depth across the robot's edges), 0 with rendered depth.")
+    dump: str | None = Field(default=None, description="Folder for one frame's RGB, depth, clusters and fit (PNGs).")
+    dump_at_s: float = Field(default=1.0, ge=0, description="Time of the dumped frame [s].")
