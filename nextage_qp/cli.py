@@ -72,15 +72,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``nextage-qp``; returns the process exit code."""
     for message in QUIET_WARNINGS:
         warnings.filterwarnings("ignore", message=message)
-    from nextage_qp.native.mj_warnings import capture_mujoco_warnings
-
-    capture_mujoco_warnings()  # a diverging simulation fails with one line quoting MuJoCo, not with its own print
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, --version, or a usage error already printed as one line
         return exc.code if isinstance(exc.code, int) else 2
     try:
+        from nextage_qp.native.loading import require_mujoco
+
+        require_mujoco()
+        from nextage_qp.native.mj_warnings import capture_mujoco_warnings
+
+        capture_mujoco_warnings()  # a diverging simulation fails with one line quoting MuJoCo, not with its own print
         code = int(args.func(args))
         sys.stdout.flush()  # inside the try: a reader that left (``| head``) is caught below
         return code

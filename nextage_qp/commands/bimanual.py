@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from nextage_qp.commands.common import (
     COORD,
@@ -18,13 +17,19 @@ from nextage_qp.commands.common import (
     scene_robot,
     sim_gains,
 )
-from nextage_qp.experiments.bimanual import run_bimanual
+
+if TYPE_CHECKING:
+    pass
 
 HELD_M = 0.002
 """Relative error [m] within which the coupling counts as held (exit 0; otherwise exit 1)."""
 
 
 def _run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from nextage_qp.experiments.bimanual import run_bimanual
+
     robot = scene_robot(args)
     gains = sim_gains(args, robot)
     frames = None

@@ -9,14 +9,15 @@ import os
 import re
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.io.json_out import dumps
 from nextage_qp.io.outputs import folder_problem, name_limit
-from nextage_qp.robots.model import Robot
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from nextage_qp.robots.model import Robot
 
 
 def help_text(doc: str | None) -> str | None:
@@ -142,6 +143,8 @@ def add_robot_arg(parser: argparse.ArgumentParser) -> None:
 
 def scene_robot(args: argparse.Namespace) -> Robot:
     """The robot of ``--robot`` in the scene of ``--scene`` (or a positional ``scene``)."""
+    from nextage_qp.robots.model import Robot
+
     return Robot.from_scene(args.scene, robot=args.robot)
 
 
@@ -186,6 +189,8 @@ def print_json(obj: Any) -> None:
     Raises:
         ConfigError: Standard output cannot be written (a full disk; a reader that left raises BrokenPipeError).
     """
+    from nextage_qp.io.json_out import dumps
+
     try:
         print(dumps(obj), flush=True)
     except BrokenPipeError:
@@ -196,7 +201,7 @@ def print_json(obj: Any) -> None:
 
 def add_backend_args(parser: argparse.ArgumentParser, workers_help: str) -> None:
     """Add ``--workers``, ``--backend`` and ``--ray-address`` (checked by :func:`check_backend_args`)."""
-    from nextage_qp.sweep.run import BACKENDS
+    from nextage_qp.sweep import BACKENDS
 
     parser.add_argument("--workers", type=int, help=workers_help)
     parser.add_argument("--backend", choices=BACKENDS, default="local", help="local process pool (default) or ray")

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import argparse
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from nextage_qp.commands.common import add_scene_arg, parse_joint_assignments, print_json, scene_robot
-from nextage_qp.kinematics.frames import Kinematics
+
+if TYPE_CHECKING:
+    pass
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -24,6 +25,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the pose of ``args.frame``."""
+    import numpy as np
+
+    from nextage_qp.kinematics.frames import Kinematics
+
     robot = scene_robot(args)
     robot.frame(args.frame)  # unknown frames fail before any other work
     q = parse_joint_assignments(robot, args.q, robot.keyframe_q(args.keyframe))

@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
-
-import numpy as np
-from rich.table import Table
+from typing import TYPE_CHECKING
 
 from nextage_qp.commands.common import COORD, add_scene_arg, number, out_console, print_json, scene_robot
 from nextage_qp.errors import ConfigError
-from nextage_qp.ik import QPIK, FrameTarget, IKConfig, IKResult
-from nextage_qp.ik.baselines import dls_ik, lm_ik, pinv_ik
-from nextage_qp.kinematics.frames import Kinematics
-from nextage_qp.robots.model import Robot
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from nextage_qp.ik import FrameTarget, IKConfig, IKResult
+    from nextage_qp.robots.model import Robot
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -40,6 +40,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _target(frame: str, pos: list[float], axis: list[float] | None, direction: list[float] | None,
             quat: list[float] | None, flag: str) -> FrameTarget:  # fmt: skip
+    import numpy as np
+
+    from nextage_qp.ik import FrameTarget
+
     if axis is not None and quat is not None:
         raise ConfigError(f"--axis{flag} and --quat{flag} exclude each other")
     if direction is not None and axis is None:
@@ -65,6 +69,10 @@ def _target(frame: str, pos: list[float], axis: list[float] | None, direction: l
 
 def run(args: argparse.Namespace) -> int:
     """Solve and print; returns 0 when converged, 1 otherwise."""
+    from nextage_qp.ik import QPIK
+    from nextage_qp.ik.baselines import dls_ik, lm_ik, pinv_ik
+    from nextage_qp.kinematics.frames import Kinematics
+
     robot = scene_robot(args)
     targets = [_target(args.frame, args.pos, args.axis, args.dir, args.quat, "")]
     if args.frame2 is not None:
@@ -105,6 +113,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _config(solver: str) -> IKConfig:
+    from nextage_qp.ik import IKConfig
+
     try:
         return IKConfig(solver=solver)
     except ValueError as exc:  # pydantic's ValidationError
@@ -112,6 +122,9 @@ def _config(solver: str) -> IKConfig:
 
 
 def _print_table(robot: Robot, result: IKResult, method: str) -> None:
+    import numpy as np
+    from rich.table import Table
+
     table = Table(title=f"IK ({method}): {result.status}")
     table.add_column("joint")
     table.add_column("rad", justify="right")

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import argparse
-
-from rich.markup import escape
-from rich.table import Table
+from typing import TYPE_CHECKING
 
 from nextage_qp.commands.common import add_robot_arg, out_console, print_json, scene_robot
-from nextage_qp.robots.describe import describe
+
+if TYPE_CHECKING:
+    pass
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,6 +22,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the description of ``args.scene``."""
+    from rich.markup import escape
+    from rich.table import Table
+
+    from nextage_qp.robots.describe import describe
+
     robot = scene_robot(args)
     info = describe(robot)
     if args.json:

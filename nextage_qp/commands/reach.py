@@ -4,23 +4,31 @@ from __future__ import annotations
 
 import argparse
 import sys
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from nextage_qp.commands.common import COORD, add_sim_args, help_text, number, print_outcome, scene_robot, sim_gains
-from nextage_qp.experiments.reach import run_reach
-from nextage_qp.kinematics.frames import Kinematics
-from nextage_qp.loop.reference import TrajectoryLimits
+
+if TYPE_CHECKING:
+    import numpy as np
+
 
 REACHED_M = 0.002
 """Final position error [m] within which ``reach`` counts the target as reached (exit 0; otherwise exit 1)."""
 
 
 def _vec(values: list[float] | None) -> np.ndarray | None:
+    import numpy as np
+
     return None if values is None else np.asarray(values, dtype=float)
 
 
 def _run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from nextage_qp.experiments.reach import run_reach
+    from nextage_qp.kinematics.frames import Kinematics
+    from nextage_qp.loop.reference import TrajectoryLimits
+
     robot = scene_robot(args)
     gains = sim_gains(args, robot)
     limits = TrajectoryLimits(

@@ -6,9 +6,6 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from rich.markup import escape
-from rich.table import Table
-
 from nextage_qp.commands.common import help_text, out_console, print_json
 from nextage_qp.errors import ConfigError
 
@@ -38,6 +35,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run_init(args: argparse.Namespace) -> int:
     """Write the draft robot file; print what was found and where it went."""
+    from rich.markup import escape
+
     from nextage_qp.robots.check_report import check_robot
     from nextage_qp.robots.draft import draft_text, write_draft
     from nextage_qp.robots.model import Robot
@@ -79,6 +78,8 @@ def run_init(args: argparse.Namespace) -> int:
 
 def run_check(args: argparse.Namespace) -> int:
     """Print the diagnosis; exit 1 when it found problems."""
+    from rich.markup import escape
+
     from nextage_qp.robots.check_report import check_robot
 
     report = check_robot(args.file)
@@ -97,6 +98,9 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def _print_tables(console: Any, report: Any) -> None:
+    from rich.markup import escape
+    from rich.table import Table
+
     def num(v: float | None) -> str:
         return "-" if v is None else f"{v:.4g}"
 

@@ -7,18 +7,16 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Any
-
-from rich.console import Console
-from rich.markup import escape
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-from rich.table import Table
+from typing import TYPE_CHECKING, Any
 
 from nextage_qp.commands.common import PLAIN_PROGRESS_S, PLOT_SUFFIXES, SEED, out_console, output_file, print_json
 from nextage_qp.errors import ConfigError, one_line
 from nextage_qp.io.outputs import refuse_overwriting
-from nextage_qp.manipulation.config import jitter_overrides, load_config
-from nextage_qp.manipulation.runner import Runner
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from nextage_qp.manipulation.runner import Runner
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -46,6 +44,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the config; exit 0 on success, 1 when the task failed (outputs are written either way)."""
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from nextage_qp.manipulation.config import jitter_overrides, load_config
+    from nextage_qp.manipulation.runner import Runner
+
     overrides = [*args.overrides, *([f"robot={args.robot}"] if args.robot else [])]
     overrides = jitter_overrides(args.config, args.seed, overrides) if args.seed is not None else overrides
     if args.log:
@@ -184,6 +188,9 @@ def _write_outputs(runner: Runner, args: argparse.Namespace, video: Any,
 
 
 def _print_summary(result: dict[str, Any], console: Console) -> None:
+    from rich.markup import escape
+    from rich.table import Table
+
     table = Table(title=f"{result['task']}: {'SUCCESS' if result['success'] else 'FAILED'}", title_justify="left")
     table.add_column("phase")
     table.add_column("kind")

@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import argparse
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from nextage_qp.commands.common import add_sim_args, help_text, number, print_outcome, scene_robot, sim_gains
-from nextage_qp.experiments.step_response import blocking_contacts, run_step
+
+if TYPE_CHECKING:
+    pass
 
 
 def _run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from nextage_qp.experiments.step_response import blocking_contacts, run_step
+
     robot = scene_robot(args)
     gains = sim_gains(args, robot)
     target = float(np.deg2rad(args.target_deg))

@@ -8,12 +8,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Any
-
-from rich.console import Console
-from rich.markup import escape
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-from rich.table import Table
+from typing import TYPE_CHECKING, Any
 
 from nextage_qp.commands.common import (
     PLAIN_PROGRESS_S,
@@ -25,14 +20,16 @@ from nextage_qp.commands.common import (
     output_file,
 )
 from nextage_qp.errors import ConfigError
-from nextage_qp.estimation.report import SHOVE_SETTLE_S
-from nextage_qp.io.json_out import dumps
 from nextage_qp.io.outputs import refuse_overwriting
-from nextage_qp.sweep.episode import Episode
-from nextage_qp.sweep.run import plan, run_sweep
-from nextage_qp.sweep.spec import SweepSpec
-from nextage_qp.sweep.store import SweepStore, default_folder
-from nextage_qp.sweep.summary import BINS, write_summary
+
+if TYPE_CHECKING:
+    from rich.console import Console
+    from rich.progress import (
+        Progress,
+    )
+
+    from nextage_qp.sweep.episode import Episode
+    from nextage_qp.sweep.spec import SweepSpec
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -73,6 +70,16 @@ class _Progress:
     """A bar with episodes done, running success rate and ETA; plain lines every few seconds off a terminal."""
 
     def __init__(self, name: str, total: int, done: list[Episode]) -> None:
+        from rich.console import Console
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
         self.name, self.total = name, total
         self.done = len(done)
         self.success = sum(e.status == "success" for e in done)
@@ -120,6 +127,11 @@ def run(args: argparse.Namespace) -> int:
 
     Exit 1 when no episode ran to its end (every one refused or an error): nothing was measured.
     """
+    from nextage_qp.sweep.run import plan, run_sweep
+    from nextage_qp.sweep.spec import SweepSpec
+    from nextage_qp.sweep.store import SweepStore, default_folder
+    from nextage_qp.sweep.summary import write_summary
+
     check_backend_args(args)
     indices = _indices(args)
     spec = SweepSpec(args.sweep, args.overrides)
@@ -168,6 +180,8 @@ def run(args: argparse.Namespace) -> int:
 def _write_outputs(args: argparse.Namespace, spec: SweepSpec, summary: dict[str, Any],
                    episodes: list[Any]) -> list[str]:
     """Write ``--json`` and ``--plot``; one that cannot be written does not stop the other (nor the summary)."""
+    from nextage_qp.io.json_out import dumps
+
     failed = []
     if args.json:
         try:
@@ -190,6 +204,12 @@ def _mm(value: float | None) -> str:
 
 
 def _print_summary(s: dict[str, Any], console: Console, *, only: bool, episodes: list[Episode]) -> None:
+    from rich.markup import escape
+    from rich.table import Table
+
+    from nextage_qp.estimation.report import SHOVE_SETTLE_S
+    from nextage_qp.sweep.summary import BINS
+
     rate = s["success_rate"]
     lo, hi = s["success_rate_ci95"]
     sets = "".join(f" --set {item}" for item in s["set"])

@@ -7,13 +7,13 @@ import json
 import os
 import sys
 from pathlib import Path
-from typing import Any
-
-from rich.console import Console
-from rich.table import Table
+from typing import TYPE_CHECKING, Any
 
 from nextage_qp.commands.common import add_backend_args, check_backend_args, out_console
 from nextage_qp.errors import ConfigError
+
+if TYPE_CHECKING:
+    from rich.console import Console
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -49,6 +49,8 @@ class _Progress:
     """One line per trial: its value and account, the best so far, the time per trial."""
 
     def __init__(self, total: int, done: int) -> None:
+        from rich.console import Console
+
         self.total, self.done = total, done
         self.console = Console(stderr=True, highlight=False)
 
@@ -127,6 +129,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _print(s: dict[str, Any], console: Console) -> None:
+    from rich.table import Table
+
     best = s["best"]
     console.print(f"{s['study']}: best of {s['trials']['complete']} complete trials is trial {best['number']}, "
                   f"value {best['value']:.5g}: {best['line']}", markup=False, soft_wrap=True)

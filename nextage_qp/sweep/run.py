@@ -12,8 +12,6 @@ from nextage_qp.sweep.episode import Episode, EpisodeTask, run_episode
 from nextage_qp.sweep.spec import SweepSpec
 from nextage_qp.sweep.store import SweepStore
 
-BACKENDS = ("local", "ray")
-
 
 def plan(spec: SweepSpec, seed: int, indices: Iterable[int]) -> list[EpisodeTask]:
     """One task per episode index; each task depends on (spec, seed, index) alone."""
