@@ -15,3 +15,23 @@ def faulty_episode(task):
     if task.index == 3:
         os._exit(3)
     return run_episode(task)
+
+
+def killed_once_episode(task):
+    """Episode 1's first attempt is killed with SIGKILL mid-episode (a marker file in $NQ_KILL_MARKS remembers it)."""
+    import signal
+    import threading
+    from pathlib import Path
+
+    mark = Path(os.environ["NQ_KILL_MARKS"]) / f"{task.index}.killed"
+    if task.index == 1 and not mark.exists():
+        mark.touch()
+        threading.Timer(0.5, os.kill, args=(os.getpid(), signal.SIGKILL)).start()
+    return run_episode(task)
+
+
+def instant_success(task):
+    """A success record without running anything (for the sweep's bookkeeping tests)."""
+    from nextage_qp.sweep.episode import Episode
+
+    return Episode(task.index, task.seed, dict(task.params), list(task.overrides), status="success")

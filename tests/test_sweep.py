@@ -304,10 +304,46 @@ def test_failures_are_recorded_and_the_sweep_goes_on(tmp_path):
     assert sorted(by) == [0, 1, 2, 3, 4]
     assert by[1].status == "error" and "RuntimeError: boom in episode 1" in by[1].reason
     assert by[2].status == "error" and "killed" in by[2].reason and "wall-time limit" in by[2].reason
-    assert by[3].status == "error" and "worker process died (exit code 3)" in by[3].reason
+    assert by[3].status == "lost" and "worker process died (exit code 3)" in by[3].reason
+    assert by[3].attempts == 2  # a dead worker is the machine's failure: run once more, here dead again
     assert by[0].result is not None and by[4].result is not None
     lines = (tmp_path / "episodes.jsonl").read_text().splitlines()
-    assert sorted(json.loads(ln)["index"] for ln in lines) == [0, 1, 2, 3, 4]
+    assert sorted({json.loads(ln)["index"] for ln in lines}) == [0, 1, 2, 3, 4]
+    summary = summarize(spec, 0, episodes, session_episodes=5, session_wall_s=1.0)
+    assert summary["counts"]["lost"] == 1 and summary["ran"] == 4 and summary["retried"] == 1
+
+
+@pytest.mark.slow
+def test_a_worker_killed_mid_episode_is_run_again_and_the_sweep_ends_with_every_episode_run(tmp_path, monkeypatch):
+    from sweep_helpers import killed_once_episode
+
+    monkeypatch.setenv("NQ_KILL_MARKS", str(tmp_path))
+    spec = SweepSpec(QUICK)
+    store = SweepStore(tmp_path / "out", spec, 0, resume=False)
+    episodes = run_sweep(plan(spec, 0, range(3)), store=store, workers=2, episode_fn=killed_once_episode)
+    store.close()
+    assert (tmp_path / "1.killed").exists()  # its first attempt was killed
+    assert [e.index for e in episodes] == [0, 1, 2]
+    assert all(e.status in ("success", "failed") for e in episodes), [(e.status, e.reason) for e in episodes]
+    assert episodes[1].attempts == 2 and episodes[0].attempts == 1
+
+
+def test_resume_runs_a_lost_episode_again(tmp_path):
+    from sweep_helpers import instant_success
+
+    from nextage_qp.sweep.episode import failed_episode
+
+    spec = SweepSpec(QUICK)
+    tasks = plan(spec, 0, range(2))
+    store = SweepStore(tmp_path, spec, 0, resume=False)
+    store.add(failed_episode(tasks[0], "worker process died (exit code -9)", 0.0, lost=True))
+    store.close()
+    store = SweepStore(tmp_path, spec, 0, resume=True)
+    assert 0 not in store.done and 0 in store.lost
+    episodes = run_sweep(tasks, store=store, workers=1, episode_fn=instant_success)
+    store.close()
+    assert [(e.index, e.status) for e in episodes] == [(0, "success"), (1, "success")]
+    assert episodes[0].attempts == 2 and episodes[1].attempts == 1
 
 
 @pytest.mark.slow

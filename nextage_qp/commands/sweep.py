@@ -28,7 +28,7 @@ if TYPE_CHECKING:
         Progress,
     )
 
-    from nextage_qp.sweep.episode import Episode
+    from nextage_qp.sweep.episode import UNRATED, Episode
     from nextage_qp.sweep.spec import SweepSpec
 
 
@@ -83,7 +83,7 @@ class _Progress:
         self.name, self.total = name, total
         self.done = len(done)
         self.success = sum(e.status == "success" for e in done)
-        self.ran = sum(e.status != "refused" for e in done)
+        self.ran = sum(e.status not in UNRATED for e in done)
         self.console = Console(stderr=True)
         self.bar: Progress | None = None
         self.t0 = self.last = time.monotonic()
@@ -109,7 +109,7 @@ class _Progress:
     def update(self, episode: Episode) -> None:
         self.done += 1
         self.success += episode.status == "success"
-        self.ran += episode.status != "refused"
+        self.ran += episode.status not in UNRATED
         if self.bar is not None:
             self.bar.update(self.task, completed=self.done, rate=self._rate())
             return
@@ -217,6 +217,8 @@ def _print_summary(s: dict[str, Any], console: Console, *, only: bool, episodes:
             + ("-" if rate is None else f"{100 * rate:.1f} %") + f" (95 % CI {100 * lo:.1f}-{100 * hi:.1f} %)")
     console.print(head, markup=False)
     counts = ", ".join(f"{k} {v}" for k, v in s["counts"].items())
+    if s["retried"] or s["counts"]["lost"]:  # the machine's failures, not the task's: in no rate
+        counts += f"; {s['retried']} run again after their process died, {s['counts']['lost']} lost twice"
     epm = s["episodes_per_minute"] if s["session"]["episodes_run"] else None
     console.print(f"episodes: {s['episodes']} ({counts}); {'-' if epm is None else f'{epm:.1f}'} episodes/min; "
                   f"records in {s['out']}", markup=False)

@@ -68,7 +68,7 @@ def run_local(tasks: Sequence[EpisodeTask], workers: int, on_done: OnDone, *, ep
                                          f"(wall-time limit {task.wall_limit:g} s + {grace:g} s)",
                                          task.wall_limit + grace)
             except pebble.ProcessExpired as exc:
-                episode = failed_episode(task, f"worker process died (exit code {exc.exitcode})", 0.0)
+                episode = failed_episode(task, f"worker process died (exit code {exc.exitcode})", 0.0, lost=True)
             except Exception as exc:
                 episode = failed_episode(task, f"{type(exc).__name__}: {exc}", 0.0)
             on_done(episode)
@@ -133,7 +133,7 @@ def run_ray(tasks: Sequence[EpisodeTask], workers: int | None, on_done: OnDone, 
                     episode = ray.get(ref, timeout=60)
                 except (RayError, GetTimeoutError) as exc:
                     episode = failed_episode(task, f"Ray task failed: {type(exc).__name__}: "
-                                             f"{one_line(exc)[:300]}", time.monotonic() - t0)
+                                             f"{one_line(exc)[:300]}", time.monotonic() - t0, lost=True)
                 on_done(episode)
             now = time.monotonic()
             for ref, (task, t0) in list(running.items()):

@@ -15,9 +15,14 @@ from typing import Any
 
 from nextage_qp.errors import ConfigError, NextageQPError, one_line
 
-STATUSES = ("success", "failed", "refused", "error")
+STATUSES = ("success", "failed", "refused", "error", "lost")
 """``success``/``failed``: the task ran and met / missed its criteria; ``refused``: the run rejected its scene
-before moving (exit 2); ``error``: an exception, a crash or the wall-time limit stopped the episode."""
+before moving (exit 2); ``error``: an exception, a crash or the wall-time limit stopped the episode; ``lost``: the
+process running it died or was killed (out of memory, a signal, a Ray worker lost): the machine's failure, not the
+task's, so the sweep runs it again once, and ``--resume`` runs it again, and it counts in no rate."""
+
+UNRATED = ("refused", "lost")
+"""Statuses that count in no success rate: a scene refused before moving, an episode whose process was lost."""
 
 TIMING_KEYS = ("wall_time_s", "real_time_factor", "physics_share")
 """Result fields that measure the machine, not the episode (left out when episodes are compared)."""
@@ -60,6 +65,7 @@ class Episode:
         result: The full ``nextage-qp run --json`` result (None when the run never started).
         wall_time_s: Wall time of the episode in its worker [s].
         worker: ``host:pid`` that ran it.
+        attempts: How many times it was started (more than one: an earlier attempt was ``lost``).
     """
 
     index: int
@@ -73,6 +79,7 @@ class Episode:
     result: dict[str, Any] | None = None
     wall_time_s: float = 0.0
     worker: str = ""
+    attempts: int = 1
 
     def to_json(self) -> dict[str, Any]:
         """A plain dict for JSON."""
@@ -86,7 +93,7 @@ class Episode:
     def comparable(self) -> dict[str, Any]:
         """The record without machine-dependent fields (wall times, worker), for determinism checks."""
         doc = self.to_json()
-        for key in ("wall_time_s", "worker"):
+        for key in ("wall_time_s", "worker", "attempts"):
             doc.pop(key)
         if doc["result"] is not None:
             doc["result"] = {k: v for k, v in doc["result"].items() if k not in TIMING_KEYS}
@@ -138,7 +145,12 @@ def run_episode(task: EpisodeTask) -> Episode:
     return record
 
 
-def failed_episode(task: EpisodeTask, reason: str, wall_time_s: float, worker: str = "") -> Episode:
-    """The record of an episode that did not come back from its worker (killed, crashed, lost)."""
-    return Episode(task.index, task.seed, dict(task.params), list(task.overrides), status="error", reason=reason,
-                   wall_time_s=wall_time_s, worker=worker)
+def failed_episode(task: EpisodeTask, reason: str, wall_time_s: float, worker: str = "", *,
+                   lost: bool = False) -> Episode:
+    """The record of an episode that did not come back from its worker.
+
+    ``lost``: its process died or was killed (status ``lost``, run again); else it was stopped for taking too long or
+    failed inside the worker (status ``error``).
+    """
+    return Episode(task.index, task.seed, dict(task.params), list(task.overrides), status="lost" if lost else "error",
+                   reason=reason, wall_time_s=wall_time_s, worker=worker)

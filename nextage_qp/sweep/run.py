@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import shlex
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
@@ -37,26 +38,38 @@ def run_sweep(
 ) -> list[Episode]:
     """Run every task not already in ``store``; each finished episode is stored before ``on_episode`` sees it.
 
-    ``pool`` (:func:`~nextage_qp.sweep.backends.local_pool`) keeps the local workers across calls.
+    An episode whose process died or was killed (status ``lost``: the machine's failure, not the task's) runs once
+    more, after the others; its record then counts two ``attempts``. ``pool``
+    (:func:`~nextage_qp.sweep.backends.local_pool`) keeps the local workers across calls.
 
     Returns:
         The episodes of ``tasks`` (resumed ones included), in index order.
     """
     done = dict(store.done) if store is not None else {}
     todo = [t for t in tasks if t.index not in done]
+    tried = {i: e.attempts for i, e in store.lost.items()} if store is not None else {}  # lost before a --resume
 
     def finished(episode: Episode) -> None:
+        if episode.index in tried:
+            episode = dataclasses.replace(episode, attempts=tried[episode.index] + episode.attempts)
         done[episode.index] = episode
         if store is not None:
             store.add(episode)
         if on_episode is not None:
             on_episode(episode)
 
-    if todo:
+    def run(batch: Sequence[EpisodeTask], on_done: Callable[[Episode], None]) -> None:
         if backend == "ray":
-            run_ray(todo, workers, finished, address=ray_address, episode_fn=episode_fn, grace=grace)
+            run_ray(batch, workers, on_done, address=ray_address, episode_fn=episode_fn, grace=grace)
         else:
-            run_local(todo, workers, finished, episode_fn=episode_fn, grace=grace, pool=pool)
+            run_local(batch, workers, on_done, episode_fn=episode_fn, grace=grace, pool=pool)
+
+    if todo:
+        run(todo, finished)
+    lost = [t for t in todo if t.index in done and done[t.index].status == "lost"]
+    if lost:  # once more: a worker that died is the machine's failure, not the episode's
+        tried.update({t.index: done[t.index].attempts for t in lost})
+        run(lost, finished)
     return [done[t.index] for t in tasks if t.index in done]
 
 

@@ -51,6 +51,8 @@ class SweepStore:
                        "fingerprint": fingerprint(spec)}
         self.episodes_path = out / "episodes.jsonl"
         self.done: dict[int, Episode] = {}
+        self.lost: dict[int, Episode] = {}
+        """Episodes on disk whose process died (``--resume`` runs them again), by index."""
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -69,8 +71,10 @@ class SweepStore:
         elif records:  # episodes without the header that says which sweep they belong to: never overwritten
             raise ConfigError(f"--out {out}: holds {self.episodes_path} but no sweep.json, so it cannot be verified "
                               "to be this sweep's; choose another --out, or remove the file")
-        if resume:
-            self.done = self._read()
+        if resume:  # a lost episode (its process died) runs again
+            kept = self._read()
+            self.done = {i: e for i, e in kept.items() if e.status != "lost"}
+            self.lost = {i: e for i, e in kept.items() if e.status == "lost"}
         try:
             if not resume and self.episodes_path.exists():
                 self.episodes_path.unlink()
@@ -99,7 +103,7 @@ class SweepStore:
         return done
 
     def add(self, episode: Episode) -> None:
-        """Append one finished episode and flush it to disk."""
+        """Append one finished episode and flush it to disk (a later record of the same index replaces it)."""
         self.done[episode.index] = episode
         try:
             self._file.write(json.dumps(episode.to_json(), default=_plain) + "\n")

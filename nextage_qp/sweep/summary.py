@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from nextage_qp.io.json_out import dumps
-from nextage_qp.sweep.episode import STATUSES, Episode
+from nextage_qp.sweep.episode import STATUSES, UNRATED, Episode
 from nextage_qp.sweep.nested import choice_label
 from nextage_qp.sweep.run import replay_commands
 from nextage_qp.sweep.spec import SweepSpec
@@ -88,7 +88,7 @@ def param_value(ep: Episode, key: str, component: int | None) -> Any:
 
 def by_parameter(spec: SweepSpec, episodes: Sequence[Episode]) -> list[dict[str, Any]]:
     """Success rate per bin of every randomised quantity (refused episodes left out)."""
-    ran = [e for e in episodes if e.status != "refused"]
+    ran = [e for e in episodes if e.status not in UNRATED]
     rows = []
     for label, key, comp, span in parameter_components(spec):
         values = [param_value(e, key, comp) for e in ran]
@@ -115,7 +115,7 @@ TIGHT_CLEARANCE = 0.010
 
 def by_target_clearance(episodes: Sequence[Episode]) -> list[dict[str, Any]]:
     """Success of the episodes that ran, split by their target's clearance to the obstacles (empty without one)."""
-    ran = [(e, (e.result or {}).get("target_clearance_m")) for e in episodes if e.status != "refused"]
+    ran = [(e, (e.result or {}).get("target_clearance_m")) for e in episodes if e.status not in UNRATED]
     if not any(c is not None for _, c in ran):
         return []
     rows = []
@@ -197,7 +197,7 @@ def summarize(spec: SweepSpec, seed: int, episodes: Sequence[Episode], *, sessio
               session_wall_s: float) -> dict[str, Any]:
     """The sweep summary printed on the terminal and written by ``--json`` (see ``docs/sweep.md``)."""
     counts = Counter(e.status for e in episodes)
-    ran = [e for e in episodes if e.status != "refused"]
+    ran = [e for e in episodes if e.status not in UNRATED]
     k = counts["success"]
     lo, hi = wilson(k, len(ran))
     errors = [v for e in ran if (v := object_error(e)) is not None]
@@ -207,7 +207,7 @@ def summarize(spec: SweepSpec, seed: int, episodes: Sequence[Episode], *, sessio
                        for e in failures)
     by_criterion = Counter(c for e in failures for c in (e.failed_criteria or ["(no result)"]))
     listed = []
-    for e in [*failures, *(e for e in episodes if e.status == "refused")]:
+    for e in [*failures, *(e for e in episodes if e.status in UNRATED)]:
         listed.append({"index": e.index, "status": e.status, "failed_phase": e.failed_phase, "reason": e.reason,
                        "object_error_m": object_error(e), "replay": replay_commands(spec, seed, e)})
     return {
@@ -218,6 +218,7 @@ def summarize(spec: SweepSpec, seed: int, episodes: Sequence[Episode], *, sessio
         "episodes": len(episodes),
         "counts": {s: counts[s] for s in STATUSES},
         "ran": len(ran),
+        "retried": sum(e.attempts > 1 for e in episodes),
         "success_rate": k / len(ran) if ran else None,
         "success_rate_ci95": [lo, hi],
         "error_limit_m": error_limit(episodes),

@@ -22,7 +22,7 @@ import numpy as np
 from nextage_qp.errors import ConfigError
 from nextage_qp.io.yaml_file import read_yaml_mapping
 from nextage_qp.manipulation.config import load_config
-from nextage_qp.sweep.episode import Episode, EpisodeTask, run_episode
+from nextage_qp.sweep.episode import UNRATED, Episode, EpisodeTask, run_episode
 from nextage_qp.sweep.keys import lookup, yaml_scalar
 from nextage_qp.sweep.run import plan
 from nextage_qp.sweep.spec import SweepSpec
@@ -74,7 +74,7 @@ class SweepEvaluator:
 
     def score(self, episodes: Sequence[Episode]) -> Score:
         """Failure rate first, p95 object error second (see the module docstring)."""
-        ran = [ep for ep in episodes if ep.status != "refused"]
+        ran = [ep for ep in episodes if ep.status not in UNRATED]
         if not ran:
             return Score(1.0, "every scene was refused", {"episodes": len(episodes), "ran": 0})
         errors = np.array([MISSING_ERROR_M if (e := object_error(ep)) is None else e for ep in ran])

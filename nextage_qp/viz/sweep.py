@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from nextage_qp.sweep.episode import Episode
+from nextage_qp.sweep.episode import UNRATED, Episode
 from nextage_qp.sweep.nested import choice_label
 from nextage_qp.sweep.spec import SweepSpec
 from nextage_qp.sweep.summary import error_limit, object_error, param_value, parameter_components
@@ -21,7 +21,7 @@ def plot_sweep(spec: SweepSpec, episodes: Sequence[Episode], path: Path) -> None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    ran = [e for e in episodes if e.status != "refused" and object_error(e) is not None]
+    ran = [e for e in episodes if e.status not in UNRATED and object_error(e) is not None]
     comps = parameter_components(spec)
     ncols = 3
     nrows = 1 + math.ceil(len(comps) / ncols)
