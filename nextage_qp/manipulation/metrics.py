@@ -13,12 +13,16 @@ import mujoco
 import numpy as np
 
 from nextage_qp.geometry import wrap
+from nextage_qp.loop.diagnosis import limit_violation
 from nextage_qp.loop.simulation import Simulation
 from nextage_qp.manipulation.config import SuccessCriteria
 from nextage_qp.manipulation.context import Grip
 from nextage_qp.native import kernels
 from nextage_qp.robots.model import Robot
 from nextage_qp.scene.files import touch_sensor
+
+LIMIT_TOLERANCE = 1e-3
+"""A joint this far [rad or m] past an end of its range counts as violating its limit."""
 
 
 @dataclass
@@ -197,8 +201,8 @@ def object_state(robot: Robot, sim: Simulation, obj: str, target: str) -> Object
 
 
 def judge(criteria: SuccessCriteria, state: ObjectState, *, completed: bool, dropped: bool, limit_violations: int,
-          obstacle_contacts: int) -> dict[str, dict[str, Any]]:
-    """Every success criterion with its value, limit and verdict (``ok``)."""
+          obstacle_contacts: int, limit_detail: str | None = None) -> dict[str, dict[str, Any]]:
+    """Every success criterion with its value, limit and verdict (``ok``); a violated joint limit's ``detail``."""
     out: dict[str, dict[str, Any]] = {
         "completed": {"ok": completed},
         "object_error": {"value": state.error_xy_m, "limit": criteria.planar_error,
@@ -206,6 +210,8 @@ def judge(criteria: SuccessCriteria, state: ObjectState, *, completed: bool, dro
         "not_dropped": {"ok": not dropped},
         "joint_limits": {"value": limit_violations, "limit": 0, "ok": limit_violations == 0},
     }
+    if limit_detail:
+        out["joint_limits"]["detail"] = limit_detail
     if criteria.yaw_error is not None:
         out["yaw_error"] = {"value": state.yaw_error_rad, "limit": criteria.yaw_error,
                             "ok": state.yaw_error_rad <= criteria.yaw_error}
@@ -237,11 +243,14 @@ def summarize(
     state = object_state(robot, sim, obj, target)
     rec = sim.recorder.arrays()
     q = rec["q"]
-    viol = int(np.count_nonzero(np.any((q < robot.lower - 1e-3) | (q > robot.upper + 1e-3), axis=1)))
+    viol = int(np.count_nonzero(np.any((q < robot.lower - LIMIT_TOLERANCE) | (q > robot.upper + LIMIT_TOLERANCE),
+                                       axis=1)))
+    detail = (limit_violation(robot.joint_names, np.ravel(rec["t"]), q, robot.lower, robot.upper, LIMIT_TOLERANCE)
+              if viol else None)
     tau = np.abs(rec["tau"]).max() if len(q) else 0.0
     contacts = monitor.obstacle_contacts if monitor.obstacle is not None else 0
     verdict = judge(criteria, state, completed=error is None, dropped=monitor.dropped, limit_violations=viol,
-                    obstacle_contacts=contacts)
+                    obstacle_contacts=contacts, limit_detail=detail)
     sim_t = sim.time
     return {
         "task": task,
@@ -353,6 +362,5 @@ def unmet_criteria(record: Mapping[str, Any]) -> str:
 
 def _criterion_text(record: Mapping[str, Any], name: str) -> str:
     crit = record.get("criteria", {}).get(name, {})
-    if "value" in crit and "limit" in crit:
-        return f"{name} {crit['value']:.4g} > {crit['limit']:.4g}"
-    return name
+    text = f"{name} {crit['value']:.4g} > {crit['limit']:.4g}" if "value" in crit and "limit" in crit else name
+    return f"{text} ({crit['detail']})" if crit.get("detail") else text

@@ -21,6 +21,7 @@ from nextage_qp.errors import ConfigError, InfeasibleError, NextageQPError, Phas
 from nextage_qp.estimation.report import SHOVE_SETTLE_S
 from nextage_qp.ik import QPIK
 from nextage_qp.ik.look_at import watch
+from nextage_qp.loop.diagnosis import at_limits, contact_forces, saturated, what_holds
 from nextage_qp.loop.servo import HOLD, Command, Servo
 from nextage_qp.loop.simulation import Simulation
 from nextage_qp.manipulation.config import ManipulationConfig
@@ -34,7 +35,7 @@ from nextage_qp.mobile.odometry import base_report
 from nextage_qp.robots.check_report import check_own_names
 from nextage_qp.robots.description import load_robot
 from nextage_qp.robots.gains import load_gains, robot_gains
-from nextage_qp.robots.model import Robot, scene_bodies, tool_frames
+from nextage_qp.robots.model import Robot, robot_bodies, scene_bodies, tool_frames
 from nextage_qp.scene.checks import check_clear
 from nextage_qp.scene.files import BodyPose, SceneOverrides
 from nextage_qp.sensing.setup import attach_camera, log_estimates, perception_of, source_of
@@ -172,6 +173,7 @@ class Runner:
                 rec.start_s, rec.status = self.sim.time, "running"
                 phase.t0 = self.sim.time
                 self._phase = (rec.name, spec.kind, self.sim.time)
+                clamped0, steps0 = self.sim.pd.saturated_ticks.copy(), self.sim.pd.ticks  # the phase's own, below
                 phase.start(view)
                 view.grip = phase.grip(view.grip)
                 while True:
@@ -188,10 +190,11 @@ class Runner:
                         held = self.ik.collision.violated(self.ik.model, HELD_SLACK) if self.ik.collision else []
                         held = ["; held by ik.collision_pairs: " + ", ".join(h.removeprefix("collision pair ")
                                                                              for h in held[:3])] if held else []
+                        holds = self._what_holds(clamped0, steps0)
                         raise PhaseError(f"phase {rec.name!r} ({spec.kind}) timed out after {spec.timeout:g} s "
                                          f"of simulated time{': ' + cause if cause else ''}; "
                                          f"last state: {_brief(phase.info)}"
-                                         f"{''.join(held)}", phase=rec.name)
+                                         f"{''.join(held)}{'; ' + holds if holds else ''}", phase=rec.name)
                 rec.status, rec.duration_s, rec.info = "done", self.sim.time - rec.start_s, dict(phase.info)
             self.current, self._phase = None, None
             end = self.sim.time + self.cfg.timing.settle
@@ -217,6 +220,14 @@ class Runner:
             if self.camera is not None:
                 self.camera.close()
         return RunResult(self.summary())
+
+    def _what_holds(self, clamped0: np.ndarray, steps0: int) -> str:
+        """What may hold the robot up now: its contacts, the joints clamped since the phase began, those at a limit."""
+        robot, sim = self.robot, self.sim
+        contacts = contact_forces(robot.model, sim.data, robot_bodies(robot))
+        clamped = saturated(robot.joint_names, sim.pd.saturated_ticks - clamped0, sim.pd.ticks - steps0)
+        limits = at_limits(robot.joint_names, sim.data.qpos[robot.qpos_idx], robot.lower, robot.upper)
+        return what_holds(contacts, clamped, limits)
 
     def _look_point(self) -> np.ndarray:
         """Where the head looks: the middle of the task's object and target, as estimated.

@@ -336,10 +336,11 @@ def check_arm_frames(model: mujoco.MjModel, desc: RobotDescription) -> None:
                                   f"model; name one of its sites or bodies, or add it under frames: (body, pos)")
 
 
-def scene_bodies(robot: Robot) -> tuple[str, ...]:
-    """Named bodies of the scene, not of the robot: where objects may go.
+def robot_bodies(robot: Robot) -> frozenset[int]:
+    """Ids of the robot's bodies.
 
-    None that a robot joint (or a mobile robot's base) moves, nor the robot's fixed links those hang from.
+    Those a robot joint (or a mobile robot's base) moves, the fixed links they hang from down to the world, and every
+    body below them (hands, pads, tool frames).
     """
     m = robot.model
     movers = {int(m.jnt_bodyid[m.joint(j).id]) for j in robot.joint_names}
@@ -350,11 +351,17 @@ def scene_bodies(robot: Robot) -> tuple[str, ...]:
         while b > 0:
             own.add(b)
             b = int(m.body_parentid[b])
-    names = []
+    found = set()
     for b in range(1, m.nbody):
         up = b
         while up > 0 and up not in own:
             up = int(m.body_parentid[up])
-        if up == 0 and m.body(b).name:
-            names.append(m.body(b).name)
-    return tuple(names)
+        if up > 0:
+            found.add(b)
+    return frozenset(found)
+
+
+def scene_bodies(robot: Robot) -> tuple[str, ...]:
+    """Named bodies of the scene, not of the robot: where objects may go (:func:`robot_bodies` left out)."""
+    m, own = robot.model, robot_bodies(robot)
+    return tuple(m.body(b).name for b in range(1, m.nbody) if b not in own and m.body(b).name)
