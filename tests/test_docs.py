@@ -1,6 +1,7 @@
 """The docs match the code: the API reference lists every public name, the README points in."""
 
 import re
+import sys
 from pathlib import Path
 
 import nextage_qp
@@ -36,3 +37,45 @@ def test_readme_leads_to_the_docs() -> None:
     assert "pip install" in first_screen and "pytest" in first_screen  # install and test
     assert "| task |" in first_screen or "| task" in first_screen  # the results table
     assert "docs/tasks.md" in first_screen  # write your own task
+
+
+def test_the_config_reference_is_generated_from_the_schemas_and_complete() -> None:
+    """Every key of every schema has a meaning and, holding numbers, a unit; docs/configs.md is what they give."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("config_reference", ROOT / "tools" / "config_reference.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["config_reference"] = module  # its dataclasses look their module up
+    spec.loader.exec_module(module)
+    assert module.problems() == []
+    assert (ROOT / "docs" / "configs.md").read_text() == module.render(), "run: python tools/config_reference.py"
+    keys = [r.key for _, _, rows in module.sections() for r in rows]
+    assert len(keys) > 300 and "phases[].attempts" in keys and "ik.limit_margin" in keys and "phases[].blind" in keys
+
+
+def test_the_example_outputs_of_getting_started_are_what_the_runs_print() -> None:
+    """The JSON shown for the default push and dock is checked field by field against the runs (to its digits)."""
+    import json
+
+    from nextage_qp.manipulation.config import load_config
+    from nextage_qp.manipulation.runner import Runner
+
+    text = (ROOT / "docs" / "getting-started.md").read_text()
+    blocks = re.findall(r"nextage-qp run (configs/\S+\.yaml) --json[^\n]*\n```\n(?:.*?\n)??```json\n(.*?)\n```", text,
+                        re.S)
+    assert [c for c, _ in blocks] == ["configs/push_cube.yaml", "configs/dock_dumbbell.yaml"]
+
+    def same(shown, actual) -> bool:
+        if isinstance(shown, dict):
+            return all(same(v, actual[k]) for k, v in shown.items())
+        if isinstance(shown, list):
+            return len(shown) == len(actual) and all(same(s, a) for s, a in zip(shown, actual, strict=True))
+        if isinstance(shown, float):
+            digits = len(repr(shown).split("e")[0].replace("-", "").replace(".", "").lstrip("0"))
+            return f"{actual:.{max(digits, 1)}g}" == f"{shown:.{max(digits, 1)}g}"
+        return shown == actual
+
+    for config, block in blocks:
+        shown = json.loads(block)
+        record = Runner(load_config(ROOT / config), config).run().record
+        assert same(shown, record), (config, shown, {k: record[k] for k in shown})

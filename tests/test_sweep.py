@@ -127,7 +127,6 @@ def test_sweep_file_that_is_not_a_mapping(tmp_path, capsys, text, message):
         (["--only", "x,1"], "--only 'x,1': expected episode indices"),
         (["--n", "2", "--workers", "0"], "--workers must be between 1"),
         (["--n", "2", "--ray-address", "1.2.3.4:6379"], "--ray-address needs --backend ray"),
-        (["--n", "2", "--json", "."], "is a directory"),
         (["--n", "2", "--plot", "pyproject.toml/p.png"], "is a file, not a folder"),
         (["--n", "2", "--plot", "p.txt"], "expected a file ending in .png or .pdf or .svg"),
         (["--n", "2", "--set", "timing.ctrl_dtt=0.01"], "--set: "),
@@ -236,7 +235,7 @@ def test_summary_groups_failures_and_bins_parameters():
         episodes.append(Episode(i, seed, params, spec.overrides(params, seed), status, failed_phase="push" if status == "failed" else None,
                                 failed_criteria=[] if ok else ["object_error"], result=None if i == 3 else result))
     s = summarize(spec, 0, episodes, session_episodes=8, session_wall_s=60.0)
-    assert s["counts"] == {"success": 4, "failed": 2, "refused": 1, "error": 1}
+    assert s["counts"] == {"success": 4, "failed": 2, "refused": 1, "error": 1, "lost": 0}
     assert s["ran"] == 7 and s["success_rate"] == pytest.approx(4 / 7)
     assert s["failures_by_phase"] == {"push": 2, "(episode error)": 1}
     assert s["failures_by_criterion"]["object_error"] == 3
@@ -397,12 +396,13 @@ def test_resume_runs_only_the_missing_episodes(tmp_path, six_local):
 
 @pytest.mark.slow
 def test_sweep_cli_writes_summary_plot_and_replays(tmp_path, capsys):
-    out, js, png = tmp_path / "out", tmp_path / "s.json", tmp_path / "s.png"
+    out, png = tmp_path / "out", tmp_path / "s.png"
     assert main(["sweep", str(QUICK), "--n", "3", "--seed", "1", "--workers", "2", "--out", str(out),
-                 "--json", str(js), "--plot", str(png)]) == 0
-    text = capsys.readouterr().out
-    summary = json.loads(js.read_text())
-    assert summary["episodes"] == 3 and "95 % CI" in text
+                 "--json", "--plot", str(png)]) == 0
+    summary = json.loads(capsys.readouterr().out)  # --json: the summary on standard output, as run --json prints
+    assert summary["episodes"] == 3 and summary == json.loads((out / "summary.json").read_text())
+    assert main(["sweep", str(QUICK), "--n", "3", "--seed", "1", "--out", str(out), "--resume"]) == 0
+    assert "95 % CI" in capsys.readouterr().out  # without --json: the table
     assert summary["success_rate_ci95"][0] <= (summary["success_rate"] or 0) <= summary["success_rate_ci95"][1]
     assert png.stat().st_size > 20_000
     assert (out / "summary.json").is_file()

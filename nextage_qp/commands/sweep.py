@@ -18,9 +18,11 @@ from nextage_qp.commands.common import (
     check_backend_args,
     out_console,
     output_file,
+    print_json,
 )
 from nextage_qp.errors import ConfigError
 from nextage_qp.io.outputs import refuse_overwriting
+from nextage_qp.sweep.episode import UNRATED
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -28,7 +30,7 @@ if TYPE_CHECKING:
         Progress,
     )
 
-    from nextage_qp.sweep.episode import UNRATED, Episode
+    from nextage_qp.sweep.episode import Episode
     from nextage_qp.sweep.spec import SweepSpec
 
 
@@ -42,7 +44,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=SEED, default=0, help="sweep seed: episode i depends on (seed, i) only (default 0)")
     add_backend_args(p, "parallel episodes (default: the CPU count, or the Ray cluster's)")
     p.add_argument("--out", type=Path, help="directory of the episode records (default runs/sweeps/NAME-seedS)")
-    p.add_argument("--json", type=output_file(".json"), metavar="PATH", help="write the summary as JSON")
+    p.add_argument("--json", action="store_true",
+                   help="print the summary as JSON on standard output, as run --json prints its record (the summary is "
+                        "always written to OUT/summary.json too)")
     p.add_argument("--plot", type=output_file(*PLOT_SUFFIXES), metavar="PNG",
                    help="write the error CDF and error against each parameter")
     p.add_argument("--resume", action="store_true", help="continue the sweep in --out, skipping finished episodes")
@@ -143,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         out = default_folder(spec, args.seed)
     refuse_overwriting({"the sweep's record": out / "sweep.json", "the sweep's episodes": out / "episodes.jsonl",
-                        "--json": args.json, "--plot": args.plot},
+                        "--plot": args.plot},
                        {"the sweep file": spec.path, "its base config": spec.base_path})
     store = SweepStore(out, spec, args.seed, resume=args.resume)
     tasks = plan(spec, args.seed, indices)
@@ -164,8 +168,10 @@ def run(args: argparse.Namespace) -> int:
     summary = write_summary(out, spec, args.seed, episodes, session_episodes=len(episodes) - len(already),
                             session_wall_s=wall)
     failed = _write_outputs(args, spec, summary, episodes)
-    console = out_console(width=120)
-    _print_summary(summary, console, only=args.only is not None, episodes=episodes)
+    if args.json:
+        print_json(summary)
+    else:
+        _print_summary(summary, out_console(width=120), only=args.only is not None, episodes=episodes)
     if failed:  # the records and the summary above are kept; only these files are missing
         print(f"nextage-qp sweep: error: {'; '.join(failed)}", file=sys.stderr)
         return 2
@@ -179,16 +185,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _write_outputs(args: argparse.Namespace, spec: SweepSpec, summary: dict[str, Any],
                    episodes: list[Any]) -> list[str]:
-    """Write ``--json`` and ``--plot``; one that cannot be written does not stop the other (nor the summary)."""
-    from nextage_qp.io.json_out import dumps
-
+    """Write ``--plot``; one that cannot be written does not stop the summary."""
     failed = []
-    if args.json:
-        try:
-            args.json.parent.mkdir(parents=True, exist_ok=True)
-            args.json.write_text(dumps(summary) + "\n")
-        except OSError as exc:
-            failed.append(f"--json {args.json}: cannot write: {exc.strerror or exc}")
     if args.plot:
         from nextage_qp.viz.sweep import plot_sweep
 

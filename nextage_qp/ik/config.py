@@ -48,8 +48,10 @@ class CollisionGroupConfig(YamlModel):
     [FOREARM_LINK]}`` for a forearm).
     """
 
-    bodies: tuple[str, ...] = ()
-    subtrees: tuple[str, ...] = ()
+    bodies: tuple[str, ...] = Field(default=(), description="Bodies whose collision geoms are in the group.")
+    subtrees: tuple[str, ...] = Field(
+        default=(), description="Bodies whose collision geoms, and those of every body below them, are in the group."
+    )
 
     @model_validator(mode="after")
     def _something(self) -> CollisionGroupConfig:
@@ -86,7 +88,7 @@ class IKConfig(YamlModel):
     )
     solver: str = Field(default="daqp", description="qpsolvers backend (daqp, osqp, proxqp, ...).")
     dt: float = Field(default=0.2, gt=0.0, description="Integration step of solve() [s].")
-    max_iters: int = Field(default=200, ge=1, description="Iteration cap of solve().")
+    max_iters: int = Field(default=200, ge=1, description="Iteration cap of solve() [count].")
     pos_tol: float = Field(default=1e-4, gt=0.0, description="Position tolerance of solve() [m].")
     rot_tol: float = Field(default=1e-3, gt=0.0, description="Orientation tolerance of solve() [rad].")
     velocity_limit: float | dict[str, float] = Field(
@@ -96,12 +98,13 @@ class IKConfig(YamlModel):
         default=0.0, ge=0.0, le=0.5, description="Distance the IK keeps from every joint limit [rad]."
     )
     limit_gain: float = Field(
-        default=0.95, gt=0.0, le=1.0, description="Fraction of the distance to a joint limit allowed per step."
+        default=0.95, gt=0.0, le=1.0, description="Fraction [1] of the distance to a joint limit allowed per step."
     )
     restarts: int = Field(
-        default=100, ge=0, description="solve(): random in-limit restarts after a descent stalls (local minimum)."
+        default=100, ge=0,
+        description="solve(): random in-limit restarts after a descent stalls (local minimum) [count]."
     )
-    seed: int = Field(default=0, description="Seed of the restart configurations (solve() is deterministic).")
+    seed: int = Field(default=0, description="Seed of the restart configurations [-] (solve() is deterministic).")
     collision_pairs: tuple[CollisionPairConfig, ...] = Field(
         default=(), description="Geom-group pairs kept apart (e.g. left_arm/table)."
     )
@@ -109,7 +112,7 @@ class IKConfig(YamlModel):
         default_factory=dict, description="Extra geom groups for collision_pairs, by body or subtree."
     )
     collision_gain: float = Field(
-        default=0.85, gt=0.0, le=1.0, description="Fraction of the gap to min_distance a pair may close per step."
+        default=0.85, gt=0.0, le=1.0, description="Fraction [1] of the gap to min_distance a pair may close per step."
     )
     base_cost: float = Field(
         default=2.0, ge=0.0, allow_inf_nan=False,
@@ -117,7 +120,8 @@ class IKConfig(YamlModel):
                     "cost, so the arms reach near and the base drives far.",
     )
     stall_iters: int = Field(
-        default=8, ge=1, description="solve(): a descent stalls after this many iterations without 1 % progress."
+        default=8, ge=1,
+        description="solve(): a descent stalls after this many iterations without 1 % progress [count]."
     )
     trust_region: bool = Field(
         default=False, description=(

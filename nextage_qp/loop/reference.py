@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 import ruckig
-from pydantic import field_validator
+from pydantic import Field, field_validator
 
 from nextage_qp.errors import TrajectoryError
 from nextage_qp.io.schema import YamlModel
@@ -44,9 +44,15 @@ class TrajectoryLimits(YamlModel):
         max_jerk: [rad/s³].
     """
 
-    max_velocity: PerJoint = 1.0
-    max_acceleration: PerJoint = 4.0
-    max_jerk: PerJoint = 40.0
+    max_velocity: PerJoint = Field(
+        default=1.0, description="Joint velocity bound [rad/s]: one value, a list in joint order, or joint -> value "
+                                 "(others 1.0); at least 0.01, and capped by the robot file's velocity_limits.")
+    max_acceleration: PerJoint = Field(
+        default=4.0, description="Joint acceleration bound [rad/s²]: one value, a list in joint order, or joint -> "
+                                 "value (others 4.0); at least 0.01.")
+    max_jerk: PerJoint = Field(
+        default=40.0, description="Joint jerk bound [rad/s³]: one value, a list in joint order, or joint -> value "
+                                  "(others 40.0); at least 0.01.")
 
     @field_validator("max_velocity", "max_acceleration", "max_jerk")
     @classmethod

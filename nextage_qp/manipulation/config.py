@@ -37,8 +37,12 @@ Vec3 = tuple[float, float, float]
 class PoseOverride(YamlModel):
     """A body's pose in the world: position [m] and yaw about world z [rad] (either may be left out)."""
 
-    pos: Vec3 | None = None
-    yaw: float | None = None
+    pos: Vec3 | None = Field(
+        default=None, description="Position in the world [m]: an object's start, a target's or obstacle's fixed "
+                                  "place (unset: the scene's; wins over a declared object's pos).")
+    yaw: float | None = Field(
+        default=None, description="Yaw about world z [rad] (unset: the scene's orientation; wins over a declared "
+                                  "object's yaw).")
 
 
 class SceneConfig(YamlModel):
@@ -49,8 +53,8 @@ class SceneConfig(YamlModel):
     masses: dict[str, Annotated[float, Field(ge=1e-4, le=50.0)]] = Field(
         default_factory=dict, description="Body -> mass [kg], 0.1 g to 50 kg (as a declared object's).")
     friction_scale: dict[str, Annotated[float, Field(gt=0, le=20.0, allow_inf_nan=False)]] = Field(
-        default_factory=dict, description="Body -> factor on the sliding friction of all its contacts (default 1, "
-                                          "at most 20).")
+        default_factory=dict, description="Body -> factor [1] on the sliding friction of all its contacts "
+                                          "(default 1, at most 20).")
     objects: dict[str, ObjectDecl] = Field(
         default_factory=dict, description="Object -> shape, size, mass, friction, pose (nextage_qp/scene/objects.py).")
 
@@ -66,7 +70,8 @@ class SuccessCriteria(YamlModel):
     yaw_error: float | None = Field(default=None, gt=0, le=3.2, description="Largest yaw error [rad], or unjudged.")
     tilt: float | None = Field(default=None, gt=0, le=3.2, description="Largest tilt from upright [rad], or unjudged.")
     resting: bool = Field(default=False, description="The object must end on the table, at rest.")
-    obstacle_contacts: int | None = Field(default=None, ge=0, description="Most physics steps touching the obstacle.")
+    obstacle_contacts: int | None = Field(
+        default=None, ge=0, description="Most physics steps the object may touch the obstacle [count], or unjudged.")
 
 
 class RunTiming(Timing):
@@ -83,12 +88,14 @@ class ManipulationConfig(YamlModel):
     mount: MountFile | None = Field(
         default=None, description="Where the robot's own frame stands in the scene (default: the robot file's "
                                   "mount): a mobile robot's start pose.")
-    scene: SceneConfig
+    scene: SceneConfig = Field(
+        description="Which scene to load and what to change in it without editing XML: body poses, masses, friction, "
+                    "declared objects.")
     object: str = name_field("object", description="Body whose final error is reported.")
     target: str = name_field("place", description="Body marking the object's target.")
     start: str | dict[str, float] = Field(
-        default="home", description="Start pose: a keyframe of the robot file (home, zero, ...), or joint -> rad "
-                                    "on top of home.")
+        default="home", description="Start pose [rad]: a keyframe of the robot file (home, zero, ...), or joint -> "
+                                    "angle, the other joints at home.")
     success: SuccessCriteria = Field(default_factory=SuccessCriteria, description="Success criteria.")
     gains: str | None = Field(
         default=None,
@@ -96,13 +103,25 @@ class ManipulationConfig(YamlModel):
             "Gains file (a bundled name in the robot file's gains folder, or a path); none: the robot file's gains."
         ),
     )
-    ik: IKConfig = Field(default_factory=IKConfig)
-    trajectory: TrajectoryLimits = Field(default_factory=TrajectoryLimits)
-    timing: RunTiming = Field(default_factory=RunTiming)
-    seed: int = Field(default=0, ge=0, description="Seed of the run's own random draws (a sweep sets one per episode).")
+    ik: IKConfig = Field(
+        default_factory=IKConfig, description="The QP inverse kinematics: task costs, damping, joint and collision "
+                                              "limits, solver, and the settings of the offline solve().")
+    trajectory: TrajectoryLimits = Field(
+        default_factory=TrajectoryLimits, description="Ruckig's bounds on the joint references: velocity, "
+                                                      "acceleration and jerk, one value or per joint.")
+    timing: RunTiming = Field(
+        default_factory=RunTiming, description="Physics step, control period, and simulated time after the last "
+                                               "phase.")
+    seed: int = Field(default=0, ge=0, description="Seed of the run's own random draws [-] (a sweep sets one per "
+                                                   "episode; all fault noise derives from it).")
     faults: FaultsConfig | None = Field(default=None, description="Sensor faults and shoves (none: perfect sensors).")
-    estimation: EstimationConfig = Field(default_factory=EstimationConfig)
-    perception: PerceptionConfig = Field(default_factory=PerceptionConfig)
+    estimation: EstimationConfig = Field(
+        default_factory=EstimationConfig, description="How object measurements become the poses the phases see "
+                                                      "(a Kalman filter or the latest measurement).")
+    perception: PerceptionConfig = Field(
+        default_factory=PerceptionConfig, description="Where the object poses the phases see come from: the "
+                                                      "simulator's truth, the simulated camera of "
+                                                      "faults.object_pose, or the robot's own camera.")
     phases: list[Spec] = Field(min_length=1)
 
     @model_validator(mode="after")

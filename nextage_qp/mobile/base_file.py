@@ -42,21 +42,25 @@ class BaseLimits(YamlModel):
 class ChassisFile(YamlModel):
     """The base's own body (the robot stands on it)."""
 
-    mass: Positive = Field(default=20.0, le=1e4, description="[kg]")
+    mass: Positive = Field(default=20.0, le=1e4, description="Chassis mass [kg].")
     half_height: Positive = Field(default=0.04, le=1.0, description="Chassis plate half-height [m].")
 
 
 class BaseFile(YamlModel):
     """The schema of a robot file's ``base:`` section (see the module docstring)."""
 
-    type: Literal["diff_drive", "bicycle", "holonomic"]
-    wheel_radius: Positive = Field(default=0.1, le=2.0, description="[m]")
+    type: Literal["diff_drive", "bicycle", "holonomic"] = Field(
+        description="diff_drive: two driven wheels and casters, turns in place; bicycle: car-like, driven rear wheels "
+                    "and two steered front wheels; holonomic: planar joints driven by velocity actuators, no wheels.")
+    wheel_radius: Positive = Field(default=0.1, le=2.0, description="Wheel radius [m].")
     track: Positive = Field(default=0.7, le=10.0, description="Between the driven wheels [m].")
     wheelbase: Positive | None = Field(default=None, le=20.0, description="Bicycle: rear to front axle [m].")
     axle_x: float = Field(default=0.0, ge=-5.0, le=5.0, description="Driven axle's x in the robot's frame [m].")
     lift: float = Field(default=0.0, ge=0.0, le=2.0, description="How much higher the robot sits [m].")
-    chassis: ChassisFile = ChassisFile()
-    limits: BaseLimits = BaseLimits()
+    chassis: ChassisFile = Field(default=ChassisFile(), description="The base's own body, the robot stands on it.")
+    limits: BaseLimits = Field(
+        default=BaseLimits(), description="What the motors and steering can do: wheel speed and torque, the base "
+                                          "speed and turn rate the IK asks for, steering angle and rate.")
 
     @model_validator(mode="after")
     def _wheelbase(self) -> BaseFile:

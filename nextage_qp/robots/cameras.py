@@ -39,7 +39,7 @@ class DepthNoise(YamlModel):
     edge_m: float = Field(default=0.01, gt=0, le=1.0, allow_inf_nan=False,
                           description="Depth step between neighbouring pixels that makes an edge [m].")
     edge_dropout: float = Field(default=0.5, ge=0, le=1.0, allow_inf_nan=False,
-                                description="Probability that an edge pixel has no depth.")
+                                description="Probability [1] that an edge pixel has no depth.")
 
 
 class CameraFile(YamlModel):
@@ -50,12 +50,14 @@ class CameraFile(YamlModel):
     pitch: float = Field(default=0.0, ge=-1.6, le=1.6, description="Pitch down from the body's +x [rad].")
     yaw: float = Field(default=0.0, ge=-3.2, le=3.2, description="Yaw about the body's z [rad].")
     fovx: float = Field(default=80.0, gt=5.0, lt=170.0, description="Horizontal field of view [deg].")
-    width: int = Field(default=320, ge=16, le=4096)
-    height: int = Field(default=240, ge=16, le=4096)
+    width: int = Field(default=320, ge=16, le=4096, description="Image width [px].")
+    height: int = Field(default=240, ge=16, le=4096, description="Image height [px].")
     rate_hz: float = Field(default=15.0, gt=0, le=120.0, allow_inf_nan=False, description="Frame rate [Hz].")
     latency_s: float = Field(default=0.03, ge=0, le=1.0, allow_inf_nan=False,
                              description="Time from exposure to the estimate reaching the controller [s].")
-    depth_noise: DepthNoise = Field(default_factory=DepthNoise)
+    depth_noise: DepthNoise = Field(
+        default_factory=DepthNoise, description="Noise of the rendered depth: an axial sigma growing with the "
+                                                "distance squared, and missing pixels at depth edges.")
 
     @property
     def fovy(self) -> float:

@@ -43,15 +43,17 @@ NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False, strict=True)]
 class JointGains(YamlModel):
     """One joint's gains: ``kp`` [N·m/rad] and ``kd`` [N·m·s/rad], finite and >= 0."""
 
-    kp: NonNegative
-    kd: NonNegative
+    kp: NonNegative = Field(description="Proportional gain [N m/rad].")
+    kd: NonNegative = Field(description="Derivative gain [N m s/rad].")
 
 
 class GainsFile(YamlModel):
     """The schema of a gains YAML: one entry per robot joint and the gravity-compensation switch."""
 
-    gravity_compensation: bool = Field(default=True, strict=True)
-    joints: dict[str, JointGains]
+    gravity_compensation: bool = Field(
+        default=True, strict=True,
+        description="Add MuJoCo's bias force (gravity, Coriolis and centrifugal) to the PD torque.")
+    joints: dict[str, JointGains] = Field(description="Joint -> its gains; every robot joint, and no other.")
 
 
 @dataclass(frozen=True)

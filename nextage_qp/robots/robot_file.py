@@ -59,10 +59,10 @@ class ArmFile(YamlModel):
 class FrameFile(YamlModel):
     """A frame the robot file adds to the model: a site on a body, at an offset in the body's frame."""
 
-    body: Name
-    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    body: Name = Field(description="Body of the model the frame is fixed to.")
+    pos: tuple[float, float, float] = Field(default=(0.0, 0.0, 0.0), description="Position in the body's frame [m].")
     quat: tuple[float, float, float, float] = Field(
-        default=(1.0, 0.0, 0.0, 0.0), description="Orientation in the body (w, x, y, z)."
+        default=(1.0, 0.0, 0.0, 0.0), description="Orientation in the body, a non-zero quaternion [1] (w, x, y, z)."
     )
 
     @model_validator(mode="after")
@@ -76,8 +76,10 @@ class FrameFile(YamlModel):
 class GroupFile(YamlModel):
     """A collision group: bodies, and whole subtrees (a body and every body below it)."""
 
-    bodies: tuple[Name, ...] = ()
-    subtrees: tuple[Name, ...] = ()
+    bodies: tuple[Name, ...] = Field(default=(), description="Bodies whose collision geoms are in the group.")
+    subtrees: tuple[Name, ...] = Field(
+        default=(), description="Bodies whose collision geoms, and those of every body below them, are in the group."
+    )
 
     @model_validator(mode="after")
     def _not_empty(self) -> GroupFile:
@@ -90,21 +92,26 @@ class GainRule(YamlModel):
     """PD gains from each joint's reflected inertia at ``home``: ``kp = I w^2``, ``kd = 2 zeta I w - d``."""
 
     bandwidth: Positive = Field(default=30.0, le=500.0, description="Closed-loop natural frequency w [rad/s].")
-    damping_ratio: Positive = Field(default=1.0, le=5.0, description="zeta.")
-    gravity_compensation: bool = True
+    damping_ratio: Positive = Field(default=1.0, le=5.0, description="Damping ratio zeta [1] (1: critically damped).")
+    gravity_compensation: bool = Field(
+        default=True, description="Add MuJoCo's bias force (gravity, Coriolis and centrifugal) to the PD torque."
+    )
 
 
 class MountFile(YamlModel):
     """Where the robot's root sits in the world of a task scene."""
 
-    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    yaw: float = Field(default=0.0, ge=-7.0, le=7.0, description="[rad]")
+    pos: tuple[float, float, float] = Field(
+        default=(0.0, 0.0, 0.0), description="Position of the robot's own frame in the world [m]."
+    )
+    yaw: float = Field(default=0.0, ge=-7.0, le=7.0, description="Yaw of the robot's own frame about world z [rad].")
 
 
 class RobotFile(YamlModel):
     """The schema of a robot file (see the module docstring)."""
 
-    name: Name
+    name: Name = Field(description="Robot name, in messages (and the prefix of model assets whose names the scene "
+                                   "uses too).")
     model: Name = Field(description="MJCF or URDF file, relative to the robot file, or package://NAME/PATH.")
     angle: Literal["radian", "degree"] | None = Field(
         default=None, description="Angle unit of the model where it does not say (MJCF default: degree)."
@@ -112,26 +119,40 @@ class RobotFile(YamlModel):
     package_paths: tuple[Name, ...] = Field(
         default=(), description="Folders a URDF's package:// paths are resolved against (relative to this file)."
     )
-    mount: MountFile = MountFile()
-    arms: tuple[ArmFile, ...] = Field(min_length=1)
+    mount: MountFile = Field(
+        default=MountFile(), description="Where the robot's own frame stands in a task scene (a task config's mount "
+                                         "replaces it)."
+    )
+    arms: tuple[ArmFile, ...] = Field(
+        min_length=1, description="The arms, the first on the +y side: joints (shoulder to wrist) and the wrist, tool "
+                                  "and pad frames."
+    )
     joint_groups: dict[Name, tuple[Name, ...]] = Field(
         default_factory=dict, description="Other joints by group, e.g. torso, head."
     )
-    frames: dict[Name, FrameFile] = Field(default_factory=dict)
-    collision_groups: dict[Name, GroupFile] = Field(default_factory=dict)
+    frames: dict[Name, FrameFile] = Field(
+        default_factory=dict, description="Frames the file adds to the model, by name: a site on a body at an offset."
+    )
+    collision_groups: dict[Name, GroupFile] = Field(
+        default_factory=dict, description="Named groups of the robot's collision geoms (e.g. left_arm, torso), for "
+                                          "ik.collision_pairs and contact checks."
+    )
     exclude: tuple[tuple[Name, Name], ...] = Field(default=(), description="Body pairs that never collide.")
     keyframes: dict[Name, Literal["model"] | dict[Name, float]] = Field(
-        default_factory=dict, description="home (and others): the model's keyframe, or joint -> rad (others 0)."
+        default_factory=dict, description="Named joint configurations [rad], home required: model (the model's "
+                                          "keyframe of that name), or joint -> angle (others 0)."
     )
     gains: Name | GainRule = Field(
         default_factory=GainRule, description="A gains file (relative to this file) or the rule."
     )
     gains_dir: Name | None = Field(default=None, description="Folder of bundled gains files named in configs.")
     torque_limits: float | dict[Name, Positive] | None = Field(
-        default=None, description="[N m], one value or per joint; wins over the model's actuator limits."
+        default=None, description="Joint torque limit [N m], one value or per joint; wins over the model's actuator "
+                                  "limits."
     )
     velocity_limits: float | dict[Name, Positive] | None = Field(
-        default=None, description="[rad/s], one value or per joint: caps the joint references' velocity."
+        default=None, description="Joint velocity limit [rad/s], one value or per joint: caps the joint references' "
+                                  "velocity."
     )
     cameras: dict[Name, CameraFile] = Field(
         default_factory=dict, description="Cameras on the robot (nextage_qp.robots.cameras), by name."

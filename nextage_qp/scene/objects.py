@@ -44,12 +44,14 @@ RGBA = tuple[Unit, Unit, Unit, Unit]
 class PartDecl(YamlModel):
     """One primitive: shape, size, and (in a compound) its offset in the object's frame."""
 
-    shape: Shape
-    size: tuple[Length, ...] = Field(description="MuJoCo's geom size convention [m] (see the module docstring).")
-    sides: int | None = Field(default=None, ge=3, le=24, description="Sides of a prism.")
+    shape: Shape = Field(description="The part's shape: box, cylinder, capsule, sphere or prism.")
+    size: tuple[Length, ...] = Field(description="MuJoCo's geom size convention [m], as an object's size.")
+    sides: int | None = Field(default=None, ge=3, le=24,
+                              description="Sides of a prism, a regular polygon [count] (prism only).")
     pos: Vec3 = Field(default=(0.0, 0.0, 0.0), description="Offset in the object's frame [m] (compound parts).")
     axis: Literal["x", "y", "z"] = Field(default="z", description="Axis of a cylinder, capsule or prism.")
-    rgba: RGBA | None = Field(default=None, description="Colour (default: the object's).")
+    rgba: RGBA | None = Field(
+        default=None, description="Colour [1]: red, green, blue and alpha, each 0 to 1 (default: the object's).")
 
     @model_validator(mode="after")
     def _size_fits_shape(self) -> PartDecl:
@@ -63,19 +65,36 @@ class PartDecl(YamlModel):
 class ObjectDecl(YamlModel):
     """An object declared in the task config (see the module docstring)."""
 
-    shape: Literal["box", "cylinder", "capsule", "sphere", "prism", "compound"] = "box"
-    size: tuple[Length, ...] | None = None
-    sides: int | None = Field(default=None, ge=3, le=24)
-    parts: tuple[PartDecl, ...] = ()
-    mass: float = Field(default=0.1, ge=1e-4, le=50.0, allow_inf_nan=False, description="[kg], 0.1 g to 50 kg")
-    friction: float = Field(default=0.5, gt=0, le=5.0, allow_inf_nan=False, description="Sliding friction.")
+    shape: Literal["box", "cylinder", "capsule", "sphere", "prism", "compound"] = Field(
+        default="box", description="Shape: box, cylinder, capsule, sphere, prism (a regular prism, see sides), "
+                                   "or compound (a list of parts).")
+    size: tuple[Length, ...] | None = Field(
+        default=None, description="MuJoCo's geom size convention [m], each entry 1 mm to 1 m: box half-extents x, y, "
+                                  "z; cylinder and capsule radius, half-height; prism circumradius, half-height; "
+                                  "sphere radius (required unless the shape is compound).")
+    sides: int | None = Field(default=None, ge=3, le=24,
+                              description="Sides of a prism, a regular polygon [count] (prism only).")
+    parts: tuple[PartDecl, ...] = Field(
+        default=(), description="A compound's parts, each a primitive at an offset in the object's frame (compound "
+                                "only); the mass is spread over them by volume.")
+    mass: float = Field(default=0.1, ge=1e-4, le=50.0, allow_inf_nan=False,
+                        description="Mass [kg], 0.1 g to 50 kg, spread over the parts by volume.")
+    friction: float = Field(default=0.5, gt=0, le=5.0, allow_inf_nan=False,
+                            description="Sliding friction coefficient [1] of its geoms (MuJoCo takes the larger of "
+                                        "two touching geoms').")
     pos: tuple[float, float] | Vec3 | None = Field(default=None, description="Start position [m] (z: on the table).")
     yaw: float | None = Field(default=None, ge=-7.0, le=7.0, description="Start yaw [rad].")
-    rgba: RGBA = (0.95, 0.8, 0.1, 1.0)
-    yaw_symmetry: float | None = Field(default=None, ge=0.0, le=7.0, description="[rad]; 0: any yaw.")
+    rgba: RGBA = Field(default=(0.95, 0.8, 0.1, 1.0),
+                       description="Colour [1]: red, green, blue and alpha, each 0 to 1 (also its parts' default).")
+    yaw_symmetry: float | None = Field(
+        default=None, ge=0.0, le=7.0, description="Yaw after which the object looks the same [rad]; 0: any yaw "
+                                                  "(default from the shape: square box pi/2, oblong box pi, "
+                                                  "n-sided prism 2 pi/n, cylinder, capsule, sphere 0, compound "
+                                                  "2 pi).")
     marker: bool = Field(default=True, description="Add a target marker NAME_target for a new object.")
     inertia_scale: float = Field(default=1.0, gt=0, le=100.0, allow_inf_nan=False,
-                                 description="Factor on the inertia of uniform density (a model's inertia_scaling).")
+                                 description="Factor [1] on the inertia of uniform density (a model's "
+                                             "inertia_scaling); mass and centre of mass unchanged.")
 
     @model_validator(mode="after")
     def _shape_or_parts(self) -> ObjectDecl:

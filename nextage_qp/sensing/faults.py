@@ -48,7 +48,7 @@ class ObjectPoseFaults(YamlModel):
     noise_rot_rad: float = Field(default=0.0, ge=0, le=0.5, allow_inf_nan=False,
                                  description="Rotation-vector noise [rad].")
     dropout: float = Field(default=0.0, ge=0, le=0.95, allow_inf_nan=False,
-                           description="Probability that a measurement is lost.")
+                           description="Probability [1] that a measurement is lost.")
 
 
 class JointSensorFaults(YamlModel):
@@ -63,7 +63,9 @@ class SensorFailure(YamlModel):
 
     site: str = Field(description="The sensor's site (e.g. an arm's pad frame).")
     at_s: float = Field(ge=0, le=MAX_SECONDS, allow_inf_nan=False, description="Simulated time of the failure [s].")
-    mode: Literal["freeze", "nan"] = "freeze"
+    mode: Literal["freeze", "nan"] = Field(
+        default="freeze", description="freeze: the sensor keeps its last reading; nan: it reads NaN. Either fails the "
+                                      "run once noticed.")
 
 
 class WrenchFaults(YamlModel):
@@ -71,7 +73,8 @@ class WrenchFaults(YamlModel):
 
     noise_n: float = Field(default=0.0, ge=0, le=10.0, allow_inf_nan=False, description="Force noise [N].")
     noise_nm: float = Field(default=0.0, ge=0, le=1.0, allow_inf_nan=False, description="Torque noise [N m].")
-    fail: SensorFailure | None = None
+    fail: SensorFailure | None = Field(
+        default=None, description="A sensor that stops working at a time, which fails the run (unset: none fails).")
 
 
 class Shove(YamlModel):
@@ -98,10 +101,15 @@ class Shove(YamlModel):
 class FaultsConfig(YamlModel):
     """Every fault of a run (see the module doc); each block is optional."""
 
-    object_pose: ObjectPoseFaults | None = None
-    joint_sensors: JointSensorFaults | None = None
-    wrench: WrenchFaults | None = None
-    shoves: list[Shove] = Field(default_factory=list)
+    object_pose: ObjectPoseFaults | None = Field(
+        default=None, description="The simulated camera that reports every free object's pose: rate, latency, noise, "
+                                  "dropouts (unset: exact poses every tick).")
+    joint_sensors: JointSensorFaults | None = Field(
+        default=None, description="Noise on the measured joint positions and velocities (unset: exact).")
+    wrench: WrenchFaults | None = Field(
+        default=None, description="Noise on the wrist force/torque sensors, and a sensor failure (unset: exact).")
+    shoves: list[Shove] = Field(
+        default_factory=list, description="External impulses on free objects, each at a time or into a phase.")
 
 
 class EstimationConfig(YamlModel):

@@ -34,12 +34,13 @@ class PerceptionConfig(YamlModel):
     stereo: tuple[str, str] = Field(default=("head_left", "head_right"),
                                     description="Left and right RGB cameras of a rectified pair (depth: stereo).")
     look_at: bool = Field(default=True, description="The head keeps the object and target in view (camera only).")
-    look_cost: float = Field(default=0.05, ge=0, le=10.0, description="Weight of the look-at task.")
+    look_cost: float = Field(default=0.05, ge=0, le=10.0, description="Weight of the look-at task [1/rad].")
     noise_pos_m: float = Field(default=0.002, gt=0, le=0.1, description="Position noise the filter assumes [m].")
     noise_rot_rad: float = Field(default=0.02, gt=0, le=0.5, description="Rotation noise the filter assumes [rad].")
     cover_spread: float | None = Field(
-        default=None, ge=0, le=100, allow_inf_nan=False, description="The noise the filter assumes of a fit grows "
-        "by 1 + cover_spread * the share of the object it does not see (the robot covers it, the frame lacks it). "
-        "Default: 8 with stereo depth (block matching smears depth across the robot's edges), 0 with rendered depth.")
+        default=None, ge=0, le=100, allow_inf_nan=False, description="Factor [1]: the noise the filter assumes of a "
+        "fit grows by 1 + cover_spread * the share of the object it does not see (the robot covers it, the frame lacks "
+        "it). Default: 8 with stereo depth (block matching smears depth across the robot's edges), 0 with rendered "
+        "depth.")
     dump: str | None = Field(default=None, description="Folder for one frame's RGB, depth, clusters and fit (PNGs).")
     dump_at_s: float = Field(default=1.0, ge=0, description="Time of the dumped frame [s].")

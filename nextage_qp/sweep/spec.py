@@ -48,10 +48,18 @@ class Distribution(YamlModel):
     or lists of numbers for a vector key (drawn per component).
     """
 
-    uniform: tuple[Bound, Bound] | None = None
-    offset: tuple[Bound, Bound] | None = None
-    scale: tuple[Bound, Bound] | None = None
-    choice: list[Any] | None = Field(default=None, min_length=1)
+    uniform: tuple[Bound, Bound] | None = Field(
+        default=None, description="lo, hi [key's unit]: the value, drawn uniformly between them (numbers, or lists "
+                                  "of numbers for a vector key, drawn per component).")
+    offset: tuple[Bound, Bound] | None = Field(
+        default=None, description="lo, hi [key's unit]: added to the base config's value, drawn uniformly between "
+                                  "them (per component for a vector key).")
+    scale: tuple[Bound, Bound] | None = Field(
+        default=None, description="lo, hi [1]: a factor on the base config's value, drawn uniformly between them "
+                                  "(per component for a vector key).")
+    choice: list[Any] | None = Field(
+        default=None, min_length=1, description="Values, one of them drawn with equal chance (any YAML value, which "
+                                                "may hold nested uniform or choice distributions).")
 
     @model_validator(mode="after")
     def _one_kind(self) -> Distribution:
@@ -104,12 +112,15 @@ class SweepFile(YamlModel):
     """The schema of a sweep file (see the module docstring)."""
 
     base: str = Field(description="Task config, relative to the sweep file.")
-    description: str | None = None
+    description: str | None = Field(
+        default=None, description="Free text on what the sweep draws, for the reader (the framework does not use it).")
     wall_limit: float = Field(default=300.0, gt=0, le=86400, allow_inf_nan=False,
                               description="Wall time after which an episode is stopped and failed [s].")
     set: dict[str, Any] = Field(default_factory=dict,
                                 description="Dotted key -> value applied to the base config in every episode.")
-    randomize: dict[str, Distribution] = Field(min_length=1)
+    randomize: dict[str, Distribution] = Field(
+        min_length=1, description="Dotted key (as run --set takes) -> the distribution each episode draws it from; a "
+                                  "list is a choice of that one list.")
 
     @field_validator("randomize", mode="before")
     @classmethod

@@ -45,11 +45,17 @@ class Param(YamlModel):
     ``also`` lists further keys that take the same value (e.g. the other arm's twin joint).
     """
 
-    uniform: tuple[Number, Number] | None = Field(default=None, alias="float")
-    log: tuple[Number, Number] | None = None
-    integer: tuple[int, int] | None = Field(default=None, alias="int")
-    choice: list[Any] | None = Field(default=None, min_length=1)
-    also: list[str] = Field(default_factory=list)
+    uniform: tuple[Number, Number] | None = Field(
+        default=None, alias="float", description="lo, hi [key's unit]: a value drawn uniformly between them.")
+    log: tuple[Number, Number] | None = Field(
+        default=None, description="lo, hi [key's unit]: a value drawn log-uniformly between them (lo > 0), for "
+                                  "weights and gains spanning decades.")
+    integer: tuple[int, int] | None = Field(
+        default=None, alias="int", description="lo, hi [key's unit]: an integer between them, both included.")
+    choice: list[Any] | None = Field(
+        default=None, min_length=1, description="Values to choose from: numbers, strings, booleans or null.")
+    also: list[str] = Field(
+        default_factory=list, description="Further keys that take the same value (e.g. the other arm's twin joint).")
 
     @model_validator(mode="before")
     @classmethod
@@ -95,46 +101,75 @@ class SweepEval(YamlModel):
     """Episodes ``0..episodes-1`` of a sweep file drawn with ``seed``: the objective's scenes."""
 
     file: str = Field(description="Sweep file, relative to the study file.")
-    episodes: int = Field(ge=1, le=100_000)
-    seed: int = Field(default=0, ge=0, lt=2**32)
+    episodes: int = Field(ge=1, le=100_000, description="Episodes 0..episodes-1 of the sweep, run by every trial "
+                                                         "[count].")
+    seed: int = Field(default=0, ge=0, lt=2**32,
+                      description="Seed the sweep's episodes are drawn with [-] (the same scenes for every trial).")
 
 
 class StepsEval(YamlModel):
     """Raw steps of every joint from ``home`` to +-``amplitude_deg`` (relative to home for ``relative`` joints)."""
 
     gains: str = Field(description="Base gains file: a bundled name or a path relative to the study file.")
-    amplitude_deg: Number = Field(gt=0, le=180)
-    relative: list[str] = Field(default_factory=list, description="Joints whose absolute target is blocked.")
+    amplitude_deg: Number = Field(
+        gt=0, le=180, description="Step size [deg]: every joint steps from home to + and - this angle (relative "
+                                  "to home for the relative joints).")
+    relative: list[str] = Field(
+        default_factory=list, description="Joints stepped relative to home (the robot's own body "
+                                          "blocks their absolute target).")
     joints: list[str] | None = Field(default=None, description="Joints stepped (default: all 15).")
-    duration_s: Number = Field(default=1.0, gt=0, le=30)
-    final_error_rad: Number = Field(default=0.005, gt=0)
-    overshoot_pct: Number = Field(default=5.0, ge=0)
-    scene: str = "scene"
+    duration_s: Number = Field(default=1.0, gt=0, le=30, description="Simulated time of each step run [s].")
+    final_error_rad: Number = Field(
+        default=0.005, gt=0, description="Largest error from the target at the end of a step that meets the criteria "
+                                         "[rad].")
+    overshoot_pct: Number = Field(
+        default=5.0, ge=0, description="Largest overshoot beyond the target of a step that meets the criteria [%] "
+                                       "(of the step's size).")
+    scene: str = Field(default="scene", description="Scene the robot steps in: a bundled scene name or an MJCF path "
+                                                    "(scene: a floor, nothing else).")
 
 
 class HeldOut(YamlModel):
     """Where best and base are compared after the search: other sweep episodes, or steps of another amplitude."""
 
-    episodes: int | None = Field(default=None, ge=1, le=100_000)
-    seed: int | None = Field(default=None, ge=0, lt=2**32)
-    amplitude_deg: Number | None = Field(default=None, gt=0, le=180)
+    episodes: int | None = Field(default=None, ge=1, le=100_000,
+                                 description="Sweep study: held-out episodes 0..episodes-1 [count].")
+    seed: int | None = Field(default=None, ge=0, lt=2**32,
+                             description="Sweep study: seed of the held-out episodes [-], not sweep.seed.")
+    amplitude_deg: Number | None = Field(default=None, gt=0, le=180,
+                                         description="Steps study: step size of the held-out steps [deg].")
 
 
 class StudyFile(YamlModel):
     """The schema of a study file (see the module docstring)."""
 
-    description: str | None = None
-    sweep: SweepEval | None = None
-    steps: StepsEval | None = None
-    held_out: HeldOut | None = None
-    objective: str | None = Field(default=None, description="Default: the first of its kind.")
-    sampler: Literal["tpe", "cmaes"] = "tpe"
-    startup_trials: int = Field(default=10, ge=0, le=10_000, description="Random trials before the sampler models.")
-    seed: int = Field(default=0, ge=0, lt=2**32)
-    trials: int = Field(default=30, ge=1, le=100_000, description="Complete trials (default of --trials).")
-    workers: int | None = Field(default=None, ge=1, le=1024)
-    wall_limit: Number | None = Field(default=None, gt=0, le=86400, description="Per episode [s] (steps: 60).")
-    space: dict[str, Param] = Field(min_length=1)
+    description: str | None = Field(
+        default=None, description="Free text on the study, for the reader (the framework does not use it).")
+    sweep: SweepEval | None = Field(
+        default=None, description="Evaluate a sweep's episodes, searching keys of its task config (this or steps).")
+    steps: StepsEval | None = Field(
+        default=None, description="Evaluate joint step responses, searching keys of a gains file (this or sweep).")
+    held_out: HeldOut | None = Field(
+        default=None, description="Where best and base are compared after the search: other sweep episodes, or "
+                                  "steps of another size (unset: no held-out comparison).")
+    objective: str | None = Field(
+        default=None, description="What the study minimises: failures_then_p95_error (sweep) or settling_time "
+                                  "(steps); default: the first of its kind.")
+    sampler: Literal["tpe", "cmaes"] = Field(default="tpe", description="Optuna's sampler: TPE or CMA-ES.")
+    startup_trials: int = Field(default=10, ge=0, le=10_000,
+                                description="Random trials before the sampler models [count].")
+    seed: int = Field(default=0, ge=0, lt=2**32, description="Sampler seed [-] (plus the trials already stored, so a "
+                                                             "resumed study draws new ones).")
+    trials: int = Field(default=30, ge=1, le=100_000, description="Complete trials [count] (default of --trials).")
+    workers: int | None = Field(default=None, ge=1, le=1024, description="Parallel tasks (episodes or steps) per "
+                                                                        "trial [count] (default of --workers; unset: "
+                                                                        "the CPU count).")
+    wall_limit: Number | None = Field(
+        default=None, gt=0, le=86400,
+        description="Wall time after which a sweep episode is stopped and failed [s] (default: the sweep file's; "
+                    "steps: 60).")
+    space: dict[str, Param] = Field(
+        min_length=1, description="Dotted key -> its range: the keys searched (a task config's, or a gains file's).")
 
     @model_validator(mode="after")
     def _consistent(self) -> StudyFile:

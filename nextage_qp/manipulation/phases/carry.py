@@ -19,9 +19,11 @@ Vec3 = tuple[float, float, float]
 class Waypoint(YamlModel):
     """Where the grasped object's origin should pass: a body-relative or world position and yaw."""
 
-    relative_to: str = name_field("reference", default="world")
-    offset: Vec3 = (0.0, 0.0, 0.0)
-    axes: Literal["world", "yaw"] = "world"
+    relative_to: str = name_field("reference", default="world",
+                                  description="Body whose live pose the waypoint is relative to, or world.")
+    offset: Vec3 = Field(default=(0.0, 0.0, 0.0), description="Object origin's offset from the reference [m].")
+    axes: Literal["world", "yaw"] = Field(
+        default="world", description="Axes the offset is expressed in: the world's, or turned by the reference's yaw.")
     yaw: float | None = Field(default=None, description="Object yaw relative to the reference yaw [rad].")
     heading: Literal["reference", "radial"] = Field(
         default="reference",
@@ -36,12 +38,15 @@ class CarrySpec(Spec):
     grip = "needs"
 
     kind: Literal["carry"]
-    object: str = name_field("object")
-    waypoints: list[Waypoint] = Field(min_length=1)
+    object: str = name_field("object", description="The object an earlier grasp phase clamped.")
+    waypoints: list[Waypoint] = Field(
+        min_length=1, description="Where the object's origin passes, in order, with its yaw there.")
     tolerance: float = Field(default=0.003, gt=0, description="Planar object error accepted when correcting [m].")
-    corrections: int = Field(default=3, ge=0, description="Closed-loop shifts allowed per correcting waypoint.")
+    corrections: int = Field(default=3, ge=0, description="Closed-loop shifts of the rest of the path allowed in the "
+                             "phase, at waypoints marked correct [count].")
     speed: float = Field(default=0.1, gt=0, description="Cartesian speed of the object setpoint [m/s].")
-    relative_cost: float = Field(default=10.0, ge=0, description="Weight of the pads' relative pose task.")
+    relative_cost: float = Field(
+        default=10.0, ge=0, description="Weight of the pads' relative pose task [1/m, 1/rad] (holds the grip).")
 
 
 class Carry(Phase):

@@ -36,7 +36,7 @@ from nextage_qp.mobile.drive_paths import Motion, around, dubins, polyline_motio
 
 
 class DriveSpec(Spec):
-    """Drive the base to a pose relative to a body (see the module docstring)."""
+    """Drive the base to a pose relative to a body, around the bodies it must avoid."""
 
     kind: Literal["drive"]
     relative_to: str = name_field("reference", default="world", description="Body whose frame the goal is in.")
@@ -44,17 +44,28 @@ class DriveSpec(Spec):
         default="robot", description="Whose pose the goal is: the robot's own frame, or the base's reference point.")
     offset: tuple[float, float] = Field(description="Robot frame's x, y in that frame [m].")
     yaw: float = Field(default=0.0, ge=-7.0, le=7.0, description="Robot frame's yaw in that frame [rad].")
-    approach: float = Field(default=0.6, ge=0.0, le=10.0, description="Final straight leg [m].")
+    approach: float = Field(default=0.6, ge=0.0, le=10.0,
+                            description="Final straight leg along the goal's heading [m].")
     avoid: tuple[str, ...] = name_field("body", default=(), description="Bodies on the floor to keep clear of.")
-    clearance: float = Field(default=0.1, ge=0.0, le=5.0, description="Beyond the swept circle [m].")
-    speed: float = Field(default=0.3, gt=0.0, le=5.0, description="[m/s]")
-    turn_rate: float = Field(default=0.6, gt=0.0, le=10.0, description="[rad/s]")
-    accel: float = Field(default=0.3, gt=0.0, le=10.0, description="[m/s^2]")
-    turn_margin: float = Field(default=1.15, ge=1.0, le=5.0, description="Bicycle: turning radius x its least.")
-    tolerance: float = Field(default=0.02, gt=0.0, le=1.0, description="[m]")
-    yaw_tolerance: float = Field(default=0.03, gt=0.0, le=1.0, description="[rad]")
+    clearance: float = Field(default=0.1, ge=0.0, le=5.0,
+                             description="Gap between the swept circle and the avoid bodies [m].")
+    speed: float = Field(default=0.3, gt=0.0, le=5.0,
+                         description="Speed on straight legs [m/s] (at most the base's limits.speed).")
+    turn_rate: float = Field(default=0.6, gt=0.0, le=10.0,
+                             description="Turn rate in turns [rad/s] (at most the base's limits.turn_rate).")
+    accel: float = Field(default=0.3, gt=0.0, le=10.0,
+                         description="Acceleration ramp of straight legs [m/s²] (turns: in proportion, accel / speed "
+                                     "* turn_rate).")
+    turn_margin: float = Field(default=1.15, ge=1.0, le=5.0,
+                               description="Bicycle: turning radius as a multiple of its least [1].")
+    tolerance: float = Field(default=0.02, gt=0.0, le=1.0,
+                             description="Largest position error, by the odometry, at the end [m].")
+    yaw_tolerance: float = Field(default=0.03, gt=0.0, le=1.0,
+                                 description="Largest yaw error, by the odometry, at the end [rad].")
     cost: float = Field(default=20.0, gt=0.0, le=1e4, description="Weight of the base's pose target [1/m, 1/rad].")
-    timeout: float = Field(default=90.0, gt=0.0, le=3600.0)
+    timeout: float = Field(default=90.0, gt=0.0, le=3600.0,
+                           description="Simulated time before the phase fails [s] (longer than other phases': a "
+                                       "drive covers metres).")
 
 
 class Drive(Phase):

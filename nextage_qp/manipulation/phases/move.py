@@ -34,9 +34,12 @@ class TargetSpec(YamlModel):
     axes: Literal["world", "yaw"] = Field(default="yaw", description="Axes the offset is expressed in.")
     yaw: float | None = Field(default=None, ge=-7.0, le=7.0,
                               description="Frame yaw relative to the reference yaw [rad].")
-    quat: tuple[float, float, float, float] | None = Field(default=None, description="World orientation (wxyz).")
-    axis: Vec3 | None = Field(default=None, description="Tool axis in the frame's coordinates.")
-    direction: Vec3 | None = Field(default=None, description="World direction the axis points along.")
+    quat: tuple[float, float, float, float] | None = Field(
+        default=None, description="World orientation, a unit quaternion [1] (w, x, y, z).")
+    axis: Vec3 | None = Field(
+        default=None, description="Tool axis in the frame's coordinates [1] (non-zero; its length does not matter).")
+    direction: Vec3 | None = Field(
+        default=None, description="World direction the axis points along [1] (non-zero; given with axis).")
 
     @model_validator(mode="after")
     def _one_orientation(self) -> TargetSpec:
@@ -58,7 +61,8 @@ class MoveSpec(Spec):
     """Move one or both tool frames to targets along straight lines."""
 
     kind: Literal["move"]
-    targets: list[TargetSpec] = Field(min_length=1, max_length=2)
+    targets: list[TargetSpec] = Field(
+        min_length=1, max_length=2, description="One or two targets, one per frame, reached at the same time.")
     tolerance: float = Field(default=0.005, gt=0, le=0.1, description="Position tolerance of the real frames [m].")
     speed: float = Field(default=0.15, gt=0, le=1.0, description="Cartesian speed of the moving setpoint [m/s].")
 

@@ -53,7 +53,7 @@ class PlaceSpec(Spec):
     grip = "needs"
 
     kind: Literal["place"]
-    object: str = name_field("object")
+    object: str = name_field("object", description="The object an earlier grasp phase clamped.")
     target: str = name_field("place", description="Body whose x, y and yaw the object should take.")
     clearance: float = Field(default=0.03, gt=0, le=0.3, description="Object's bottom over the obstacles [m].")
     lift: float = Field(default=0.03, ge=0, le=0.5, description="Least rise before moving sideways [m].")
@@ -63,9 +63,10 @@ class PlaceSpec(Spec):
     turn_rate: float = Field(default=0.5, gt=0, le=3.0, description="Yaw rate of the setpoint [rad/s].")
     tolerance: float = Field(default=0.0015, gt=0, le=0.05, description="Planar error accepted at the hover [m].")
     yaw_tolerance: float = Field(default=0.01, gt=0, le=0.5, description="Yaw error accepted at the hover [rad].")
-    corrections: int = Field(default=4, ge=0, le=20, description="Corrections allowed at the hover.")
+    corrections: int = Field(default=4, ge=0, le=20, description="Corrections allowed at the hover [count].")
     settle: float = Field(default=0.4, gt=0, le=MAX_SECONDS, description="Time the live pose is averaged [s].")
-    relative_cost: float = Field(default=10.0, ge=0, le=1e4, description="Weight of the pads' relative pose.")
+    relative_cost: float = Field(default=10.0, ge=0, le=1e4,
+                                 description="Weight of the pads' relative pose [1/m, 1/rad].")
     descend_gain: float = Field(default=1.0, ge=0, le=20, description=(
         "Gain [1/s] with which the setpoint drifts against the footprint's planar error while descending (0: off)."))
     level_gain: float = Field(default=2.0, ge=0, le=20, description=(

@@ -31,7 +31,7 @@ class ReleaseSpec(Spec):
     grip = "ends"
 
     kind: Literal["release"]
-    object: str = name_field("object")
+    object: str = name_field("object", description="The object an earlier grasp phase clamped (the clamp ends).")
     gap: float = Field(default=0.05, gt=0, le=0.3, description="How far the pads back away from the object [m].")
     lift: float = Field(default=0.08, ge=0, le=0.5, description="How far the pads then rise [m].")
     open_speed: float = Field(default=0.02, gt=0, le=0.5, description="Opening speed [m/s] (slow: no tug).")

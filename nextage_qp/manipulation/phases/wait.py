@@ -15,7 +15,8 @@ class WaitSpec(Spec):
     """Hold the current references for a while."""
 
     kind: Literal["wait"]
-    duration: float = Field(gt=0, le=MAX_SECONDS, description="[s]")
+    duration: float = Field(gt=0, le=MAX_SECONDS, description="How long the references are held [s] (the default "
+                                                              "timeout stretches to it plus 1 s).")
 
     @model_validator(mode="after")
     def _covered(self) -> WaitSpec:

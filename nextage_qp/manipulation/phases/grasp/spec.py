@@ -33,7 +33,7 @@ class GraspSpec(Spec):
     grip = "makes"
 
     kind: Literal["grasp"]
-    object: str = name_field("object")
+    object: str = name_field("object", description="Free body to clamp, e.g. dumbbell.")
     frames: tuple[str, str] | None = name_field(
         "frame", default=None, description="Pads on the +y and -y side (default: the robot's arms' pads)."
     )
@@ -48,7 +48,7 @@ class GraspSpec(Spec):
                              description="Pad height over the object's top before going down beside it [m].")
     force: float = Field(default=10.0, gt=0, le=100.0, description="Squeeze force per pad [N].")
     force_per_weight: float = Field(default=0.0, ge=0, le=20.0, description=(
-        "Squeeze per pad at least this many times the object's weight (0: ``force`` alone): a heavy object held off "
+        "Least squeeze per pad as a multiple of the object's weight [1] (0: ``force`` alone): a heavy object held off "
         "its centre creeps about the pads' axis under a squeeze that holds a light one."))
     force_gain: float = Field(default=0.0005, gt=0, le=0.05, description="Force loop gain [m/s per N].")
     close_speed: float = Field(default=0.02, gt=0, le=0.2, description="Closing speed [m/s].")

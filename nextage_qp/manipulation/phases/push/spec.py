@@ -68,10 +68,11 @@ class PushSpec(Spec):
     clearance: float = Field(default=0.07, gt=0, le=0.5, description="Height over the object's top in transit [m].")
     tolerance: float = Field(default=0.002, gt=0, le=0.1, description="Planar error that ends the phase [m].")
     accept: float = Field(default=0.005, gt=0, le=0.2, description="Error accepted when no try is left [m].")
-    attempts: int = Field(default=4, ge=1, le=20, description="Approaches (the first push and re-approaches).")
-    nudges: int = Field(default=3, ge=0, le=20, description="Resumed pushes on the same line per approach.")
+    attempts: int = Field(default=4, ge=1, le=20, description="Approaches [count] (the first push and re-approaches).")
+    nudges: int = Field(default=3, ge=0, le=20, description="Resumed pushes on the same line per approach [count].")
     recoveries: int = Field(default=2, ge=0, le=20,
-                            description="Extra approaches after the object was knocked away from the tool's line.")
+                            description="Extra approaches after the object was knocked away from "
+                                        "the tool's line [count].")
     speed: float = Field(default=0.15, gt=0, le=1.0, description="Transit speed [m/s].")
     push_speed: float = Field(default=0.05, gt=0, le=0.5, description="Top speed in contact [m/s].")
     creep_speed: float = Field(default=0.005, gt=0, le=0.1, description="Speed at the target [m/s].")
