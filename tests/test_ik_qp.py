@@ -244,7 +244,7 @@ def test_wrist_goes_over_table_edge_without_penetration(robot: Robot, kin: Kinem
     q, dists = start.q.copy(), []
     for _ in range(300):
         ik.configuration.update(q)
-        q = ik._advance(q, ik._step(target, 0.05, ()) * 0.05)
+        q = ik.offline._advance(q, ik.velocity(target, 0.05, ()) * 0.05)
         dists.append(clearance(q))
     assert min(dists) >= 0.01 - 1e-4
     assert np.linalg.norm(kin.fk("left_wrist", q).pos - target[0].pos) < 2e-3

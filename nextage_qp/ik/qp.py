@@ -33,13 +33,14 @@ from nextage_qp.ik.memo import SolveMemo
 from nextage_qp.ik.objective import Objective
 from nextage_qp.ik.search import Descent
 from nextage_qp.ik.solve import OfflineSolver
+from nextage_qp.ik.starts import Starts
 from nextage_qp.ik.targets import FrameTarget, IKInfeasibleError, IKResult, RelativeTarget
 from nextage_qp.ik.tasks import TaskCache
 from nextage_qp.mobile.rows import BaseRows
 from nextage_qp.robots.model import Robot, per_joint
 
 
-class QPIK(OfflineSolver):
+class QPIK:
     """QP differential IK over the robot's joints (mink tasks, box limits, active collision rows).
 
     Args:
@@ -58,11 +59,9 @@ class QPIK(OfflineSolver):
     def __init__(self, robot: Robot, config: IKConfig, *, model: mujoco.MjModel | None = None,
                  memo: int = 0) -> None:
         self.robot, self.config = robot, config
-        self.memo: SolveMemo[IKResult] | None = SolveMemo(memo) if memo > 0 else None
-        self.relaxed_memo: SolveMemo[Descent] | None = SolveMemo(memo) if memo > 0 else None
-        """Descents without collision rows, remembered by their inputs (the same size as ``memo``)."""
         self.model = kinematic_model(robot) if model is None else model
-        self._mocap = mocap_ids(self.model)
+        self.mocap = mocap_ids(self.model)
+        """Mocap index of each object of the IK model (objects are mocap bodies here), by name."""
         # A mobile robot's IK variables start with its base's planar joints (world x, y, yaw): their values are
         # the base pose the controller believes (base_pose, from odometry), their steps the base's motion.
         self.nb = len(PLANAR_JOINTS) if robot.base is not None else 0
@@ -71,14 +70,14 @@ class QPIK(OfflineSolver):
         """The base's pose (x, y [m], yaw [rad]) in the IK's world, set by the caller (a mobile robot's only)."""
         self.base_velocity = np.zeros(self.nb)
         """The base's world velocity (x-dot, y-dot [m/s], yaw rate [rad/s]) of the last :meth:`step`."""
-        self.configuration = mink.Configuration(self.model, self._full(robot.keyframe_q("home")))
+        self.configuration = mink.Configuration(self.model, self.full(robot.keyframe_q("home")))
         if isinstance(config.posture_target, str):
             q_posture = robot.keyframe_q(config.posture_target)
         else:
             q_posture = robot.q_from_names(config.posture_target, base=robot.keyframe_q("home"))
         cost = config.posture_cost if not self.nb else np.r_[np.zeros(self.nb), np.full(robot.nq, config.posture_cost)]
         self.posture = mink.PostureTask(self.model, cost=cost)  # the base has no posture
-        self.posture.set_target(self._full(q_posture))
+        self.posture.set_target(self.full(q_posture))
         self._posture_goal: np.ndarray | None = None  # the array last given to the posture task by step()
         self.default_posture = q_posture
         default = float(IKConfig.model_fields["velocity_limit"].default)
@@ -103,8 +102,10 @@ class QPIK(OfflineSolver):
         self.tasks = TaskCache(config.lm_damping, config.position_cost, config.orientation_cost, self.frame)
         self.objective = Objective(self.model)
         self.qp = QPSolver(config.solver, self.model.nv)
+        self.offline = OfflineSolver(self, memo)
+        """The offline solve over this IK's steps (:meth:`solve`)."""
 
-    def _allowed(self, groups: frozenset[str]) -> np.ndarray:
+    def allowed(self, groups: frozenset[str]) -> np.ndarray:
         """Boolean geom mask of the named collision groups (cached per set of names)."""
         mask = self._allow_masks.get(groups)
         if mask is None:
@@ -116,9 +117,40 @@ class QPIK(OfflineSolver):
             self._allow_masks[groups] = mask
         return mask
 
+    def solve(
+        self,
+        targets: Sequence[FrameTarget],
+        q0: np.ndarray,
+        *,
+        max_iters: int | None = None,
+        extra_tasks: Sequence[mink.Task] = (),
+        object_poses: ObjectPoses | None = None,
+        allow: frozenset[str] = frozenset(),
+        good_enough: tuple[float, float] | None = None,
+        accept: tuple[float, float] | None = None,
+        restarts: int | None = None,
+    ) -> IKResult:
+        """Joints that put the frames on ``targets`` (:meth:`~nextage_qp.ik.solve.OfflineSolver.solve`)."""
+        return self.offline.solve(targets, q0, max_iters=max_iters, extra_tasks=extra_tasks, object_poses=object_poses,
+                                  allow=allow, good_enough=good_enough, accept=accept, restarts=restarts)
+
+    def starts(self, frames: Sequence[Frame], q0: np.ndarray, restarts: int | None = None) -> Starts:
+        """The starts of a solve for ``frames`` from ``q0`` (:meth:`OfflineSolver.starts`)."""
+        return self.offline.starts(frames, q0, restarts)
+
+    @property
+    def memo(self) -> SolveMemo[IKResult] | None:
+        """The remembered solve results (None without a memo)."""
+        return self.offline.memo
+
+    @property
+    def relaxed_memo(self) -> SolveMemo[Descent] | None:
+        """The remembered descents without collision rows (None without a memo)."""
+        return self.offline.relaxed_memo
+
     def set_object_poses(self, poses: ObjectPoses) -> None:
         """Place objects (cube, dumbbell, ...) for collision avoidance: name -> (pos [m], quat wxyz)."""
-        set_object_poses(self.model, self.configuration.data, poses, self._mocap)
+        set_object_poses(self.model, self.configuration.data, poses, self.mocap)
         self.configuration.update()
 
     def frame(self, name: str) -> Frame:
@@ -154,15 +186,15 @@ class QPIK(OfflineSolver):
             UnknownNameError: ``allow`` names a group the robot does not have.
         """
         if self.collision is not None:
-            self.collision.allow(self._allowed(allow))
+            self.collision.allow(self.allowed(allow))
         goal = self.default_posture if posture is None else posture
         if goal is not self._posture_goal:  # the same array as last time: the task holds it already
-            self.posture.set_target(self._full(goal))
+            self.posture.set_target(self.full(goal))
             self._posture_goal = goal
         if object_poses:
-            set_object_poses(self.model, self.configuration.data, object_poses, self._mocap)
+            set_object_poses(self.model, self.configuration.data, object_poses, self.mocap)
         self.load(q)
-        v = self._step(targets, dt, [*self.tasks.relative(relative), *extra], base=base)
+        v = self.velocity(targets, dt, [*self.tasks.relative(relative), *extra], base=base)
         if not self.nb:
             return v
         self.base_velocity = v[: self.nb]
@@ -170,15 +202,19 @@ class QPIK(OfflineSolver):
 
     def load(self, q: np.ndarray) -> None:
         """Put the IK's configuration at robot joints ``q`` [rad] (and a mobile robot's base at :attr:`base_pose`)."""
-        self.configuration.update(self._full(np.asarray(q, dtype=float)))
+        self.configuration.update(self.full(np.asarray(q, dtype=float)))
 
-    def _full(self, q: np.ndarray) -> np.ndarray:
+    def full(self, q: np.ndarray) -> np.ndarray:
         """The IK's variables for robot joints ``q``: a mobile robot's base pose first (``q`` itself otherwise)."""
         return q if not self.nb else np.r_[self.base_pose, q]
 
-    def _step(self, targets: Sequence[FrameTarget], dt: float, extra_tasks: Sequence[mink.Task], *,
-              base: bool = False) -> np.ndarray:
-        """:meth:`step` at the configuration already loaded in :attr:`configuration`: every IK variable's velocity."""
+    def velocity(self, targets: Sequence[FrameTarget], dt: float, extra_tasks: Sequence[mink.Task], *,
+                 base: bool = False, rows: bool = True) -> np.ndarray:
+        """:meth:`step` at the configuration already loaded in :attr:`configuration`: every IK variable's velocity.
+
+        ``rows=False``: without the collision rows (the offline solve's relaxed descents).
+        """
+        collision = self.collision if rows else None
         tasks = [*self.tasks.frames(targets, self.configuration.data), self.posture, *extra_tasks]
         q = self.configuration.data.qpos
         lb, ub = self.box.bounds(q, dt)
@@ -186,10 +222,10 @@ class QPIK(OfflineSolver):
         # with the same box, so it is evaluated once).
         H, c = self.objective.build(self.configuration, tasks, self.config.damping)
         G = h = A = b = None
-        if self.collision is not None:
-            rows = self.collision.compute_qp_inequalities(self.configuration, dt)
-            if not rows.inactive:
-                G, h = rows.G, rows.h
+        if collision is not None:
+            active = collision.compute_qp_inequalities(self.configuration, dt)
+            if not active.inactive:
+                G, h = active.G, active.h
         if self.nb:
             if base and self.base is not None:  # the base moves within its rows, at a cost ("drive far, reach near")
                 H[range(self.nb), range(self.nb)] += self.config.base_cost**2
@@ -199,12 +235,12 @@ class QPIK(OfflineSolver):
                 lb[: self.nb], ub[: self.nb] = 0.0, 0.0
         x = self.qp.solve(H, c, lb, ub, G, h, A, b)
         if x is None:  # also where the box itself is empty (q outside its limits): lb > ub
-            raise IKInfeasibleError(self._explain(q, lb, ub))
+            raise IKInfeasibleError(self._explain(q, lb, ub, collision))
         return np.asarray(x) / dt
 
-    def _explain(self, q: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> str:
+    def _explain(self, q: np.ndarray, lb: np.ndarray, ub: np.ndarray, collision: ActiveCollisionLimit | None) -> str:
         """Describe the limits active at an infeasible step."""
         parts = self.box.violated(q, lb, ub, (*PLANAR_JOINTS[: self.nb], *self.robot.joint_names))
-        parts += self.collision.violated(self.model) if self.collision is not None else []
+        parts += collision.violated(self.model) if collision is not None else []
         what = "; ".join(parts) or "no single limit violated (conflicting limits or extra tasks)"
         return f"IK QP infeasible ({self.config.solver}): active limits: {what}"

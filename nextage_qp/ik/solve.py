@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from typing import Protocol
 
 import mink
 import mujoco
@@ -30,34 +31,47 @@ RELAXED_MARGIN = 2.0
 targets by more than this many times the accepted errors."""
 
 
-class OfflineSolver:
-    """:meth:`solve` and its descents, mixed into :class:`~nextage_qp.ik.qp.QPIK` (whose state they use)."""
+class DifferentialIK(Protocol):
+    """What the offline solve integrates: the differential IK (:class:`~nextage_qp.ik.qp.QPIK`) it is composed with."""
 
-    # the state of QPIK this uses
     config: IKConfig
     model: mujoco.MjModel
     configuration: mink.Configuration
     collision: ActiveCollisionLimit | None
     box: JointBoxLimit
     posture: mink.PostureTask
-    memo: SolveMemo[IKResult] | None
-    relaxed_memo: SolveMemo[Descent] | None
     nb: int
     base_pose: np.ndarray
-    _mocap: dict[str, int]
+    mocap: dict[str, int]
 
-    def frame(self, name: str) -> Frame:  # noqa: D102 (QPIK's)
-        raise NotImplementedError
+    def frame(self, name: str) -> Frame:
+        """A body or site of the IK's model."""
 
-    def _allowed(self, groups: frozenset[str]) -> np.ndarray:
-        raise NotImplementedError
+    def allowed(self, groups: frozenset[str]) -> np.ndarray:
+        """Boolean geom mask of the named collision groups."""
 
-    def _full(self, q: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+    def full(self, q: np.ndarray) -> np.ndarray:
+        """The IK's variables for robot joints ``q``."""
 
-    def _step(self, targets: Sequence[FrameTarget], dt: float, extra_tasks: Sequence[mink.Task], *,
-              base: bool = False) -> np.ndarray:
-        raise NotImplementedError
+    def velocity(self, targets: Sequence[FrameTarget], dt: float, extra_tasks: Sequence[mink.Task], *,
+                 base: bool = False, rows: bool = True) -> np.ndarray:
+        """Every IK variable's velocity at the loaded configuration; ``rows=False``: without collision rows."""
+
+
+class OfflineSolver:
+    """An IK's offline solve: descents of its steps to a tolerance, seeded restarts, the relaxation gate, memos.
+
+    Args:
+        ik: The differential IK whose steps are integrated (its configuration is the solve's scratch state).
+        memo: Remember this many solve results and as many descents without collision rows by their inputs
+            (:class:`~nextage_qp.ik.memo.SolveMemo`); 0: none.
+    """
+
+    def __init__(self, ik: DifferentialIK, memo: int = 0) -> None:
+        self.ik = ik
+        self.memo: SolveMemo[IKResult] | None = SolveMemo(memo) if memo > 0 else None
+        self.relaxed_memo: SolveMemo[Descent] | None = SolveMemo(memo) if memo > 0 else None
+        """Descents without collision rows, remembered by their inputs (the same size as ``memo``)."""
 
     def solve(
         self,
@@ -109,35 +123,36 @@ class OfflineSolver:
             IKInfeasibleError: A step's QP is infeasible (e.g. ``q0`` far outside the joint limits).
         """
         start = time.perf_counter()
-        cfg = self.config
+        cfg = self.ik.config
         self._prepare(object_poses, allow)
         key = None
         if self.memo is not None and not extra_tasks:  # a mink task's inputs are not all visible: not remembered
-            data = self.configuration.data
-            key = self.memo.key(targets, q0, (data.mocap_pos, data.mocap_quat, self.base_pose, self.posture.target_q,
-                                              *(good_enough or (None,)), *(accept or (None,))),
+            data = self.ik.configuration.data
+            key = self.memo.key(targets, q0, (data.mocap_pos, data.mocap_quat, self.ik.base_pose,
+                                              self.ik.posture.target_q, *(good_enough or (None,)),
+                                              *(accept or (None,))),
                                 (str(max_iters), str(restarts), *sorted(allow)))
             found = self.memo.get(key)
             if found is not None:
-                self.configuration.update(self._full(found.q))
+                self.ik.configuration.update(self.ik.full(found.q))
                 return found._replace(time_s=time.perf_counter() - start)
-        frames = [self.frame(t.frame) for t in targets]
+        frames = [self.ik.frame(t.frame) for t in targets]
         starts = self.starts(frames, q0, restarts)
         cap = max_iters or cfg.max_iters
         search = Search(good_enough)
-        if self.collision is not None and accept is not None:
+        if self.ik.collision is not None and accept is not None:
             self._gated_search(search, targets, frames, starts, cap, extra_tasks, accept)
         else:
             for q in starts:
                 if search.keep(self._descend(targets, frames, q, cap, extra_tasks, enough=good_enough)):
                     break
         if search.best is None:  # no start came near (the gate): the first start itself, as no descent improved on it
-            self.configuration.update(starts[0])
-            pos_err, rot_err = worst_errors(targets, [f.pose(self.configuration.data) for f in frames])
+            self.ik.configuration.update(starts[0])
+            pos_err, rot_err = worst_errors(targets, [f.pose(self.ik.configuration.data) for f in frames])
             search.best = (pos_err / cfg.pos_tol + rot_err / cfg.rot_tol, starts[0].copy(), pos_err, rot_err, "stalled")
         _, q_best, pos_err, rot_err, status = search.best
-        self.configuration.update(q_best)
-        result = IKResult(q_best[self.nb :] if self.nb else q_best, status == "converged", pos_err, rot_err,
+        self.ik.configuration.update(q_best)
+        result = IKResult(q_best[self.ik.nb :] if self.ik.nb else q_best, status == "converged", pos_err, rot_err,
                           search.iters, status, time.perf_counter() - start)
         if key is not None and self.memo is not None:
             self.memo.put(key, result)
@@ -149,18 +164,18 @@ class OfflineSolver:
         ``restarts`` defaults to ``config.restarts``. Restarts re-draw only the joints that move a target frame; the
         others keep their ``q0`` values (and a mobile robot's base stays where it is: a solve plans the arms).
         """
-        moving = np.any([chain_dofs(self.model, f) for f in frames], axis=0)
-        moving[: self.nb] = False
-        return Starts(self._full(np.array(q0, dtype=float)), moving, self.box.lower[self.nb :],
-                       self.box.upper[self.nb :], (self.config.restarts if restarts is None else restarts) + 1,
-                       self.config.seed)
+        moving = np.any([chain_dofs(self.ik.model, f) for f in frames], axis=0)
+        moving[: self.ik.nb] = False
+        return Starts(self.ik.full(np.array(q0, dtype=float)), moving, self.ik.box.lower[self.ik.nb :],
+                       self.ik.box.upper[self.ik.nb :], (self.ik.config.restarts if restarts is None else restarts) + 1,
+                       self.ik.config.seed)
 
     def _prepare(self, object_poses: ObjectPoses | None, allow: frozenset[str]) -> None:
         """Set a solve's allowed collision groups and object poses."""
-        if self.collision is not None:
-            self.collision.allow(self._allowed(allow))
+        if self.ik.collision is not None:
+            self.ik.collision.allow(self.ik.allowed(allow))
         if object_poses:
-            set_object_poses(self.model, self.configuration.data, object_poses, self._mocap)
+            set_object_poses(self.ik.model, self.ik.configuration.data, object_poses, self.ik.mocap)
 
     def _gated_search(
         self,
@@ -173,7 +188,7 @@ class OfflineSolver:
         accept: tuple[float, float],
     ) -> None:
         """The relaxation gate's search (see :meth:`solve`), its outcomes kept in ``search``."""
-        collision = self.collision
+        collision = self.ik.collision
         assert collision is not None
         within, enough = (RELAXED_MARGIN * accept[0], RELAXED_MARGIN * accept[1]), search.good_enough
         for k, q in enumerate(starts):
@@ -185,8 +200,8 @@ class OfflineSolver:
             # too). A restart's relaxed answer through a collision is never one, and its start is given up (see solve).
             if k == 0 and search.keep(self._descend(targets, frames, q, cap, extra_tasks, enough=enough)):
                 break
-            self.configuration.update(relaxed[1])
-            if collision.clear(self.configuration.data) and search.keep((*relaxed[:4], 0, relaxed[5])):
+            self.ik.configuration.update(relaxed[1])
+            if collision.clear(self.ik.configuration.data) and search.keep((*relaxed[:4], 0, relaxed[5])):
                 break
 
     def _descend(
@@ -199,36 +214,35 @@ class OfflineSolver:
         *,
         relaxed: bool = False,
         enough: tuple[float, float] | None = None,
+        rows: bool = True,
     ) -> Descent:
         """One descent from ``q0``.
 
-        ``relaxed``: without collision rows (and without the collision-safe step). ``enough``: the position [m] and
+        ``relaxed``: without collision rows (and without the collision-safe step), remembered; ``rows=False``: the
+        descent itself without them. ``enough``: the position [m] and
         orientation [rad] errors the caller is content with (``solve``'s ``good_enough``): once the best errors are
         within them, the descent stalls at its first step without 1 % progress (not ``config.stall_iters``).
         """
-        if relaxed and self.collision is not None:
+        if relaxed and self.ik.collision is not None:
             # A deterministic function of the targets, the start, the posture target and the caps (no collision
             # rows, no object): remembered, as the restarts of solves of the same targets start alike.
             memo, key = self.relaxed_memo, None
             if memo is not None and not extra_tasks:
-                key = memo.key(targets, q0, (self.posture.target_q, self.base_pose, *(enough or (None,))), (str(cap),))
+                key = memo.key(targets, q0, (self.ik.posture.target_q, self.ik.base_pose, *(enough or (None,))),
+                               (str(cap),))
                 found = memo.get(key)
                 if found is not None:
                     return found
-            collision, self.collision = self.collision, None
-            try:
-                outcome = self._descend(targets, frames, q0, cap, extra_tasks, enough=enough)
-            finally:
-                self.collision = collision
+            outcome = self._descend(targets, frames, q0, cap, extra_tasks, enough=enough, rows=False)
             if key is not None and memo is not None:
                 memo.put(key, outcome)
             return outcome
-        cfg, q = self.config, q0.copy()
-        self.configuration.update(q)
+        cfg, q = self.ik.config, q0.copy()
+        self.ik.configuration.update(q)
         best = (np.inf, q.copy(), np.inf, np.inf)
         since_best, iters, window = 0, 0, cfg.stall_iters
         while True:
-            pos_err, rot_err = worst_errors(targets, [f.pose(self.configuration.data) for f in frames])
+            pos_err, rot_err = worst_errors(targets, [f.pose(self.ik.configuration.data) for f in frames])
             score = pos_err / cfg.pos_tol + rot_err / cfg.rot_tol
             if score < best[0]:
                 since_best = 0 if score < 0.99 * best[0] else since_best
@@ -241,8 +255,8 @@ class OfflineSolver:
                 return Descent(*best, iters, "max_iters")
             if since_best >= window:
                 return Descent(*best, iters, "stalled")
-            dq = self._step(targets, cfg.dt, extra_tasks) * cfg.dt
-            q_prev, q = q, self._advance(q, dq)
+            dq = self.ik.velocity(targets, cfg.dt, extra_tasks, rows=rows) * cfg.dt
+            q_prev, q = q, self._advance(q, dq, rows)
             iters, since_best = iters + 1, since_best + 1
             if q is q_prev:
                 # Every halving of the step ran into a collision pair: the next steps would start from the same q
@@ -253,10 +267,11 @@ class OfflineSolver:
                     iters, since_best = iters + ahead, since_best + ahead
                 return Descent(*best, iters, "max_iters" if iters >= cap else "stalled")
 
-    def _advance(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """Q + dq inside the joint limits, collision-safe (:func:`~nextage_qp.ik.safe_step.advance`)."""
-        if self.collision is None:
-            q_new = np.clip(q + dq, self.box.lower, self.box.upper)
-            self.configuration.update(q_new)
+    def _advance(self, q: np.ndarray, dq: np.ndarray, rows: bool = True) -> np.ndarray:
+        """Q + dq inside the joint limits, collision-safe with ``rows`` (:func:`~nextage_qp.ik.safe_step.advance`)."""
+        collision = self.ik.collision if rows else None
+        if collision is None:
+            q_new = np.clip(q + dq, self.ik.box.lower, self.ik.box.upper)
+            self.ik.configuration.update(q_new)
             return q_new
-        return advance(self.collision, self.configuration, q, dq, self.box.lower, self.box.upper)
+        return advance(collision, self.ik.configuration, q, dq, self.ik.box.lower, self.ik.box.upper)
