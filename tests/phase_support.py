@@ -64,7 +64,7 @@ class ScriptedView:
         return self.commanded[name]
 
     def joint_positions(self, names):
-        return np.array([self.joints[n] for n in names])
+        return np.array([self.joints.get(n, -1.0) for n in names])  # the scripted planner's one joint: home
 
     def settled(self):
         return self.is_settled
@@ -80,6 +80,12 @@ class ScriptedView:
 
     def default_posture(self):
         return np.array([-1.0])  # pose_at: the home pose
+
+    def plan_path(self, q_start, q_goal, *, near=(), always=False):
+        from nextage_qp.planning.rrt import PathPlan
+
+        self.paths = [*getattr(self, "paths", []), (np.asarray(q_start), np.asarray(q_goal), tuple(near), always)]
+        return PathPlan([np.asarray(q_start), np.asarray(q_goal)], "straight")
 
     def plan(self, targets, start=None, allow=frozenset(), pos_tol=None, restarts=True):
         if self.reach is not None and not self.reach(tuple(targets)):

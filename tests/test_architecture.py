@@ -9,7 +9,7 @@ ROOT = Path(__file__).resolve().parents[1] / "nextage_qp"
 
 ENTRY_POINTS = {"__init__.py", "api.py", "cli.py", "errors.py", "geometry.py"}
 BOXES = {"commands", "tune", "viz", "sweep", "manipulation", "experiments", "loop", "sensing", "estimation", "ik",
-         "kinematics", "robots", "scene", "mobile", "native", "io"}
+         "kinematics", "robots", "scene", "mobile", "native", "io", "planning"}
 
 
 def test_the_package_root_holds_the_entry_points_and_one_folder_per_box():

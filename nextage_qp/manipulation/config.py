@@ -25,7 +25,9 @@ from nextage_qp.loop.reference import TrajectoryLimits
 from nextage_qp.loop.simulation import Timing
 from nextage_qp.manipulation.phases import REGISTRY, Spec
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, name_field
+from nextage_qp.planning.rrt import PlanningConfig
 from nextage_qp.robots.robot_file import MountFile
+from nextage_qp.scene.clutter import ClutterDecl
 from nextage_qp.scene.files import package_root
 from nextage_qp.scene.objects import ObjectDecl
 from nextage_qp.sensing.faults import EstimationConfig, FaultsConfig
@@ -57,6 +59,9 @@ class SceneConfig(YamlModel):
                                           "(default 1, at most 20).")
     objects: dict[str, ObjectDecl] = Field(
         default_factory=dict, description="Object -> shape, size, mass, friction, pose (nextage_qp/scene/objects.py).")
+    clutter: ClutterDecl | None = Field(
+        default=None, description="Random boxes and cylinders on the table, named clutter_0 ... (collision group "
+                                  "clutter): nextage_qp/scene/clutter.py.")
 
 
 class SuccessCriteria(YamlModel):
@@ -72,6 +77,9 @@ class SuccessCriteria(YamlModel):
     resting: bool = Field(default=False, description="The object must end on the table, at rest.")
     obstacle_contacts: int | None = Field(
         default=None, ge=0, description="Most physics steps the object may touch the obstacle [count], or unjudged.")
+    clutter_contacts: int | None = Field(
+        default=None, ge=0, description="Most physics steps [count] in which the robot or what it holds may touch "
+                                        "the clutter (scene.clutter), or unjudged.")
 
 
 class RunTiming(Timing):
@@ -118,6 +126,9 @@ class ManipulationConfig(YamlModel):
     estimation: EstimationConfig = Field(
         default_factory=EstimationConfig, description="How object measurements become the poses the phases see "
                                                       "(a Kalman filter or the latest measurement).")
+    planning: PlanningConfig = Field(
+        default_factory=PlanningConfig, description="How transits are planned around obstacles: the clearance kept "
+                                                    "and the time a plan may take.")
     perception: PerceptionConfig = Field(
         default_factory=PerceptionConfig, description="Where the object poses the phases see come from: the "
                                                       "simulator's truth, the simulated camera of "

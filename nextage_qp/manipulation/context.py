@@ -19,6 +19,7 @@ from nextage_qp.geometry import Pose, rot_z, yaw_of
 from nextage_qp.ik import FrameTarget, RelativeTarget
 from nextage_qp.mobile.base import MobileBase
 from nextage_qp.mobile.drive_models import Pose2
+from nextage_qp.planning.rrt import PathPlan
 from nextage_qp.sensing.sensors import Wrench
 
 
@@ -186,6 +187,15 @@ class Reach(Protocol):
         counts as reached within ``pos_tol`` (default ``sim_view.REACH_POS_TOL``) and ``sim_view.REACH_ROT_TOL``.
         ``restarts=False``: only the descent from ``start`` (no random restarts), so a solution found is one the
         joints reach continuously from there.
+        """
+
+    def plan_path(self, q_start: np.ndarray, q_goal: np.ndarray, *, near: Sequence[str] = (),
+                  always: bool = False) -> PathPlan:
+        """A collision-free joint path from ``q_start`` to ``q_goal`` [rad] through the world as it is believed now.
+
+        The straight joint-space segment when nothing touches along it (unless ``always``), else a planned path that
+        keeps the planner's clearance from obstacles and objects (``near``: bodies it may come close to but not
+        touch, e.g. the object a push or grasp goes to). A held object (the view's grip) moves with its pads.
         """
 
 

@@ -18,7 +18,7 @@ from nextage_qp.loop.simulation import Simulation
 from nextage_qp.manipulation.config import SuccessCriteria
 from nextage_qp.manipulation.context import Grip
 from nextage_qp.native import kernels
-from nextage_qp.robots.model import Robot
+from nextage_qp.robots.model import CLUTTER_GROUP, Robot
 from nextage_qp.scene.files import touch_sensor
 
 LIMIT_TOLERANCE = 1e-3
@@ -81,6 +81,16 @@ class OutcomeMonitor:
         self._touch = None if sensor < 0 else slice(int(m.sensor_adr[sensor]), int(m.sensor_adr[sensor]) + 2)
         self._watch = True  # something may touch the obstacle before the next tick: check every physics step
         self._held: tuple[Grip, list[tuple[str, int]], int, np.ndarray] | None = None
+        clutter = groups.get(CLUTTER_GROUP, ())
+        self.clutter_contacts = 0
+        """Physics steps in which the robot or the object it holds touched the clutter."""
+        self._is_clutter = np.zeros(m.ngeom, dtype=bool)
+        self._is_clutter[list(clutter)] = True
+        self._robot_geom = np.zeros(m.ngeom, dtype=bool)
+        self._robot_geom[[g for k in robot.robot_groups for g in groups.get(k, ())]] = True
+        self.has_clutter = bool(clutter)
+        self.grip: Grip | None = None
+        """The clamp in force (set by the runner): its object counts as the robot's for the clutter's contacts."""
 
     def attach(self, sim: Simulation) -> None:
         """Register the monitor's hooks with a simulation.
@@ -92,10 +102,26 @@ class OutcomeMonitor:
         """
         sim.hooks.append(self.on_tick)
         self._touch_base = sim.touch_steps
+        if self.has_clutter:  # every physics step: the clutter is many bodies, no single contact sensor watches it
+            sim.substep_hooks.append(self.on_clutter_step)
         if self.obstacle is not None and self._touch is not None:
             sim.touch_adr = self._touch.start  # the physics loop counts the touching steps itself
         elif self.obstacle is not None:
             sim.substep_hooks.append(self.on_substep)
+
+    def on_clutter_step(self, sim: Simulation) -> None:
+        """Hook run at every physics step: count the steps in which the robot (or what it holds) touches clutter."""
+        d = sim.data
+        if d.ncon == 0:
+            return
+        geoms = d.contact.geom[: d.ncon]
+        mine = self._robot_geom[geoms]
+        if self.grip is not None:
+            held = self.model.geom_bodyid[geoms] == self.model.body(self.grip.object).id
+            mine = mine | held
+        clutter = self._is_clutter[geoms]
+        if np.any(((mine[:, 0] & clutter[:, 1]) | (mine[:, 1] & clutter[:, 0])) & (d.contact.dist[: d.ncon] < 0)):
+            self.clutter_contacts += 1
 
     def on_substep(self, sim: Simulation) -> None:
         """Hook run at every physics step: count the steps in which anything touches the obstacle.
@@ -201,7 +227,8 @@ def object_state(robot: Robot, sim: Simulation, obj: str, target: str) -> Object
 
 
 def judge(criteria: SuccessCriteria, state: ObjectState, *, completed: bool, dropped: bool, limit_violations: int,
-          obstacle_contacts: int, limit_detail: str | None = None) -> dict[str, dict[str, Any]]:
+          obstacle_contacts: int, limit_detail: str | None = None,
+          clutter_contacts: int = 0) -> dict[str, dict[str, Any]]:
     """Every success criterion with its value, limit and verdict (``ok``); a violated joint limit's ``detail``."""
     out: dict[str, dict[str, Any]] = {
         "completed": {"ok": completed},
@@ -219,6 +246,9 @@ def judge(criteria: SuccessCriteria, state: ObjectState, *, completed: bool, dro
         out["tilt"] = {"value": state.tilt_rad, "limit": criteria.tilt, "ok": state.tilt_rad <= criteria.tilt}
     if criteria.resting:
         out["resting"] = {"ok": state.resting}
+    if criteria.clutter_contacts is not None:
+        out["clutter_contacts"] = {"value": clutter_contacts, "limit": criteria.clutter_contacts,
+                                   "ok": clutter_contacts <= criteria.clutter_contacts}
     if criteria.obstacle_contacts is not None:
         out["obstacle_contacts"] = {"value": obstacle_contacts, "limit": criteria.obstacle_contacts,
                                     "ok": obstacle_contacts <= criteria.obstacle_contacts}
@@ -250,7 +280,7 @@ def summarize(
     tau = np.abs(rec["tau"]).max() if len(q) else 0.0
     contacts = monitor.obstacle_contacts if monitor.obstacle is not None else 0
     verdict = judge(criteria, state, completed=error is None, dropped=monitor.dropped, limit_violations=viol,
-                    obstacle_contacts=contacts, limit_detail=detail)
+                    obstacle_contacts=contacts, limit_detail=detail, clutter_contacts=monitor.clutter_contacts)
     sim_t = sim.time
     return {
         "task": task,
@@ -269,6 +299,7 @@ def summarize(
         "physics_share": sim.physics_s / wall_s if wall_s > 0 else None,
         "min_obstacle_clearance_m": monitor.min_clearance,
         "obstacle_contacts": contacts,
+        **({"clutter_contacts": monitor.clutter_contacts} if monitor.has_clutter else {}),
         "object_dropped": monitor.dropped,
         "joint_limit_violations": viol,
         "max_abs_torque_nm": float(tau),

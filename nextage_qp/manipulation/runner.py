@@ -15,6 +15,7 @@ from collections.abc import Callable
 from functools import partial
 from typing import Any
 
+import mujoco
 import numpy as np
 
 from nextage_qp.errors import ConfigError, InfeasibleError, NextageQPError, PhaseError, UnknownNameError
@@ -36,7 +37,8 @@ from nextage_qp.robots.check_report import check_own_names
 from nextage_qp.robots.description import load_robot
 from nextage_qp.robots.gains import load_gains, robot_gains
 from nextage_qp.robots.model import Robot, robot_bodies, scene_bodies, tool_frames
-from nextage_qp.scene.checks import check_clear
+from nextage_qp.scene.checks import check_clear, check_robot_clear
+from nextage_qp.scene.clutter import ClutterDecl
 from nextage_qp.scene.files import BodyPose, SceneOverrides
 from nextage_qp.sensing.setup import attach_camera, log_estimates, perception_of, source_of
 
@@ -45,6 +47,32 @@ SEARCH_S = 3.0
 """With a camera, how long [s] the run waits, still, for every object to be seen before its first phase."""
 HELD_SLACK = 1e-3
 """A timed-out phase names the collision pairs within this [m] of their minimum distance (what may have held it)."""
+
+
+def start_q(cfg: ManipulationConfig, robot: Robot) -> np.ndarray:
+    """The robot's start posture [rad]: the config's ``start`` keyframe, or its joints on top of ``home``."""
+    return (robot.keyframe_q(cfg.start) if isinstance(cfg.start, str)
+            else robot.q_from_names(cfg.start, base=robot.keyframe_q("home")))
+
+
+def start_footprint(robot: Robot, q: np.ndarray, clutter: ClutterDecl) -> tuple[tuple[float, float, float], ...]:
+    """Where clutter may not stand: circles (x, y, radius [m]) of the robot's geoms at ``q``.
+
+    Those that reach down within the clutter's tallest height (plus its keep-out) of the table top.
+    """
+    m = robot.model
+    d = mujoco.MjData(m)
+    d.qpos[robot.qpos_idx] = q
+    mujoco.mj_kinematics(m, d)
+    groups = robot.collision_geoms()
+    top = max((float(d.geom_xpos[g][2] + m.geom_rbound[g]) for g in groups.get("table", ())), default=0.0)
+    reach = top + clutter.height[1] + clutter.keep_out
+    circles = []
+    for b in robot_bodies(robot):
+        for g in range(int(m.body_geomadr[b]), int(m.body_geomadr[b] + m.body_geomnum[b])):
+            if (m.geom_contype[g] or m.geom_conaffinity[g]) and d.geom_xpos[g][2] - m.geom_rbound[g] < reach:
+                circles.append((float(d.geom_xpos[g][0]), float(d.geom_xpos[g][1]), float(m.geom_rbound[g])))
+    return tuple(circles)
 
 
 def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
@@ -57,8 +85,11 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
     scene = cfg.scene
     poses = {name: BodyPose(pos=p.pos, yaw=p.yaw) for name, p in scene.poses.items()}
     stereo = cfg.perception.source == "camera" and cfg.perception.depth == "stereo"
+    clutter = scene.clutter
+    if clutter is not None and clutter.seed is None:  # drawn from the run's seed
+        clutter = clutter.model_copy(update={"seed": cfg.seed})
     overrides = SceneOverrides(poses=poses, masses=dict(scene.masses), friction_scale=dict(scene.friction_scale),
-                               objects=dict(scene.objects), speckle=stereo)
+                               objects=dict(scene.objects), speckle=stereo, clutter=clutter)
     try:
         description = load_robot(cfg.robot)
     except ConfigError as exc:
@@ -66,12 +97,16 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
     if cfg.mount is not None:
         description = dataclasses.replace(description, mount=cfg.mount)
     try:
+        if clutter is not None and clutter.count:  # clutter keeps clear of the robot's start posture
+            bare = Robot.from_scene(scene.file, dataclasses.replace(overrides, clutter=None), description)
+            overrides = dataclasses.replace(overrides, clutter_avoid=start_footprint(bare, start_q(cfg, bare),
+                                                                                     clutter))
         robot = Robot.from_scene(scene.file, overrides, description)
     except UnknownNameError as exc:
         raise ConfigError(f"{source}: scene: {exc}") from None
     except ConfigError as exc:
-        if str(exc).startswith("scene.objects"):  # a declaration's error: name the config it is in
-            raise ConfigError(f"{source}: {exc}") from None
+        if exc.key is not None and exc.source is None:  # a declaration's error: name the config it is in
+            raise ConfigError(f"{source}: {exc}", source=source, key=exc.key) from None
         raise
     check_own_names(robot)  # the robot file's own names: its error, not the task config's
     check_names(cfg, robot, source)
@@ -123,18 +158,20 @@ class Runner:
         self.sim = Simulation(self.robot, gains, cfg.trajectory, timing=cfg.timing, frames=frames, sensors=self.sensors)
         if self.sensors is not None:
             attach_camera(cfg, self.sensors, self.robot, self.sim.data, source)
-        q0 = (self.robot.keyframe_q(cfg.start) if isinstance(cfg.start, str)
-              else self.robot.q_from_names(cfg.start, base=self.robot.keyframe_q("home")))
+        q0 = start_q(cfg, self.robot)
         if self.robot.base is not None and cfg.object == BASE_BODY:  # a base that parks: nothing to place
             self.placement = Placement(np.zeros(3), None)
         else:
             self.placement = check_placement(self.robot, cfg.object, cfg.target, q0, source)
         self.sim.reset(q0)
+        mask = np.zeros(self.robot.model.nbody, dtype=bool)
+        mask[list(robot_bodies(self.robot))] = True
+        check_robot_clear(self.robot.model, self.sim.data, mask, source)
         self.servo = Servo(self.ik, self.sim, q0)
         self.camera = None if self.sensors is None else self.sensors.measurer
         if self.camera is not None and cfg.perception.look_at:
             self.servo.look = watch(self.ik, cfg.perception.camera, cfg.perception.look_cost)
-        self.view = SimView(self.robot, self.sim, self.servo)
+        self.view = SimView(self.robot, self.sim, self.servo, planning=self.cfg.planning)
         self.records = [PhaseRecord(cfg.phase_name(i), p.kind) for i, p in enumerate(cfg.phases)]
         self.monitor = OutcomeMonitor(self.robot, cfg.object)
         self.monitor.attach(self.sim)
@@ -156,6 +193,7 @@ class Runner:
                 self.current.carrier(self.view) if self.current is not None else None)
             self.sensors.carry(*(carried or (None, None)), pushed=grip is None)
         self.servo.step(command, objects)
+        self.monitor.grip = self.view.grip
         self.sim.tick()
         if self.view.grip is not None:
             self.monitor.check_hold(self.sim, self.view.grip)

@@ -18,6 +18,8 @@ from nextage_qp.manipulation.placement import obstacle_top, rest_height, table_t
 from nextage_qp.mobile.base import MobileBase
 from nextage_qp.mobile.drive_models import Pose2
 from nextage_qp.mobile.odometry import to_odometry
+from nextage_qp.planning.rrt import PathPlan, PlanningConfig, plan_path
+from nextage_qp.planning.world import CollisionWorld, Held
 from nextage_qp.robots.model import Robot
 from nextage_qp.sensing.sensors import Wrench
 
@@ -35,8 +37,13 @@ class SimView:
     Object poses come from the simulation's measurement seam; everything else from the model and the servo.
     """
 
-    def __init__(self, robot: Robot, sim: Simulation, servo: Servo, *, qd_tol: float = 0.05) -> None:
+    def __init__(self, robot: Robot, sim: Simulation, servo: Servo, *, qd_tol: float = 0.05,
+                 planning: PlanningConfig | None = None) -> None:
         self.robot, self._sim, self._servo, self.qd_tol = robot, sim, servo, qd_tol
+        self.planning = planning or PlanningConfig()
+        self._worlds: tuple[CollisionWorld, CollisionWorld] | None = None
+        self.plans: list[PathPlan] = []
+        """Every path planned in this run (straight checks included), in order."""
         self.dt = sim.ctrl_dt
         self.grip: Grip | None = None
         self._parts: dict[str, list[GeomPart]] = {}
@@ -106,6 +113,41 @@ class SimView:
                                      good_enough=(0.5 * tol, 0.5 * REACH_ROT_TOL), accept=(tol, REACH_ROT_TOL),
                                      restarts=None if restarts else 0)
         return result.q if result.pos_err_m <= tol and result.rot_err_rad <= REACH_ROT_TOL else None
+
+    def plan_path(self, q_start: np.ndarray, q_goal: np.ndarray, *, near: Sequence[str] = (),  # noqa: D102
+                  always: bool = False) -> PathPlan:
+        if self._worlds is None:  # one collision world to tell a touch, one keeping the clearance to plan in
+            cfg = self.planning
+            self._worlds = (CollisionWorld(self.robot, 0.0, 0.0),
+                            CollisionWorld(self.robot, cfg.clearance, cfg.table_clearance))
+        qa, qb = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
+        poses = {name: Pose(p.pos, p.rot) for name, p in self._sim.measured.objects.items()}
+        held = None
+        if self.grip is not None:  # the held object moves with the first pad, as it sits in it now
+            frame = self.grip.frames[0]
+            pad, obj = self.commanded_pose(frame), self.body_pose(self.grip.object)
+            held = Held(self.grip.object, frame, Pose(pad.rot.T @ (obj.pos - pad.pos), pad.rot.T @ obj.rot))
+        for world in self._worlds:
+            world.set_world(poses, qa, held=held, near=near)
+        touch, keep = self._worlds
+        seed = 1 + len(self.plans)  # a run's plans repeat: each seeded by its place in the run
+        if not always and touch.first_on_segment(qa, qb) is None:
+            plan = PathPlan([qa, qb], "straight")
+        else:
+            names = self.robot.joint_names
+            moving = {names[j] for j in np.flatnonzero(np.abs(qb - qa) > 1e-6)}
+            groups = [g for g in self.robot.description.groups.values() if moving & set(g)]
+            joints = sorted({self.robot.joint_index(j) for g in groups for j in g} | {names.index(j) for j in moving})
+
+            def planned(world: CollisionWorld) -> PathPlan:  # over the whole groups (arms, torso) that move
+                return plan_path(world, qa, qb, lower=self.robot.lower, upper=self.robot.upper, joints=joints,
+                                 time_limit=self.planning.time_limit, seed=seed, straight_first=False)
+
+            plan = planned(keep)
+            if plan.status in ("invalid_start", "invalid_goal") and plan.why is not None and plan.why.distance >= 0:
+                plan = planned(touch)  # near but not inside: planned without the clearance
+        self.plans.append(plan)
+        return plan
 
     def base(self) -> MobileBase | None:  # noqa: D102
         return self.robot.base

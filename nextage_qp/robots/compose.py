@@ -18,7 +18,8 @@ from nextage_qp.errors import ConfigError, one_line
 from nextage_qp.mobile.build import add_base, add_base_actuators
 from nextage_qp.robots.cameras import add_cameras
 from nextage_qp.robots.description import RobotDescription
-from nextage_qp.scene.build import declare_objects, rest_on_table
+from nextage_qp.scene.build import declare_objects, rest_on_table, table_top
+from nextage_qp.scene.clutter import add_clutter
 from nextage_qp.scene.compile import quiet_prefix_warning
 from nextage_qp.scene.files import SceneOverrides, apply_overrides, load_scene
 
@@ -138,6 +139,11 @@ def compose(desc: RobotDescription, scene: str | Path, overrides: SceneOverrides
     apply_overrides(parent, overrides, str(scene))
     if overrides.objects:
         rest_on_table(parent, overrides.objects, markers)
+    if overrides.clutter is not None and overrides.clutter.count:
+        top = table_top(parent)
+        if top is None:
+            raise ConfigError(f"{scene}: scene.clutter needs a table (a body named 'table' with a box on top)")
+        add_clutter(parent, overrides.clutter, top, str(scene), avoid=overrides.clutter_avoid)
     if overrides.speckle:
         from nextage_qp.scene.texture import speckle
 

@@ -21,10 +21,13 @@ from nextage_qp.io.per_joint import PerJoint, descends, per_joint, within_range 
 from nextage_qp.mobile.base import BASE_BODY, MobileBase
 from nextage_qp.robots.actuation import torque_limits, velocity_limits
 from nextage_qp.robots.description import Arm, RobotDescription, load_robot
+from nextage_qp.scene.clutter import PREFIX as CLUTTER_PREFIX
 from nextage_qp.scene.compile import compile_spec
 from nextage_qp.scene.files import SceneOverrides, add_touch_sensors
 
 SCENE_GROUP_BODIES = ("table", "obstacle")
+CLUTTER_GROUP = "clutter"
+"""The collision group of the generated clutter (:mod:`nextage_qp.scene.clutter`)."""
 """Static scene bodies that become collision groups of their own when a scene has them."""
 WATCHED_BODIES = ("obstacle",)
 """Scene bodies that get a contact sensor (:func:`~nextage_qp.scene.files.add_touch_sensors`): touching them counts."""
@@ -312,6 +315,9 @@ def collision_geoms(robot: Robot, extra: Mapping[str, Any] | None = None) -> dic
     for name in (*SCENE_GROUP_BODIES, *robot.object_names):
         if found := of_bodies(ids([name], False, "body")):
             groups[name] = found
+    clutter = {b for b in range(m.nbody) if m.body(b).name.startswith(CLUTTER_PREFIX)}
+    if clutter:  # the generated clutter (scene.clutter), one group
+        groups[CLUTTER_GROUP] = of_bodies(clutter)
     for name, spec in (extra or {}).items():
         groups[name] = group(name, spec)
     return groups

@@ -83,7 +83,8 @@ def _flat(geom: mujoco.MjsGeom) -> bool:
     return geom.type == mujoco.mjtGeom.mjGEOM_BOX and geom.size[2] <= 0.001
 
 
-def _table_top(spec: mujoco.MjSpec) -> float | None:
+def table_top(spec: mujoco.MjSpec) -> float | None:
+    """Height [m] of the top of the scene's table (its colliding boxes), or None without a table."""
     body = next((b for b in spec.worldbody.bodies if b.name == "table"), None)
     if body is None:
         return None
@@ -107,14 +108,14 @@ def declare_objects(spec: mujoco.MjSpec, objects: Mapping[str, ObjectDecl], sour
         body = next((b for b in spec.worldbody.bodies if b.name == name), None)
         if body is not None and not any(j.type == free for j in body.joints):
             raise ConfigError(f"scene.objects.{name}: {name!r} is a fixed body of the scene {source}, not an "
-                              "object; choose another name")
+                              "object; choose another name", key=f"scene.objects.{name}")
         if body is None:
             try:
                 body = spec.worldbody.add_body(name=name, pos=[0.5, 0.0, 1.0])
                 body.add_freejoint(name=f"{name}_joint")
             except ValueError as exc:  # MuJoCo: "repeated name 'world' in body"; a robot's link, the world
                 raise ConfigError(f"scene.objects.{name}: {name!r} is taken in the scene {source} "
-                                  f"({one_line(exc)}); choose another name") from None
+                                  f"({one_line(exc)}); choose another name", key=f"scene.objects.{name}") from None
         marker = next((b for b in spec.worldbody.bodies if b.name == f"{name}_target"), None)
         if marker is None and decl.marker:
             marker = spec.worldbody.add_body(name=f"{name}_target", pos=[0.5, 0.0, 1.0])
@@ -142,7 +143,7 @@ def declare_objects(spec: mujoco.MjSpec, objects: Mapping[str, ObjectDecl], sour
 
 def rest_on_table(spec: mujoco.MjSpec, objects: Mapping[str, ObjectDecl], markers: list[str]) -> None:
     """Stand each declared object (and each added marker) on the table top, unless its ``pos`` gives a height."""
-    top = _table_top(spec)
+    top = table_top(spec)
     if top is None:
         return
     for name, decl in objects.items():

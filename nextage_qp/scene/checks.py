@@ -47,3 +47,30 @@ def check_clear(model: mujoco.MjModel, robot_joints: Sequence[str], object_names
 
 def _name(model: mujoco.MjModel, body: int) -> str:
     return "the world's ground" if body == 0 else repr(model.body(body).name or f"body {body}")
+
+
+def check_robot_clear(model: mujoco.MjModel, data: mujoco.MjData, robot_body: np.ndarray, source: str,
+                      tolerance: float = OVERLAP_TOLERANCE) -> None:
+    """Raise if anything of the scene starts more than ``tolerance`` inside the robot at its start posture.
+
+    ``data`` holds the start state; ``robot_body`` marks the robot's bodies (by body id). An object or obstacle that
+    the robot's start posture would be inside gets thrown as the simulation starts.
+
+    Raises:
+        ConfigError: Names the body, the robot link it starts inside, by how much, and what to change.
+    """
+    mujoco.mj_forward(model, data)
+    worst: tuple[float, str, str] | None = None
+    for i in range(data.ncon):
+        contact = data.contact[i]
+        b1, b2 = (int(model.geom_bodyid[g]) for g in contact.geom)
+        if robot_body[b1] == robot_body[b2] or -contact.dist <= tolerance:
+            continue
+        link, other = (b1, b2) if robot_body[b1] else (b2, b1)
+        if other != 0 and (worst is None or -contact.dist > worst[0]):
+            worst = (-float(contact.dist), model.body(other).name, _name(model, link))
+    if worst is not None:
+        depth, body, where = worst
+        key = "scene.clutter.region" if body.startswith("clutter_") else f"scene.poses.{body}"
+        raise ConfigError(f"{source}: {body!r} starts {depth * 1e3:.1f} mm inside the robot's {where} at its start "
+                          f"posture: move it ({key}) or start the robot elsewhere (start)")

@@ -71,6 +71,8 @@ class SceneOverrides:
         masses: Body name -> new mass [kg]; the inertia is scaled by the same factor.
         friction_scale: Body name -> factor on the sliding friction of every contact the body takes part in.
         objects: Object name -> declaration (:class:`~nextage_qp.scene.objects.ObjectDecl`): added or reshaped.
+        clutter: Random obstacles on the table (:class:`~nextage_qp.scene.clutter.ClutterDecl`), or None.
+        clutter_avoid: Circles (x, y, radius [m]) the clutter keeps ``keep_out`` from: the robot's start posture.
         speckle: Every surface that is not the robot's gets a random-dot texture (what stereo block matching needs:
             :func:`nextage_qp.scene.texture.speckle`); the physics is unchanged.
     """
@@ -80,6 +82,8 @@ class SceneOverrides:
     friction_scale: Mapping[str, float] = field(default_factory=dict)
     objects: Mapping[str, Any] = field(default_factory=dict)
     speckle: bool = False
+    clutter: Any = None
+    clutter_avoid: tuple[tuple[float, float, float], ...] = ()
 
 
 def _yaw_quat(yaw: float) -> np.ndarray:

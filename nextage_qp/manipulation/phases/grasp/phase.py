@@ -191,7 +191,7 @@ class Grasp(Phase):
                 legs = [self._targets(points) for points in [high, *down]]
                 for rise in (self._rise(view, high[0][2]), None):  # up where they are first, then over the object
                     self.route = PlannedRoute(legs if rise is None else [rise, *legs], pos_tol=APPROACH_TOL,
-                                              continuous=True)
+                                              continuous=True, plan=c.plan, near=(c.object,))
                     if self.route.plan(view):
                         return gap, rolls is not None
         return None

@@ -94,7 +94,7 @@ def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: S
                 tried += 1
                 for route in routes(view, spec, tool, d, raise_by):
                     planned = PlannedRoute([(target(p, yaw), *(extra[min(k, len(extra) - 1)] if extra else ()))
-                                            for k, p in enumerate(route[1:])])
+                                            for k, p in enumerate(route[1:])], plan=spec.plan, near=(spec.object,))
                     if planned.plan(view, restarts=restarts):
                         return Approach(d, route[0], yaw, planned, float(route[-1][2]), tried, raise_by)
     return None

@@ -1,0 +1,265 @@
+"""The planner's collision world: MuJoCo's collision detection on a copy of the run's model, at any joints.
+
+The world is the composed scene as the controller believes it now: the table, the obstacles and every object the
+robot does not hold at its measured pose. A state is valid when
+
+* no robot geom comes within ``clearance`` of an obstacle or an object (the ``allow`` bodies aside: the object a
+  push or a grasp goes to) nor within ``table_clearance`` of the table,
+* no two robot geoms that the model lets collide penetrate each other by more than ``SELF_SLOP`` (self-collision;
+  the model's and the robot file's excluded pairs are MuJoCo's ``<exclude>``),
+* a held object, carried rigidly by the frame that holds it, comes within ``clearance`` of nothing but the robot.
+
+Distances are MuJoCo's own: the copy's robot and held-object geoms get a collision margin (:data:`LOOKAHEAD`), so
+``mj_collision`` reports every pair nearer than that with its signed distance. A dense check of a segment advances
+conservatively: no point moves farther between two checked states than the room the last one left, nor less than
+:data:`RESOLUTION`.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from nextage_qp.geometry import Pose
+from nextage_qp.ik.kinematic_model import lever_bounds
+from nextage_qp.robots.model import Robot, robot_bodies
+
+RESOLUTION = 0.003
+"""Dense checks move no point of the robot (or of what it holds) more than this between two checked states [m],
+or no more than the room a state leaves (conservative advancement)."""
+SELF_SLOP = 0.01
+"""Two robot links count as colliding only past this penetration [m]: soft contacts between neighbouring links that a
+folded arm presses together (the robot file's excluded pairs aside) are the physics', not an obstacle's."""
+LOOKAHEAD = 0.05
+"""Distances up to this [m] are measured (MuJoCo's collision margin on the robot's and a held object's geoms): a
+state this clear of everything lets a dense check skip ahead as far."""
+
+
+@dataclass(frozen=True)
+class Held:
+    """An object the robot carries rigidly: its pose in the frame that holds it.
+
+    Attributes:
+        object: The object's body name.
+        frame: The robot frame (site or body) that carries it.
+        offset: The object's pose in that frame.
+    """
+
+    object: str
+    frame: str
+    offset: Pose
+
+
+@dataclass(frozen=True)
+class Collision:
+    """Why a state is not valid: the two bodies, the signed distance [m] and the clearance it needed [m]."""
+
+    body1: str
+    body2: str
+    distance: float
+    needed: float
+
+    def __str__(self) -> str:
+        if self.distance < 0:
+            return f"{self.body1} {-self.distance * 1e3:.0f} mm into {self.body2}"
+        return f"{self.body1} {self.distance * 1e3:.0f} mm from {self.body2} (clearance {self.needed * 1e3:g} mm)"
+
+
+class CollisionWorld:
+    """Validity of robot joint configurations against the world (see the module docstring).
+
+    Args:
+        robot: The robot in its composed scene.
+        clearance: Least distance [m] kept from obstacles and objects.
+        table_clearance: Least distance [m] kept from the table (0: touching is allowed, not penetrating).
+    """
+
+    def __init__(self, robot: Robot, clearance: float = 0.01, table_clearance: float = 0.0) -> None:
+        self.robot, self.clearance, self.table_clearance = robot, clearance, table_clearance
+        self.model = copy.copy(robot.model)
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self._robot_bodies = np.zeros(m.nbody, dtype=bool)
+        self._robot_bodies[list(robot_bodies(robot))] = True
+        groups = robot.collision_geoms()
+        self._table = np.zeros(m.nbody, dtype=bool)
+        for g in groups.get("table", ()):
+            self._table[int(m.geom_bodyid[g])] = True
+        self._objects = {name: robot.object_qpos_slice(name) for name in robot.object_names}
+        self._object_body = {name: m.body(name).id for name in robot.object_names}
+        self._below = {name: _subtree(m, m.body(name).id) for name in robot.object_names}
+        robot_geoms = self._robot_bodies[m.geom_bodyid]
+        m.geom_margin[robot_geoms] = np.maximum(m.geom_margin[robot_geoms], max(LOOKAHEAD, clearance))
+        self._base_margin = m.geom_margin.copy()
+        self._lever = lever_bounds(robot.model)[robot_geoms][:, robot.dof_idx]  # (robot geoms, joints)
+        self._robot_lever = self._lever.max(axis=0)
+        self.held: Held | None = None
+        self.allowed: frozenset[int] = frozenset()
+        self._allowed_body = np.zeros(m.nbody, dtype=bool)
+        self._near_body = np.zeros(m.nbody, dtype=bool)
+        self._held_body = np.zeros(m.nbody, dtype=bool)
+        self.checks = 0
+        """States checked so far."""
+        self.q_base = np.array(robot.keyframe_q("home"), dtype=float)
+        """Robot joints [rad] that a partial state (:meth:`full`) does not set."""
+
+    def set_world(self, poses: Mapping[str, Pose], q: np.ndarray, *, held: Held | None = None,
+                  allow: Iterable[str] = (), near: Iterable[str] = ()) -> None:
+        """Place the objects at ``poses`` (those not given stay where the model has them), the robot at ``q``.
+
+        ``held``: the object the robot carries (its pose then follows its frame); ``allow``: bodies (and their
+        subtrees) the robot may touch; ``near``: bodies it may come near (no clearance) but not touch, e.g. the
+        object a push or a grasp goes to.
+        """
+        d = self.data
+        for name, pose in poses.items():
+            if name in self._objects:
+                sl = self._objects[name]
+                quat = np.zeros(4)
+                mujoco.mju_mat2Quat(quat, np.asarray(pose.rot, dtype=float).ravel())
+                d.qpos[sl] = np.r_[pose.pos, quat]
+        self.q_base = np.array(q, dtype=float)
+        self.held = held
+        allowed: set[int] = set()
+        for name in allow:
+            bid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
+            if bid >= 0:
+                allowed |= _subtree(self.model, bid)
+        self.allowed = frozenset(allowed)
+        self._allowed_body = np.zeros(self.model.nbody, dtype=bool)
+        self._allowed_body[list(allowed)] = True
+        self._near_body = np.zeros(self.model.nbody, dtype=bool)
+        for name in near:
+            bid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
+            if bid >= 0:
+                self._near_body[list(_subtree(self.model, bid))] = True
+        self._held_body = np.zeros(self.model.nbody, dtype=bool)
+        if held is not None:
+            self._held_body[list(self._below[held.object])] = True
+        m = self.model
+        m.geom_margin[:] = self._base_margin
+        if held is not None:  # the held object keeps the clearance too
+            held_geoms = np.isin(m.geom_bodyid, list(self._below[held.object]))
+            m.geom_margin[held_geoms] = np.maximum(m.geom_margin[held_geoms], max(LOOKAHEAD, self.clearance))
+
+    def lever(self) -> np.ndarray:
+        """Per robot joint, the farthest any point it moves (a held object's included) can be from its axis [m]."""
+        if self.held is None:
+            return self._robot_lever
+        reach = float(max(self.model.geom_rbound[np.isin(self.model.geom_bodyid, list(self._below[self.held.object]))],
+                          default=0.0))
+        return self._robot_lever + reach + float(np.linalg.norm(self.held.offset.pos))
+
+    def room(self, q: np.ndarray) -> tuple[float, Collision | None]:
+        """How far [m] any point may move from robot joints ``q`` [rad] before a constraint can break.
+
+        Negative: by how much one is broken, with the worst violation (else None). Two robot links may approach
+        each other from both sides: their room is half their distance.
+        """
+        self.checks += 1
+        m, d = self.model, self.data
+        d.qpos[self.robot.qpos_idx] = q
+        if self.held is not None:
+            mujoco.mj_kinematics(m, d)
+            pose = _frame_pose(m, d, self.held.frame)
+            rot = pose.rot @ self.held.offset.rot
+            quat = np.zeros(4)
+            mujoco.mju_mat2Quat(quat, rot.ravel())
+            d.qpos[self._objects[self.held.object]] = np.r_[pose.pos + pose.rot @ self.held.offset.pos, quat]
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_collision(m, d)
+        free = LOOKAHEAD - max(self.clearance, self.table_clearance)
+        if d.ncon == 0:
+            return free, None
+        bodies = m.geom_bodyid[d.contact.geom[: d.ncon]]  # (ncon, 2)
+        dist = d.contact.dist[: d.ncon]
+        robot = self._robot_bodies[bodies]
+        held = self._held_body[bodies]
+        mine = robot | held
+        allowed = self._allowed_body[bodies].any(axis=1)
+        both = mine.all(axis=1)
+        one = mine.any(axis=1) & ~both
+        other = np.where(mine[:, 0], bodies[:, 1], bodies[:, 0])
+        table = self._table[other]
+        needed = np.where(table, self.table_clearance, np.where(self._near_body[other], 0.0, self.clearance))
+        needed = np.where(table & held.any(axis=1), 0.0, needed)  # a held object may be set down on the table
+        selfhit = both & robot.all(axis=1)  # robot links: deep penetration only
+        needed = np.where(selfhit, -SELF_SLOP, needed)
+        counted = ~allowed & (one | selfhit)
+        if not counted.any():
+            return free, None
+        slack = np.where(selfhit, 0.5 * (dist - needed), dist - needed)[counted]
+        k = int(np.argmin(slack))
+        if slack[k] >= 0:
+            return min(free, float(slack[k])), None
+        k = int(np.flatnonzero(counted)[k])
+        return float(slack.min()), Collision(_name(m, int(bodies[k, 0])), _name(m, int(bodies[k, 1])),
+                                             float(dist[k]), float(needed[k]))
+
+    def first_collision(self, q: np.ndarray) -> Collision | None:
+        """The worst violation at robot joints ``q`` [rad], or None when ``q`` is valid."""
+        return self.room(q)[1]
+
+    def valid(self, q: np.ndarray) -> bool:
+        """Whether robot joints ``q`` [rad] are a valid state."""
+        return self.first_collision(q) is None
+
+    def steps(self, qa: np.ndarray, qb: np.ndarray) -> int:
+        """How many intervals a straight joint-space segment needs for :data:`RESOLUTION`.
+
+        A robot geom moves at most its levers times the joints' travel (:func:`~nextage_qp.ik.kinematic_model.
+        lever_bounds`); a held object as far as the farthest point of the chain that carries it, plus its reach.
+        """
+        dq = np.abs(np.asarray(qb, dtype=float) - np.asarray(qa, dtype=float))
+        travel = float((self._lever @ dq).max()) if len(self._lever) else 0.0
+        if self.held is not None:
+            travel = max(travel, float(self.lever() @ dq))
+        return max(1, int(np.ceil(travel / RESOLUTION)))
+
+    def first_on_segment(self, qa: np.ndarray, qb: np.ndarray) -> tuple[float, Collision] | None:
+        """The first invalid state on the straight segment ``qa`` -> ``qb``, as (fraction, why), or None.
+
+        Dense: no point of the robot moves more than :data:`RESOLUTION` between two checked states.
+        """
+        qa, qb = np.asarray(qa, dtype=float), np.asarray(qb, dtype=float)
+        travel = self.steps(qa, qb) * RESOLUTION  # the most any point moves along the segment [m], rounded up
+        s = 0.0
+        while True:
+            room, why = self.room(qa + s * (qb - qa))
+            if why is not None:
+                return s, why
+            if s >= 1.0:
+                return None
+            s = min(1.0, s + max(room, RESOLUTION) / travel)
+
+    def first_on_path(self, path: Sequence[np.ndarray]) -> tuple[int, float, Collision] | None:
+        """The first invalid state along a path of joint waypoints: (segment, fraction, why), or None."""
+        for i in range(len(path) - 1):
+            hit = self.first_on_segment(path[i], path[i + 1])
+            if hit is not None:
+                return i, hit[0], hit[1]
+        return None
+
+
+def _subtree(model: mujoco.MjModel, body: int) -> frozenset[int]:
+    found = {body}
+    for b in range(body + 1, model.nbody):
+        if int(model.body_parentid[b]) in found:
+            found.add(b)
+    return frozenset(found)
+
+
+def _frame_pose(model: mujoco.MjModel, data: mujoco.MjData, frame: str) -> Pose:
+    sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, frame)
+    if sid >= 0:
+        return Pose(data.site_xpos[sid].copy(), data.site_xmat[sid].reshape(3, 3).copy())
+    bid = model.body(frame).id
+    return Pose(data.xpos[bid].copy(), data.xmat[bid].reshape(3, 3).copy())
+
+
+def _name(model: mujoco.MjModel, body: int) -> str:
+    return model.body(body).name or f"body {body}"

@@ -1,0 +1,149 @@
+"""The planner: collision-free joint paths in clutter, narrow passages, a held object's collisions, the new keys."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from nextage_qp.cli import main
+from nextage_qp.geometry import Pose
+from nextage_qp.manipulation.config import load_config
+from nextage_qp.manipulation.runner import build_robot
+from nextage_qp.planning.rrt import plan_path
+from nextage_qp.planning.world import RESOLUTION, CollisionWorld, Held
+
+ROOT = Path(__file__).resolve().parents[1]
+CLUTTER = ROOT / "configs" / "push_clutter.yaml"
+
+
+@pytest.fixture(scope="module")
+def cluttered():
+    cfg = load_config(CLUTTER, ["scene.clutter.count=8", "scene.clutter.seed=4"])
+    return build_robot(cfg, str(CLUTTER))
+
+
+def _arm(robot):
+    return [robot.joint_index(f"LARM_JOINT{i}") for i in range(6)]
+
+
+def _valid_samples(world, robot, n, rng):
+    home, arm, found = robot.keyframe_q("home"), _arm(robot), []
+    while len(found) < n:
+        q = home.copy()
+        q[arm] = rng.uniform(robot.lower[arm], robot.upper[arm])
+        if world.valid(q):
+            found.append(q)
+    return found
+
+
+def test_clutter_is_placed_from_its_seed_clear_of_the_objects_and_forms_a_group(cluttered):
+    robot = cluttered
+    names = [robot.model.body(b).name for b in range(robot.model.nbody)]
+    assert [n for n in names if n.startswith("clutter_")] == [f"clutter_{i}" for i in range(8)]
+    assert len(robot.collision_geoms()["clutter"]) == 8
+    again = build_robot(load_config(CLUTTER, ["scene.clutter.count=8", "scene.clutter.seed=4"]), str(CLUTTER))
+    assert np.array_equal(again.model.body_pos, robot.model.body_pos)  # the same seed, the same clutter
+    other = build_robot(load_config(CLUTTER, ["scene.clutter.count=8", "scene.clutter.seed=5"]), str(CLUTTER))
+    assert not np.array_equal(other.model.body_pos, robot.model.body_pos)
+    cube = robot.model.body("cube").pos[:2]
+    for i in range(8):
+        assert np.linalg.norm(robot.model.body(f"clutter_{i}").pos[:2] - cube) > 0.05
+
+
+def test_a_planned_path_checked_at_a_finer_resolution_never_collides(cluttered):
+    robot = cluttered
+    world = CollisionWorld(robot, clearance=0.01)
+    world.set_world({}, robot.keyframe_q("home"))
+    fine = CollisionWorld(robot, clearance=0.0)  # a finer check, at a third of the planner's resolution
+    fine.set_world({}, robot.keyframe_q("home"))
+    rng = np.random.default_rng(3)
+    planned = 0
+    for k in range(12):
+        a, b = _valid_samples(world, robot, 2, rng)
+        plan = plan_path(world, a, b, lower=robot.lower, upper=robot.upper, seed=k + 1, straight_first=False,
+                         time_limit=2.0)
+        if not plan.found:
+            continue
+        planned += 1
+        for qa, qb in zip(plan.path, plan.path[1:], strict=False):
+            n = 3 * world.steps(qa, qb)
+            for s in np.linspace(0.0, 1.0, n + 1):
+                assert fine.first_collision(qa + s * (qb - qa)) is None
+    assert planned >= 8
+    assert RESOLUTION <= 0.005
+
+
+class _Slot:
+    """A joint space (7 joints) split by a wall at q0 = 0 with one slot 0.04 rad wide in q1 (and the checker's API)."""
+
+    checks = 0
+
+    def valid(self, q):
+        self.checks += 1
+        return not (abs(q[0]) < 0.05 and abs(q[1] - 0.6) > 0.02)
+
+    def first_collision(self, q):
+        return None if self.valid(q) else "wall"
+
+    def first_on_segment(self, qa, qb):
+        for s in np.linspace(0.0, 1.0, 400):
+            if not self.valid(qa + s * (qb - qa)):
+                return s, "wall"
+        return None
+
+    def first_on_path(self, path):
+        for i in range(len(path) - 1):
+            if (hit := self.first_on_segment(path[i], path[i + 1])) is not None:
+                return i, hit[0], hit[1]
+        return None
+
+
+def test_a_narrow_passage_a_slot_through_a_wall_is_found():
+    world = _Slot()
+    lower, upper = np.full(7, -1.0), np.full(7, 1.0)
+    a, b = np.array([-0.8, -0.5, 0, 0, 0, 0, 0]), np.array([0.8, -0.5, 0, 0, 0, 0, 0])
+    plan = plan_path(world, a, b, lower=lower, upper=upper, time_limit=5.0, joints=range(7))
+    assert plan.status == "planned", plan.reason()
+    crossing = [q for q in plan.path if abs(q[0]) < 0.05]
+    assert world.first_on_path(plan.path) is None
+    assert all(abs(q[1] - 0.6) <= 0.02 for q in crossing)
+
+
+def test_a_held_object_blocks_a_path_that_drags_it_through_an_obstacle():
+    cfg = load_config(ROOT / "configs" / "push_cube.yaml", [
+        "scene.objects.post={shape: box, size: [0.02, 0.02, 0.03], pos: [0.59, 0.12]}"])
+    robot = build_robot(cfg, "post")
+    world = CollisionWorld(robot, clearance=0.005)
+    home = robot.keyframe_q("home")
+    sweep = home.copy()
+    sweep[robot.joint_index("LARM_JOINT0")] -= 0.5  # the left hand swings across the table towards the middle
+    world.set_world({}, home)
+    hand = Pose(np.zeros(3), np.eye(3))
+    free = world.first_on_segment(home, sweep)
+    post = robot.model.body("post")
+    # the same sweep, carrying the cube 12 cm under the tool: it hangs below the post's top, the hand above it
+    world.set_world({}, home, held=Held("cube", "left_tool", Pose(np.array([0.0, 0.0, -0.12]), hand.rot)))
+    blocked = world.first_on_segment(home, sweep)
+    assert free is None, free
+    assert blocked is not None and "post" in (blocked[1].body1 + blocked[1].body2), blocked
+    assert post.name == "post"
+    plan = plan_path(world, home, sweep, lower=robot.lower, upper=robot.upper, time_limit=2.0)
+    assert not plan.found or world.first_on_path(plan.path) is None
+
+
+@pytest.mark.parametrize(("override", "says"), [
+    ("scene.clutter.count=-1", "scene.clutter.count"),
+    ("scene.clutter.size=[0.05, 0.02]", "size"),
+    ("scene.clutter.region=[[0.8, 0.0], [0.2, 0.3]]", "region"),
+    ("scene.clutter.shapes=[cone]", "scene.clutter.shapes"),
+    ("scene.clutter.keep_out=nan", "scene.clutter.keep_out"),
+    ("planning.clearance=-0.01", "planning.clearance"),
+    ("planning.time_limit=0", "planning.time_limit"),
+    ("success.clutter_contacts=-1", "success.clutter_contacts"),
+    ("phases[0].plan=sometimes", "phases[0].plan"),
+    ("scene.clutter.count=40", "scene.clutter: placed"),
+])
+def test_every_planning_and_clutter_key_is_validated_in_one_line(override, says, capsys):
+    assert main(["run", str(CLUTTER), "--set", override]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and says in err[0], err
