@@ -147,3 +147,36 @@ def test_every_planning_and_clutter_key_is_validated_in_one_line(override, says,
     assert main(["run", str(CLUTTER), "--set", override]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and says in err[0], err
+
+
+def test_touching_the_clutter_is_counted_per_physics_step_and_judged(cluttered):
+    """The monitor counts a step in which a robot link touches a clutter body; the criterion judges the count."""
+    from types import SimpleNamespace
+
+    import mujoco
+
+    from nextage_qp.manipulation.config import SuccessCriteria
+    from nextage_qp.manipulation.metrics import ObjectState, OutcomeMonitor, judge
+
+    robot = cluttered
+    monitor = OutcomeMonitor(robot, "cube")
+    assert monitor.has_clutter
+    data = mujoco.MjData(robot.model)
+    data.qpos[robot.qpos_idx] = robot.keyframe_q("home")
+    mujoco.mj_forward(robot.model, data)
+    monitor.on_clutter_step(SimpleNamespace(data=data))
+    assert monitor.clutter_contacts == 0  # clutter stands clear of the start posture
+    piece = robot.model.body("clutter_0")
+    hand = robot.model.body("LARM_JOINT5_Link").id
+    where = robot.model.body_pos[piece.id].copy()
+    try:
+        robot.model.body_pos[piece.id] = data.xpos[hand]
+        mujoco.mj_forward(robot.model, data)
+        monitor.on_clutter_step(SimpleNamespace(data=data))
+    finally:
+        robot.model.body_pos[piece.id] = where  # the fixture's model is shared
+    assert monitor.clutter_contacts == 1
+    state = ObjectState(np.zeros(3), np.zeros(3), 0.0, 0.0, 0.0, 0.0, True)
+    verdict = judge(SuccessCriteria(clutter_contacts=0), state, completed=True, dropped=False, limit_violations=0,
+                    obstacle_contacts=0, clutter_contacts=monitor.clutter_contacts)
+    assert verdict["clutter_contacts"] == {"value": 1, "limit": 0, "ok": False}

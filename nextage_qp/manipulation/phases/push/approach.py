@@ -75,14 +75,14 @@ def routes(view: View, spec, tool: np.ndarray, d: np.ndarray, raise_by: float = 
 
 def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: Sequence[float],
                   target: Callable[[np.ndarray, float], FrameTarget], higher: bool | float = False,
-                  extra: Sequence[tuple[FrameTarget, ...]] = ()) -> Approach | None:
+                  extra: Sequence[tuple[FrameTarget, ...]] = (), blocked: list[str] | None = None) -> Approach | None:
     """The approach closest to the planar direction ``wanted`` within ``fan`` [rad] that the arm reaches, or None.
 
     ``spec`` is the push's spec (frame, object, approach, height, clearance, yaw); ``target(pos, yaw)`` the tool
     target at ``pos`` for a push at ``yaw``. With ``higher`` True, a push out of reach at its height is tried higher
     (:func:`raises`); a number: the push goes that much higher (as an earlier approach found it had to). ``extra``
     targets join the route's waypoints (the k-th of them the k-th waypoint, the last all later ones): another frame
-    going home.
+    going home. ``blocked`` gathers why routes the arm reaches had no collision-free leg.
     """
     tried = 0
     heights = raises(view, spec) if higher is True else [float(higher)]  # a number: that raise only
@@ -97,6 +97,8 @@ def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: S
                                             for k, p in enumerate(route[1:])], plan=spec.plan, near=(spec.object,))
                     if planned.plan(view, restarts=restarts):
                         return Approach(d, route[0], yaw, planned, float(route[-1][2]), tried, raise_by)
+                    if planned.blocked is not None and blocked is not None:
+                        blocked.append(planned.blocked)
     return None
 
 

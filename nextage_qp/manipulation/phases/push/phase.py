@@ -145,6 +145,7 @@ class Push(Phase):
     nudges: int  # nudges on this approach
     full: bool  # the next approach may use the whole fan, not only spec.correction_fan
     plan_failed: bool  # the last approach found no reachable direction
+    blocked: str | None  # why the last route the arm reached had no collision-free leg, when no approach was found
     planned_at: np.ndarray  # the object's planar position the approach was planned for [m]
     raised: float  # the first approach's raise over the push height, which later ones keep [m]
     d: np.ndarray  # the planar unit push direction
@@ -222,7 +223,9 @@ class Push(Phase):
         self.nudges = 0
         fan = c.fan if self.approaches == 1 or full else tuple(a for a in c.fan if a <= c.correction_fan)
         higher: bool | float = True if self.approaches == 1 else self.raised  # later ones at the first one's height
-        plan = plan_approach(view, c, self.sp.pos, d_goal, fan, self._target, higher=higher)
+        blocked: list[str] = []
+        plan = plan_approach(view, c, self.sp.pos, d_goal, fan, self._target, higher=higher, blocked=blocked)
+        self.blocked = blocked[-1] if blocked and plan is None else None
         if self.approaches > 1 and c.other_frames:  # a correction: the tool that reaches nearest the error pushes
             handover = plan_handover(view, c, self.frame, d_goal, fan, self._target, higher, plan)
             if handover is not None:
@@ -424,7 +427,8 @@ class Push(Phase):
         return self.failure(f"no approach to {c.object} ({tall:.0f} mm tall) within "
                           f"{np.degrees(max(c.fan)):.0f} deg of its line to {c.target} is reachable by {self.frame}: "
                           "out of the arm's reach at the push height, lower than the hand reaches down, or a tool "
-                          "point inside the hand, which then collides with the object (docs/robots.md)")
+                          "point inside the hand, which then collides with the object (docs/robots.md)"
+                          + (f"; the last route the arm reached is blocked: {self.blocked}" if self.blocked else ""))
 
     def _finish(self, err: float, cause: str = "") -> Command:
         """Nothing left to try: accept the error within ``accept`` (retreat and end) or fail (saying why: ``cause``)."""
@@ -493,7 +497,8 @@ class Push(Phase):
         if self.plan_failed:  # no reachable side to correct from
             self.info["unreachable_corrections"] = self.info.get("unreachable_corrections", 0) + 1
             _, _, err = self._planar(view)
-            return self._finish(err, f": no side to push it from towards {c.target} is within the robot's reach")
+            why = f" (the last route the arm reached is blocked: {self.blocked})" if self.blocked else ""
+            return self._finish(err, f": no side to push it from towards {c.target} is within the robot's reach{why}")
         if not self._worth_it(view):  # an accepted error, and a correction that could not reach the tolerance: keep it
             self.info["declined_corrections"] = self.info.get("declined_corrections", 0) + 1
             self.stage, self.final, self.approaches = Stage.RETREAT, True, self.approaches - 1
