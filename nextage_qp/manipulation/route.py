@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -24,8 +25,10 @@ from nextage_qp.ik import FrameTarget
 from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import Setpoint, View
 
-PLAN_MODES = ("auto", "always", "never")
+PlanMode = Literal["auto", "always", "never"]
 """``plan``: a leg planned where its straight segment is blocked, every leg planned, or none."""
+PLAN_MODES: tuple[str, ...] = get_args(PlanMode)
+"""The values of :data:`PlanMode`."""
 VIA_TOL = 0.01
 """A planned path's intermediate waypoint counts as reached when every joint is this close [rad] and settled."""
 
@@ -55,7 +58,7 @@ class PlannedRoute:
     """
 
     def __init__(self, waypoints: Sequence[Sequence[FrameTarget]], straight: Sequence[bool] | None = None,
-                 speed: float = 0.05, pos_tol: float | None = None, continuous: bool = False, plan: str = "auto",
+                 speed: float = 0.05, pos_tol: float | None = None, continuous: bool = False, plan: PlanMode = "auto",
                  near: Sequence[str] = ()) -> None:
         self.waypoints = [tuple(w) for w in waypoints]
         self.straight = list(straight) if straight is not None else [False] * len(self.waypoints)

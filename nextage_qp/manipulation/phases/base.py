@@ -25,6 +25,13 @@ from nextage_qp.manipulation.context import Grip, View, refusal
 __all__ = ["MAX_SECONDS", "NameKind", "Phase", "Spec", "name_field"]
 
 
+
+def plan_field() -> Any:
+    """The ``plan`` key of a phase with a planned transit (push, grasp)."""
+    return Field(default="auto", description="The transit's joint-space legs: planned around obstacles where the "
+                                             "straight leg would touch one (auto), always planned, or driven straight "
+                                             "(never).")
+
 class Spec(YamlModel):
     """Fields every phase has; subclasses add ``kind: Literal[...]`` and their own."""
 

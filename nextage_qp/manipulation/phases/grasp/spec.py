@@ -6,7 +6,8 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from nextage_qp.manipulation.phases.base import MAX_SECONDS, Spec, name_field
+from nextage_qp.manipulation.phases.base import MAX_SECONDS, Spec, name_field, plan_field
+from nextage_qp.manipulation.route import PlanMode
 
 SIDES = (1.0, -1.0)
 """The first pad sits on the +y side of the object's heading, the second on the -y side."""
@@ -55,9 +56,7 @@ class GraspSpec(Spec):
     max_squeeze: float = Field(default=0.02, gt=0, le=0.1,
                                description="Deepest pad target inside the surface before the grasp fails [m].")
     hold: float = Field(default=0.5, ge=0, le=MAX_SECONDS, description="Time the force is held [s].")
-    plan: Literal["auto", "always", "never"] = Field(
-        default="auto", description="The transit's joint-space legs: planned around obstacles where the straight leg "
-                                    "would touch one (auto), always planned, or driven straight (never).")
+    plan: PlanMode = plan_field()
     off_centre: float = Field(default=0.0, ge=0, le=0.2,
                               description="Farthest the pads may clamp off the centre of the faces, along them, "
                                           "where the centre is out of reach at the object or at the placement [m].")

@@ -7,7 +7,8 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from nextage_qp.manipulation.phases.base import MAX_SECONDS, Spec, name_field
+from nextage_qp.manipulation.phases.base import MAX_SECONDS, Spec, name_field, plan_field
+from nextage_qp.manipulation.route import PlanMode
 
 PUSH_ACCEL = 0.1
 """Acceleration of the push speed [m/s²]."""
@@ -86,9 +87,7 @@ class PushSpec(Spec):
                             description="Object tilt above which the push pauses until it is flat again [rad].")
     settle: float = Field(default=0.3, ge=0, le=MAX_SECONDS, description="Rest before the error is judged [s].")
     yaw: float = Field(default=0.0, ge=-np.pi, le=np.pi, description="Tool yaw relative to the push [rad].")
-    plan: Literal["auto", "always", "never"] = Field(
-        default="auto", description="The transit's joint-space legs: planned around obstacles where the straight leg "
-                                    "would touch one (auto), always planned, or driven straight (never).")
+    plan: PlanMode = plan_field()
     orient: Literal["full", "normal"] = Field(
         default="full", description="Hold the tool's whole rotation (x: the push, z: up), or only its face normal "
                                     "(x) along the push: for arms with too few joints for both, a roll is harmless.")
