@@ -63,8 +63,8 @@ def what_holds(contacts: list[tuple[str, str, float]], clamped: list[tuple[str, 
                limits: list[tuple[str, str]], *, most: int = 3) -> str:
     """One clause naming what may hold a motion up (empty when nothing does), e.g.
 
-    ``in contact: LARM_JOINT2_Link-CHEST_JOINT0_Link 84 N; torque saturated: LARM_JOINT0 97 % of the phase; at a
-    limit: LARM_JOINT3 (upper)``.
+    ``in contact: elbow_link-torso_link 84 N; torque saturated: shoulder_pitch 97 % of the phase; at a
+    limit: elbow (upper)``.
     """
     parts = []
     pressing = [c for c in contacts if c[2] >= CONTACT_MIN_N]
@@ -81,7 +81,7 @@ def limit_violation(names: Sequence[str], t: np.ndarray, q: np.ndarray, lower: n
                     tolerance: float) -> str | None:
     """The worst excursion past a joint limit in a log, in words (None: none beyond ``tolerance``).
 
-    ``t`` [s] (k,), ``q`` (k, joints) [rad or m]: e.g. ``LARM_JOINT3 12.3 mrad past its upper limit (worst at
+    ``t`` [s] (k,), ``q`` (k, joints) [rad or m]: e.g. ``elbow 12.3 mrad past its upper limit (worst at
     t=3.410 s, first past at t=3.396 s, 7 ticks)``.
     """
     if not len(q):

@@ -128,7 +128,7 @@ class SimView:
             pad, obj = self.commanded_pose(frame), self.body_pose(self.grip.object)
             held = Held(self.grip.object, frame, Pose(pad.rot.T @ (obj.pos - pad.pos), pad.rot.T @ obj.rot))
         for world in self._worlds:
-            world.set_world(poses, qa, held=held, near=near)
+            world.set_world(poses, qa, held=held, near=near, qpos=self._sim.data.qpos)
         touch, keep = self._worlds
         seed = 1 + len(self.plans)  # a run's plans repeat: each seeded by its place in the run
         if not always and touch.first_on_segment(qa, qb) is None:

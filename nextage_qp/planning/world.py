@@ -9,6 +9,8 @@ robot does not hold at its measured pose. A state is valid when
   the model's and the robot file's excluded pairs are MuJoCo's ``<exclude>``),
 * a held object, carried rigidly by the frame that holds it, comes within ``clearance`` of nothing but the robot.
 
+The ground (the world body's own geoms) is not an obstacle: a wheeled base stands on it.
+
 Distances are MuJoCo's own: the copy's robot and held-object geoms get a collision margin (:data:`LOOKAHEAD`), so
 ``mj_collision`` reports every pair nearer than that with its signed distance. A dense check of a segment advances
 conservatively: no point moves farther between two checked states than the room the last one left, nor less than
@@ -108,14 +110,16 @@ class CollisionWorld:
         """Robot joints [rad] that a partial state (:meth:`full`) does not set."""
 
     def set_world(self, poses: Mapping[str, Pose], q: np.ndarray, *, held: Held | None = None,
-                  allow: Iterable[str] = (), near: Iterable[str] = ()) -> None:
+                  allow: Iterable[str] = (), near: Iterable[str] = (), qpos: np.ndarray | None = None) -> None:
         """Place the objects at ``poses`` (those not given stay where the model has them), the robot at ``q``.
 
         ``held``: the object the robot carries (its pose then follows its frame); ``allow``: bodies (and their
         subtrees) the robot may touch; ``near``: bodies it may come near (no clearance) but not touch, e.g. the
-        object a push or a grasp goes to.
+        object a push or a grasp goes to; ``qpos``: the whole state to start from (a mobile robot's base where it is).
         """
         d = self.data
+        if qpos is not None:
+            d.qpos[:] = qpos
         for name, pose in poses.items():
             if name in self._objects:
                 sl = self._objects[name]
@@ -189,7 +193,7 @@ class CollisionWorld:
         needed = np.where(table & held.any(axis=1), 0.0, needed)  # a held object may be set down on the table
         selfhit = both & robot.all(axis=1)  # robot links: deep penetration only
         needed = np.where(selfhit, -SELF_SLOP, needed)
-        counted = ~allowed & (one | selfhit)
+        counted = ~allowed & (one | selfhit) & (bodies != 0).all(axis=1)  # the ground: wheels stand on it
         if not counted.any():
             return free, None
         slack = np.where(selfhit, 0.5 * (dist - needed), dist - needed)[counted]
