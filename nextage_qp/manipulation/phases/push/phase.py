@@ -61,6 +61,8 @@ from nextage_qp.manipulation.phases.push.spec import (
     PUSH_ACCEL,
     SEEN_S,
     STEER_GAIN,
+    STUCK_M,
+    STUCK_S,
     TIPPING_SHARE,
     VELOCITY_WINDOW,
     PushSpec,
@@ -165,6 +167,8 @@ class Push(Phase):
     last_obj: np.ndarray | None  # the object's last planar position [m]
     obj_v: np.ndarray  # low-pass planar velocity of the object [m/s]
     hold_from: float  # when the hold began [s]
+    nearest: float  # the object's least distance to the target in this push [m]
+    nearest_at: float | None  # when it last came STUCK_M nearer [s]
     # retreat
     route: list[np.ndarray]  # the retreat's waypoints [m]
     leg: int  # the next waypoint's index
@@ -314,6 +318,7 @@ class Push(Phase):
         self.contact.restart()  # the last push's contact is stale: _felt reads it before this push's first reading
         self.last_obj: np.ndarray | None = None
         self.obj_v = np.zeros(2)
+        self.nearest, self.nearest_at = np.inf, None
 
     def _track(self, view: RunState, obj: np.ndarray) -> None:
         """Low-pass estimate of the object's planar velocity [m/s]."""
@@ -371,6 +376,14 @@ class Push(Phase):
         tilted = float(np.arccos(clamp(float(np.abs(obj_pose.rot[2]).max()), -1.0, 1.0))) > c.max_tilt
         lead = 0.0 if tilted else c.preload  # a tipping object gets no push until it is flat again
         self.info["tilt_pauses"] = self.info.get("tilt_pauses", 0) + int(tilted)
+        if dist < self.nearest - STUCK_M or self.nearest_at is None or tilted or not self.touched:
+            self.nearest, self.nearest_at = min(dist, self.nearest), view.t
+        elif view.t - self.nearest_at > STUCK_S:  # in contact and going nowhere: back off and approach again
+            self.info["stuck"] = self.info.get("stuck", 0) + 1
+            self.next_d, self.full = unit2((tgt - obj)[:2]), True
+            if self.approaches < c.attempts:
+                return self._start_retreat(final=False)
+            return self._finish(dist, f": the push stuck for {STUCK_S:g} s, the object going no nearer its target")
         along = min(along + self.v * view.dt, -half + lead)
         if self.touched:  # in contact, recentre only near the face's edge (sliding along it drags the object)
             excess = lateral - clamp(lateral, -c.centre_band, c.centre_band)

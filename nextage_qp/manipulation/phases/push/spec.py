@@ -47,6 +47,11 @@ LOOK_AGAIN = 2
 """Times the tool moves on by ``ASIDE`` when the camera still does not see the object ``LOOK_S`` after the last move:
 judged on an estimate unseen for seconds, a push may be taken for centimetres off (an estimate coasts on after a
 partial view as the hand rises)."""
+STUCK_S = 10.0
+"""A push in contact whose object comes no ``STUCK_M`` nearer its target for this long [s] is stuck (the arm held by
+an obstacle it must keep clear of, say): the tool backs off and approaches again."""
+STUCK_M = 0.002
+"""Progress [m] towards the target that counts as the push moving."""
 TIPPING_SHARE = 0.25
 """A push that times out having paused this share of its ``timeout`` for a tipping object says so."""
 LOST_GAP = 0.03
