@@ -420,3 +420,24 @@ def test_a_failure_inside_a_phase_names_the_phase():
         "scene.objects.box.mass=0.3"]).record
     assert not result["success"]
     assert result["error"].startswith("phase 'lift over the wall and set down on the target' (place): the clamp lost")
+
+
+def test_a_push_in_contact_that_goes_nowhere_backs_off_and_approaches_again_then_fails_saying_it_stuck():
+    """A cube held where it is (the arm pinned beside an obstacle, say): no timeout waited out, a re-approach each
+    STUCK_S, and with none left a failure that says the push stuck."""
+    from nextage_qp.manipulation.phases.push.spec import STUCK_S
+
+    view = push_view()
+    phase = make("push", frame="left_tool", object="cube", target="cube_target", height=0.008, clearance=0.05,
+                 attempts=2, timeout=300.0)
+    phase.start(view)
+    stuck_at = []
+
+    def watch(_cmd):  # the tool's contact is felt (geometry), the cube never moves
+        if phase.info.get("stuck", 0) > len(stuck_at):
+            stuck_at.append(view.t)
+
+    with pytest.raises(PhaseError, match=f"the push stuck for {STUCK_S:g} s"):
+        run_until_done(phase, view, each=watch)
+    assert phase.info["stuck"] == 2 and phase.info["attempts"] == 2
+    assert stuck_at[0] < 60.0  # long before any timeout
