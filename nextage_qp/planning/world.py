@@ -92,7 +92,6 @@ class CollisionWorld:
         for g in groups.get("table", ()):
             self._table[int(m.geom_bodyid[g])] = True
         self._objects = {name: robot.object_qpos_slice(name) for name in robot.object_names}
-        self._object_body = {name: m.body(name).id for name in robot.object_names}
         self._below = {name: _subtree(m, m.body(name).id) for name in robot.object_names}
         robot_geoms = self._robot_bodies[m.geom_bodyid]
         m.geom_margin[robot_geoms] = np.maximum(m.geom_margin[robot_geoms], max(LOOKAHEAD, clearance))
@@ -106,8 +105,6 @@ class CollisionWorld:
         self._held_body = np.zeros(m.nbody, dtype=bool)
         self.checks = 0
         """States checked so far."""
-        self.q_base = np.array(robot.keyframe_q("home"), dtype=float)
-        """Robot joints [rad] that a partial state (:meth:`full`) does not set."""
 
     def set_world(self, poses: Mapping[str, Pose], q: np.ndarray, *, held: Held | None = None,
                   allow: Iterable[str] = (), near: Iterable[str] = (), qpos: np.ndarray | None = None) -> None:
@@ -120,13 +117,13 @@ class CollisionWorld:
         d = self.data
         if qpos is not None:
             d.qpos[:] = qpos
+        d.qpos[self.robot.qpos_idx] = q
         for name, pose in poses.items():
             if name in self._objects:
                 sl = self._objects[name]
                 quat = np.zeros(4)
                 mujoco.mju_mat2Quat(quat, np.asarray(pose.rot, dtype=float).ravel())
                 d.qpos[sl] = np.r_[pose.pos, quat]
-        self.q_base = np.array(q, dtype=float)
         self.held = held
         allowed: set[int] = set()
         for name in allow:
