@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from functools import partial
 from typing import Any
 
@@ -33,6 +33,7 @@ from nextage_qp.manipulation.placement import Placement, check_placement
 from nextage_qp.manipulation.sim_view import SimView
 from nextage_qp.mobile.build import BASE_BODY
 from nextage_qp.mobile.odometry import base_report
+from nextage_qp.planning.rrt import PathPlan
 from nextage_qp.robots.check_report import check_own_names
 from nextage_qp.robots.description import load_robot
 from nextage_qp.robots.gains import load_gains, robot_gains
@@ -304,6 +305,7 @@ class Runner:
                                 "estimation": None if self.sensors is None else self.sensors.report(
                                     self.shoves.windows(SHOVE_SETTLE_S) if self.shoves is not None else ()),
                                 "shoves": self.shoves.applied if self.shoves is not None else [],
+                                "planning": plan_report(self.view.plans),
                                 **({"base": base_report(self.sim.base.log, self.robot.base)}
                                    if self.sim.base is not None and self.robot.base is not None else {})})
         where, true = source_of(c), out.get("object_error_xy_m")
@@ -311,6 +313,13 @@ class Runner:
             out["error"] += (f" [{c.object}'s pose as estimated ({where} perception); it truly ends "
                              f"{true * 1e3:.1f} mm from {c.target} in the plane]")
         return out
+
+
+def plan_report(plans: Sequence[PathPlan]) -> dict[str, Any]:
+    """The run's transit checks and plans: how many legs were checked, planned and refused, and the time [s]."""
+    return {"legs_checked": len(plans), "legs_planned": sum(p.status == "planned" for p in plans),
+            "legs_without_path": sum(not p.found for p in plans),
+            "time_s": round(sum(p.time_s for p in plans), 4)}
 
 
 def _brief(info: dict[str, Any]) -> str:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 
 import mujoco
@@ -131,8 +132,9 @@ class SimView:
             world.set_world(poses, qa, held=held, near=near, qpos=self._sim.data.qpos)
         touch, keep = self._worlds
         seed = 1 + len(self.plans)  # a run's plans repeat: each seeded by its place in the run
+        t0, checks0 = time.perf_counter(), touch.checks
         if not always and touch.first_on_segment(qa, qb) is None:
-            plan = PathPlan([qa, qb], "straight")
+            plan = PathPlan([qa, qb], "straight", time_s=time.perf_counter() - t0, checks=touch.checks - checks0)
         else:
             names = self.robot.joint_names
             moving = {names[j] for j in np.flatnonzero(np.abs(qb - qa) > 1e-6)}
