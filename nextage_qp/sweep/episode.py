@@ -24,7 +24,7 @@ task's, so the sweep runs it again once, and ``--resume`` runs it again, and it 
 UNRATED = ("refused", "lost")
 """Statuses that count in no success rate: a scene refused before moving, an episode whose process was lost."""
 
-TIMING_KEYS = ("wall_time_s", "real_time_factor", "physics_share")
+TIMING_KEYS = ("wall_time_s", "real_time_factor", "physics_share", "planning_time_s")
 """Result fields that measure the machine, not the episode (left out when episodes are compared)."""
 
 
