@@ -92,17 +92,16 @@ class CollisionWorld:
         for g in groups.get("table", ()):
             self._table[int(m.geom_bodyid[g])] = True
         self._objects = {name: robot.object_qpos_slice(name) for name in robot.object_names}
-        self._below = {name: _subtree(m, m.body(name).id) for name in robot.object_names}
         robot_geoms = self._robot_bodies[m.geom_bodyid]
         m.geom_margin[robot_geoms] = np.maximum(m.geom_margin[robot_geoms], max(LOOKAHEAD, clearance))
         self._base_margin = m.geom_margin.copy()
         self._lever = lever_bounds(robot.model)[robot_geoms][:, robot.dof_idx]  # (robot geoms, joints)
         self._robot_lever = self._lever.max(axis=0)
         self.held: Held | None = None
-        self.allowed: frozenset[int] = frozenset()
         self._allowed_body = np.zeros(m.nbody, dtype=bool)
         self._near_body = np.zeros(m.nbody, dtype=bool)
         self._held_body = np.zeros(m.nbody, dtype=bool)
+        self._held_reach = 0.0
         self.checks = 0
         """States checked so far."""
 
@@ -125,35 +124,30 @@ class CollisionWorld:
                 mujoco.mju_mat2Quat(quat, np.asarray(pose.rot, dtype=float).ravel())
                 d.qpos[sl] = np.r_[pose.pos, quat]
         self.held = held
-        allowed: set[int] = set()
-        for name in allow:
-            bid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
-            if bid >= 0:
-                allowed |= _subtree(self.model, bid)
-        self.allowed = frozenset(allowed)
-        self._allowed_body = np.zeros(self.model.nbody, dtype=bool)
-        self._allowed_body[list(allowed)] = True
-        self._near_body = np.zeros(self.model.nbody, dtype=bool)
-        for name in near:
-            bid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
-            if bid >= 0:
-                self._near_body[list(_subtree(self.model, bid))] = True
-        self._held_body = np.zeros(self.model.nbody, dtype=bool)
-        if held is not None:
-            self._held_body[list(self._below[held.object])] = True
+        self._allowed_body = self._subtrees(allow)
+        self._near_body = self._subtrees(near)
+        self._held_body = self._subtrees([held.object] if held is not None else [])
         m = self.model
         m.geom_margin[:] = self._base_margin
+        self._held_reach = 0.0
         if held is not None:  # the held object keeps the clearance too
-            held_geoms = np.isin(m.geom_bodyid, list(self._below[held.object]))
+            held_geoms = self._held_body[m.geom_bodyid]
             m.geom_margin[held_geoms] = np.maximum(m.geom_margin[held_geoms], max(LOOKAHEAD, self.clearance))
+            self._held_reach = float(max(m.geom_rbound[held_geoms], default=0.0)) + float(
+                np.linalg.norm(held.offset.pos))
+
+    def _subtrees(self, names: Iterable[str]) -> np.ndarray:
+        """Boolean body mask of the named bodies and every body below them (names the model lacks are skipped)."""
+        mask = np.zeros(self.model.nbody, dtype=bool)
+        for name in names:
+            bid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
+            if bid >= 0:
+                mask[list(_subtree(self.model, bid))] = True
+        return mask
 
     def lever(self) -> np.ndarray:
         """Per robot joint, the farthest any point it moves (a held object's included) can be from its axis [m]."""
-        if self.held is None:
-            return self._robot_lever
-        reach = float(max(self.model.geom_rbound[np.isin(self.model.geom_bodyid, list(self._below[self.held.object]))],
-                          default=0.0))
-        return self._robot_lever + reach + float(np.linalg.norm(self.held.offset.pos))
+        return self._robot_lever + self._held_reach  # a held object: as far again as it reaches from its pad
 
     def room(self, q: np.ndarray) -> tuple[float, Collision | None]:
         """How far [m] any point may move from robot joints ``q`` [rad] before a constraint can break.
