@@ -17,7 +17,7 @@ import numpy as np
 
 from nextage_qp.errors import ConfigError, InfeasibleError
 from nextage_qp.kinematics.frames import Kinematics
-from nextage_qp.robots.model import Robot
+from nextage_qp.robots.model import CLUTTER_GROUP, Robot
 
 OVERLAP_TOLERANCE = 1e-4
 """Penetration [m] below which two geoms count as touching, not overlapping."""
@@ -56,8 +56,9 @@ def table_top(robot: Robot, data: mujoco.MjData) -> tuple[float, list[int]]:
 
 
 def obstacle_top(robot: Robot, data: mujoco.MjData) -> float:
-    """Height [m] of the highest point of the obstacle geoms (the table top when the scene has none)."""
-    geoms = list(robot.collision_geoms().get("obstacle", ()))
+    """Height [m] of the highest point of the obstacle and clutter geoms (the table top when the scene has none)."""
+    groups = robot.collision_geoms()
+    geoms = [*groups.get("obstacle", ()), *groups.get(CLUTTER_GROUP, ())]
     if not geoms:
         return table_top(robot, data)[0]
     m = robot.model

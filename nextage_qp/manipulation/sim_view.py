@@ -42,7 +42,7 @@ class SimView:
                  planning: PlanningConfig | None = None) -> None:
         self.robot, self._sim, self._servo, self.qd_tol = robot, sim, servo, qd_tol
         self.planning = planning or PlanningConfig()
-        self._worlds: tuple[CollisionWorld, CollisionWorld] | None = None
+        self._worlds: dict[float, CollisionWorld] = {}  # by clearance: 0 tells a touch
         self.plans: list[PathPlan] = []
         """Every path planned in this run (straight checks included), in order."""
         self.dt = sim.ctrl_dt
@@ -115,25 +115,40 @@ class SimView:
                                      restarts=None if restarts else 0)
         return result.q if result.pos_err_m <= tol and result.rot_err_rad <= REACH_ROT_TOL else None
 
-    def plan_path(self, q_start: np.ndarray, q_goal: np.ndarray, *, near: Sequence[str] = (),  # noqa: D102
-                  always: bool = False) -> PathPlan:
-        if self._worlds is None:  # one collision world to tell a touch, one keeping the clearance to plan in
-            cfg = self.planning
-            self._worlds = (CollisionWorld(self.robot, 0.0, 0.0),
-                            CollisionWorld(self.robot, cfg.clearance, cfg.table_clearance))
-        qa, qb = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
+    def _worlds_at(self, q: np.ndarray, near: Sequence[str] = (),
+                   clearance: float | None = None) -> tuple[CollisionWorld, CollisionWorld]:
+        """Two collision worlds as believed now, the robot at ``q``: one to tell a touch, one keeping ``clearance``
+        (default: the planning config's)."""
+        cfg = self.planning
+        keep = cfg.clearance if clearance is None else clearance
+        for c in (0.0, keep):
+            if c not in self._worlds:
+                self._worlds[c] = CollisionWorld(self.robot, c, cfg.table_clearance if c > 0 else 0.0)
+        worlds = (self._worlds[0.0], self._worlds[keep])
         poses = {name: Pose(p.pos, p.rot) for name, p in self._sim.measured.objects.items()}
         held = None
         if self.grip is not None:  # the held object moves with the first pad, as it sits in it now
             frame = self.grip.frames[0]
             pad, obj = self.commanded_pose(frame), self.body_pose(self.grip.object)
             held = Held(self.grip.object, frame, Pose(pad.rot.T @ (obj.pos - pad.pos), pad.rot.T @ obj.rot))
-        for world in self._worlds:
-            world.set_world(poses, qa, held=held, near=near, qpos=self._sim.data.qpos)
-        touch, keep = self._worlds
+        for world in worlds:
+            world.set_world(poses, q, held=held, near=near, qpos=self._sim.data.qpos)
+        return worlds
+
+    def path_blocked(self, path: Sequence[np.ndarray], clearance: float | None = None,  # noqa: D102
+                     near: Sequence[str] = ()) -> str | None:
+        keep = self._worlds_at(np.asarray(path[0], dtype=float), near, clearance)[1]
+        hit = keep.first_on_path([np.asarray(q, dtype=float) for q in path])
+        return None if hit is None else str(hit[2])
+
+    def plan_path(self, q_start: np.ndarray, q_goal: np.ndarray, *, near: Sequence[str] = (),  # noqa: D102
+                  always: bool = False, clearance: float | None = None) -> PathPlan:
+        qa, qb = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
+        touch, keep = self._worlds_at(qa, near, clearance)
         seed = 1 + len(self.plans)  # a run's plans repeat: each seeded by its place in the run
         t0, checks0 = time.perf_counter(), touch.checks
-        if not always and touch.first_on_segment(qa, qb) is None:
+        straight = touch if clearance is None else keep  # a clearance asked for: the straight segment keeps it too
+        if not always and straight.first_on_segment(qa, qb) is None:
             plan = PathPlan([qa, qb], "straight", time_s=time.perf_counter() - t0, checks=touch.checks - checks0)
         else:
             names = self.robot.joint_names

@@ -36,6 +36,9 @@ or no more than the room a state leaves (conservative advancement)."""
 SELF_SLOP = 0.01
 """Two robot links count as colliding only past this penetration [m]: soft contacts between neighbouring links that a
 folded arm presses together (the robot file's excluded pairs aside) are the physics', not an obstacle's."""
+RESTING = 0.003
+"""A held object may sink this far into the table [m]: it stands on it before a lift and after a set-down (the
+contact's soft penetration)."""
 LOOKAHEAD = 0.05
 """Distances up to this [m] are measured (MuJoCo's collision margin on the robot's and a held object's geoms): a
 state this clear of everything lets a dense check skip ahead as far."""
@@ -181,7 +184,7 @@ class CollisionWorld:
         other = np.where(mine[:, 0], bodies[:, 1], bodies[:, 0])
         table = self._table[other]
         needed = np.where(table, self.table_clearance, np.where(self._near_body[other], 0.0, self.clearance))
-        needed = np.where(table & held.any(axis=1), 0.0, needed)  # a held object may be set down on the table
+        needed = np.where(table & held.any(axis=1), -RESTING, needed)  # a held object may stand on the table
         selfhit = both & robot.all(axis=1)  # robot links: deep penetration only
         needed = np.where(selfhit, -SELF_SLOP, needed)
         counted = ~allowed & (one | selfhit) & (bodies != 0).all(axis=1)  # the ground: wheels stand on it

@@ -6,6 +6,11 @@ The object's setpoint :math:`(p, \psi)` goes
    origin (computed from the scene's geometry, not a fixed offset);
 2. across to above the target, turning to the target's yaw (the equivalent yaw, modulo the object's symmetry,
    nearest the one it has);
+
+   or, where that route would bring the arms or the object within the planner's clearance of anything (clutter
+   beside or under it; ``plan: auto``) or always (``plan: always``), up by ``lift`` and then along a collision-free
+   joint path to the hover, planned with the object attached to the pads (:meth:`View.plan_path`) and followed as
+   object setpoints at the path's points (a few centimetres apart), the path's joints the IK's posture target;
 3. down to ``hover`` above its resting height, where it waits for the sway to settle and corrects its planar
    position and yaw from the live pose (the average over ``settle`` seconds, so the correction does not chase
    the swing), up to ``corrections`` times;
@@ -27,10 +32,11 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from nextage_qp.geometry import clamp, nearest_equivalent, wrap, yaw_of
+from nextage_qp.geometry import clamp, nearest_equivalent, rot_z, wrap, yaw_of
 from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import ROUND_HEADINGS, Setpoint, View
-from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field
+from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field, plan_field
+from nextage_qp.manipulation.route import PlanMode
 
 CONTACT = 0.001
 """The object counts as set down when its height is this close to its resting height [m]."""
@@ -42,6 +48,11 @@ STALL = 3.0
 """Time the object may stay up once the clamp has reached the bottom of its descent [s]."""
 STALLED = 0.01
 """Height over its resting height [m] at which an object still up ``STALL`` s after that fails the phase."""
+ROUTE_STEP = 0.03
+"""Spacing [m] of the object setpoints at which the carry's route is solved and checked, or a planned path followed."""
+ROUTE_SLACK = 0.005
+"""The route over the obstacles is checked at ``clearance`` less this [m]: it passes exactly ``clearance`` over
+their tops."""
 BLEND = 2.0
 """Time [s] over which the IK's posture target slides from its default to the hover joints: a posture that jumped
 would swing the arms through the null space at once, and their lag would open the clamp."""
@@ -71,6 +82,7 @@ class PlaceSpec(Spec):
         "Gain [1/s] with which the setpoint drifts against the footprint's planar error while descending (0: off)."))
     level_gain: float = Field(default=2.0, ge=0, le=20, description=(
         "Gain [1/s] of the loop that rolls the pads to keep the object upright (0: off)."))
+    plan: PlanMode = plan_field()
 
 
 class Place(Phase):
@@ -93,11 +105,93 @@ class Place(Phase):
         self.posture_from, self.t0 = view.default_posture(), view.t
         self._blended: np.ndarray | None = None  # the posture target once the blend is over
         self.legs = [np.array([obj[0], obj[1], carry]), np.array([tgt[0], tgt[1], carry]), self.goal]
+        self.yaws = [self.yaw, self.goal_yaw, self.goal_yaw]
+        self.postures: list[np.ndarray | None] = [None, None, None]  # per leg, the joints the IK heads for
         self.leg, self.stage = 0, "transit"
         self.samples: list[tuple[np.ndarray, float]] = []
         self.corrections = 0
         self.bottom_from: float | None = None
         self.info.update(stage="transit", carry_height_m=round(carry, 4), corrections=0)
+        if c.plan != "never":
+            self._route(view, obj)
+
+    def _route(self, view: View, obj: np.ndarray) -> None:
+        """The transit as object setpoints every ``ROUTE_STEP``, each with the joints the IK heads for there.
+
+        The route over the obstacles, solved point by point and checked between them (the rise not to touch
+        anything: the grasp may have left the arms near something; the rest to keep ``clearance``); where it is out
+        of reach or blocked (or always, ``plan: always``), a planned one.
+        """
+        c = self.spec
+        points, yaws, at, yaw = [], [], self.sp.pos.copy(), self.yaw
+        for goal, goal_yaw in zip(self.legs, self.yaws, strict=True):
+            n = max(1, int(np.ceil(np.linalg.norm(goal - at) / ROUTE_STEP)))
+            points += [at + (goal - at) * (k / n) for k in range(1, n + 1)]
+            yaws += [yaw + (goal_yaw - yaw) * (k / n) for k in range(1, n + 1)]
+            at, yaw = goal, goal_yaw
+        start = view.joint_positions(view.joint_names())
+        qs = self._solve_along(view, points, yaws, start)
+        lift = next(k for k, p in enumerate(points) if p[2] >= self.legs[0][2] - 1e-9) + 1  # the rise's points
+        why = "plan: always" if c.plan == "always" else \
+            "the route over the obstacles is out of the clamp's reach" if qs is None else \
+            view.path_blocked([start, *qs[:lift]], clearance=0.0, near=(c.target,)) or \
+            view.path_blocked(qs[lift - 1:], clearance=c.clearance - ROUTE_SLACK, near=(c.target,))
+        if why is not None:
+            self._plan_carry(view, obj, why)
+            return
+        self.info["carry"] = "over"
+
+    def _solve_along(self, view: View, points: list[np.ndarray], yaws: list[float],
+                     start: np.ndarray | None) -> list[np.ndarray] | None:
+        """The clamp's joints at each object setpoint, each solved from the previous one (None: one is out of reach)."""
+        qs, q = [], start
+        for p, y in zip(points, yaws, strict=True):
+            q = view.plan(self.clamp.pads(p, y)[0], start=q, allow=frozenset({self.spec.object}), pos_tol=HOVER_TOL,
+                          restarts=False)
+            if q is None:
+                return None
+            qs.append(q)
+        return qs
+
+    def _plan_carry(self, view: View, obj: np.ndarray, why: str) -> None:
+        """Replace the route over the obstacles by a lift and a planned joint path to the hover."""
+        c = self.spec
+        lift = np.array([obj[0], obj[1], obj[2] + max(c.lift, 0.005)])
+        lifted = self._solve_along(view, [lift], [self.yaw], view.joint_positions(view.joint_names()))
+        if lifted is None:
+            raise self.failure(f"the clamp cannot lift {c.object} {c.lift * 1e3:.0f} mm")
+        plan = view.plan_path(lifted[0], self.posture, always=c.plan == "always", clearance=c.clearance,
+                              near=(c.target,))
+        if not plan.found:
+            raise self.failure(f"no collision-free path to carry {c.object} to {c.target}: {plan.reason()}")
+        g = self.clamp.grip
+        legs, yaws, postures = [lift], [self.yaw], [lifted[0]]
+        for qa, qb in zip(plan.path, plan.path[1:], strict=False):
+            steps = max(1, int(np.ceil(max(float(np.linalg.norm(view.pose_at(f, qb).pos - view.pose_at(f, qa).pos))
+                                           for f in g.frames) / ROUTE_STEP)))
+            for k in range(1, steps + 1):
+                q = qa + (qb - qa) * (k / steps)
+                pos, yaw = self._object_at(view, q)
+                legs.append(pos)
+                yaws.append(yaws[-1] + wrap(yaw - yaws[-1]))  # unwrapped along the path
+                postures.append(q)
+        yaws[-1] = self.goal_yaw  # the path ends at the hover's joints: exactly the goal
+        legs[-1] = self.goal
+        self.legs, self.yaws, self.postures = legs, yaws, postures
+        self.info.update(carry="planned", carry_blocked=why, carry_plan=plan.status,
+                         carry_plan_ms=round(plan.time_s * 1e3, 1), carry_height_m=None)
+
+    def _object_at(self, view: View, q: np.ndarray) -> tuple[np.ndarray, float]:
+        """The object setpoint (origin, yaw) that puts the pads where joints ``q`` put them."""
+        g = self.clamp.grip
+        pos, yaws = np.zeros(3), []
+        for f in g.frames:
+            pad = view.pose_at(f, q)
+            yaw = yaw_of(pad.rot @ g.rotations[f].T)
+            yaws.append(yaw)
+            pos += pad.pos - rot_z(yaw) @ g.offsets[f]
+        yaw = yaws[0] + float(np.mean([wrap(y - yaws[0], 2 * np.pi) for y in yaws]))
+        return pos / len(g.frames), yaw
 
     def _reachable_yaw(self, view: View, target_yaw: float) -> tuple[float, np.ndarray]:
         """The equivalent target yaw nearest the object's own that the clamp can reach, and its hover joints.
@@ -128,11 +222,10 @@ class Place(Phase):
         c = self.spec
         done = False
         if self.stage == "transit":
-            goal = self.legs[self.leg]
+            goal, goal_yaw = self.legs[self.leg], self.yaws[self.leg]
             arrived = self.sp.advance(goal, c.speed, view.dt)
-            if self.leg >= 1:  # turn once lifted
-                self.yaw += clamp(float(self.goal_yaw - self.yaw), -c.turn_rate * view.dt, c.turn_rate * view.dt)
-            if arrived and (self.leg < 1 or abs(self.goal_yaw - self.yaw) < 1e-9):
+            self.yaw += clamp(float(goal_yaw - self.yaw), -c.turn_rate * view.dt, c.turn_rate * view.dt)
+            if arrived and abs(goal_yaw - self.yaw) < 1e-9:
                 self.leg += 1
                 if self.leg == len(self.legs):
                     self.stage, self.wait_from, self.samples = "hover", view.t, []
@@ -151,10 +244,14 @@ class Place(Phase):
         self.info["stage"] = self.stage  # a timeout names the stage it ended in
         targets, relative = self.clamp.targets(view, self.sp.pos, self.yaw)
         blend = clamp((view.t - self.t0) / BLEND, 0.0, 1.0)
-        posture = self._blended if blend == 1.0 and self._blended is not None else \
-            self.posture_from + blend * blend * (3.0 - 2.0 * blend) * (self.posture - self.posture_from)
-        if blend == 1.0:  # the same array from now on: the IK keeps its posture target instead of setting it anew
-            self._blended = posture
+        planned = self.postures[min(self.leg, len(self.postures) - 1)] if self.stage == "transit" else None
+        if planned is not None:  # along the checked route: its joints (they start where the arms are)
+            posture = planned
+        else:
+            posture = self._blended if blend == 1.0 and self._blended is not None else \
+                self.posture_from + blend * blend * (3.0 - 2.0 * blend) * (self.posture - self.posture_from)
+            if blend == 1.0:  # the same array from now on: the IK keeps its posture target instead of setting it
+                self._blended = posture
         return Command(targets, (relative,), allow=frozenset({c.object}), posture=posture, done=done)
 
     def _check_stall(self, view: View) -> None:
