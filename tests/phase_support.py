@@ -43,6 +43,7 @@ class ScriptedView:
     tracking: float = 0.0
     half: float = 0.035
     reach: Callable | None = None
+    blocked: Callable | None = None  # blocked(targets of the plans along a path) -> what blocks it, or None
     plans: list = field(default_factory=list)
     reach_checked: list = field(default_factory=list)  # (frame, goal) of every check_reach call
     forces: dict = field(default_factory=dict)
@@ -86,6 +87,15 @@ class ScriptedView:
 
         self.paths = [*getattr(self, "paths", []), (np.asarray(q_start), np.asarray(q_goal), tuple(near), always)]
         return PathPlan([np.asarray(q_start), np.asarray(q_goal)], "straight")
+
+    def path_blocked(self, path, clearance=None, near=(), allow=()):
+        if self.blocked is None:
+            return None
+        planned = [self.plans[int(q[0])] for q in path if q[0] >= 0]  # a plan's joint vector is its index
+        return self.blocked(planned)
+
+    def room_at(self, q, near=(), allow=()):
+        return 1.0
 
     def plan(self, targets, start=None, allow=frozenset(), pos_tol=None, restarts=True):
         if self.reach is not None and not self.reach(tuple(targets)):

@@ -67,6 +67,39 @@ def test_place_lifts_over_the_obstacles_turns_to_the_nearest_equivalent_yaw_and_
     assert np.linalg.norm(left - right) == pytest.approx(0.144)  # the pads keep the grip's spread
 
 
+def test_place_takes_a_lower_or_sideways_route_where_the_one_over_the_obstacles_is_blocked():
+    view = place_view()
+    carry = 1.0 + 0.03 + (1.015 - 0.875)
+    ceiling = carry - 0.01  # something hangs over the route: any pad above this height touches it
+    view.blocked = lambda plans: next((f"left_pad into ceiling at {t.pos[2]:.3f}" for targets in plans
+                                       for t in targets if t.pos[2] > ceiling), None)
+    phase = make("place", object="dumbbell", target="dumbbell_target", clearance=0.03)
+    phase.start(view)
+    assert phase.info["carry"] == "routed" and "ceiling" in phase.info["carry_blocked"]
+    assert phase.info["carry_height_m"] < carry and phase.info["carry_routes_checked"] > 1
+    heights = []
+    cmd = run_until_done(phase, view, each=carried_by_the_clamp(view, phase, heights))
+    assert cmd.done and max(heights) < ceiling  # the object went under it and was set down
+    assert view.bodies["dumbbell"].pos[:2] == pytest.approx([0.35, 0.38])
+
+
+def test_place_fails_naming_what_blocks_every_route():
+    view = place_view()
+    view.blocked = lambda plans: "right_forearm 4 mm into clutter_3" if len(plans) > 1 else None
+    phase = make("place", object="dumbbell", target="dumbbell_target")
+    with pytest.raises(PhaseError, match=r"no collision-free route to carry dumbbell to dumbbell_target: over the "
+                                         r"obstacles, right_forearm 4 mm into clutter_3; \d+ lower and sideways"):
+        phase.start(view)
+
+
+def test_place_never_checks_its_route_with_plan_never():
+    view = place_view()
+    view.blocked = lambda plans: "anything"
+    phase = make("place", object="dumbbell", target="dumbbell_target", plan="never")
+    phase.start(view)
+    assert "carry" not in phase.info
+
+
 def test_clamp_ties_the_pads_by_their_relative_pose_at_the_close_drawn_in_by_the_squeeze():
     grip = held_grip()  # the pads held 144 mm apart when the clamp closed, though their targets were 144 mm too
     grip = Grip(grip.object, grip.frames, grip.offsets, grip.rotations,
@@ -109,6 +142,21 @@ def test_release_opens_lifts_and_ends_the_grip():
     assert last.targets[0].pos == pytest.approx([0.5, 0.122, 1.20])
     assert last.targets[1].pos == pytest.approx([0.5, -0.122, 1.20])
     assert postures and all(p is not None and list(p) == [3.0] for p in postures)
+
+
+def test_release_opens_less_where_opening_fully_would_touch_clutter_beside_the_object():
+    view = grasp_view()
+    view.grip = held_grip()
+    view.commanded = {"left_pad": pose(0.5, 0.072, 1.12), "right_pad": pose(0.5, -0.072, 1.12)}
+    view.joints = {"plan": -1.0}
+    wall = 0.072 + 0.04  # clutter 40 mm beside the left pad: a pad further out touches it
+    view.blocked = lambda plans: next((f"left_pad into clutter_0 at y={t.pos[1]:.3f}" for targets in plans
+                                       for t in targets if t.pos[1] > wall), None)
+    phase = make("release", object="dumbbell", gap=0.05, lift=0.08)
+    phase.start(view)
+    last = run_until_done(phase, view)
+    assert phase.info["opened_m"] == pytest.approx(0.03)  # 60 % of the gap: the widest that touches nothing
+    assert last.targets[0].pos == pytest.approx([0.5, 0.102, 1.20])
 
 
 def test_release_first_hands_the_weight_to_the_table():

@@ -199,11 +199,18 @@ class Reach(Protocol):
         held object (the view's grip) moves with its pads.
         """
 
+    def room_at(self, q: np.ndarray, near: Sequence[str] = (), allow: Sequence[str] = ()) -> float:
+        """How near [m] robot joints ``q`` [rad] (and a held object) come to anything (negative: how deep in it).
+
+        Up to the planner's lookahead; ``near`` and ``allow`` as for :meth:`path_blocked`.
+        """
+
     def path_blocked(self, path: Sequence[np.ndarray], clearance: float | None = None,
-                     near: Sequence[str] = ()) -> str | None:
+                     near: Sequence[str] = (), allow: Sequence[str] = ()) -> str | None:
         """What the first state along a joint path [rad] that breaks the planner's clearance touches, or None.
 
-        ``clearance`` [m]: another than the planning config's; ``near``: bodies it may come close to, not touch.
+        ``clearance`` [m]: another than the planning config's; ``near``: bodies it may come close to, not touch;
+        ``allow``: bodies it may touch.
 
         Checked densely, a held object (the view's grip) moving with its pads.
         """

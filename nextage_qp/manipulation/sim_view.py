@@ -115,10 +115,12 @@ class SimView:
                                      restarts=None if restarts else 0)
         return result.q if result.pos_err_m <= tol and result.rot_err_rad <= REACH_ROT_TOL else None
 
-    def _worlds_at(self, q: np.ndarray, near: Sequence[str] = (),
-                   clearance: float | None = None) -> tuple[CollisionWorld, CollisionWorld]:
-        """Two collision worlds as believed now, the robot at ``q``: one to tell a touch, one keeping ``clearance``
-        (default: the planning config's)."""
+    def _worlds_at(self, q: np.ndarray, near: Sequence[str] = (), clearance: float | None = None,
+                   allow: Sequence[str] = ()) -> tuple[CollisionWorld, CollisionWorld]:
+        """Two collision worlds as believed now, the robot at ``q``: one to tell a touch, one keeping a clearance.
+
+        ``clearance``: default the planning config's.
+        """
         cfg = self.planning
         keep = cfg.clearance if clearance is None else clearance
         for c in (0.0, keep):
@@ -132,14 +134,18 @@ class SimView:
             pad, obj = self.commanded_pose(frame), self.body_pose(self.grip.object)
             held = Held(self.grip.object, frame, Pose(pad.rot.T @ (obj.pos - pad.pos), pad.rot.T @ obj.rot))
         for world in worlds:
-            world.set_world(poses, q, held=held, near=near, qpos=self._sim.data.qpos)
+            world.set_world(poses, q, held=held, near=near, allow=allow, qpos=self._sim.data.qpos)
         return worlds
 
     def path_blocked(self, path: Sequence[np.ndarray], clearance: float | None = None,  # noqa: D102
-                     near: Sequence[str] = ()) -> str | None:
-        keep = self._worlds_at(np.asarray(path[0], dtype=float), near, clearance)[1]
+                     near: Sequence[str] = (), allow: Sequence[str] = ()) -> str | None:
+        keep = self._worlds_at(np.asarray(path[0], dtype=float), near, clearance, allow)[1]
         hit = keep.first_on_path([np.asarray(q, dtype=float) for q in path])
         return None if hit is None else str(hit[2])
+
+    def room_at(self, q: np.ndarray, near: Sequence[str] = (), allow: Sequence[str] = ()) -> float:  # noqa: D102
+        touch = self._worlds_at(np.asarray(q, dtype=float), near, 0.0, allow)[0]
+        return touch.room(np.asarray(q, dtype=float))[0]
 
     def plan_path(self, q_start: np.ndarray, q_goal: np.ndarray, *, near: Sequence[str] = (),  # noqa: D102
                   always: bool = False, clearance: float | None = None) -> PathPlan:

@@ -316,8 +316,7 @@ def collision_geoms(robot: Robot, extra: Mapping[str, Any] | None = None) -> dic
         if found := of_bodies(ids([name], False, "body")):
             groups[name] = found
     clutter = {b for b in range(m.nbody) if m.body(b).name.startswith(CLUTTER_PREFIX)}
-    if clutter:  # the generated clutter (scene.clutter), one group
-        groups[CLUTTER_GROUP] = of_bodies(clutter)
+    groups[CLUTTER_GROUP] = of_bodies(clutter)  # the generated clutter (scene.clutter), one group: empty for none
     for name, spec in (extra or {}).items():
         groups[name] = group(name, spec)
     return groups

@@ -27,12 +27,14 @@ The pads follow the setpoint through the grip's offsets and keep squeezing at th
 
 from __future__ import annotations
 
+import itertools
+import time
 from typing import Literal
 
 import numpy as np
 from pydantic import Field
 
-from nextage_qp.geometry import clamp, nearest_equivalent, rot_z, wrap, yaw_of
+from nextage_qp.geometry import clamp, nearest_equivalent, wrap, yaw_of
 from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import ROUND_HEADINGS, Setpoint, View
 from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field, plan_field
@@ -53,6 +55,13 @@ ROUTE_STEP = 0.03
 ROUTE_SLACK = 0.005
 """The route over the obstacles is checked at ``clearance`` less this [m]: it passes exactly ``clearance`` over
 their tops."""
+POSTURE_RATE = 0.3
+"""Fastest a planned carry's joints turn [rad/s]: the arms swing through the null space no faster (their lag would
+open the clamp)."""
+ROUTE_HEIGHTS = 4
+"""Heights tried for a route lower than over the obstacles: evenly from the lowest to that one [count]."""
+ROUTE_ASIDE = (0.0, 0.1, -0.1, 0.2, -0.2)
+"""Sideways offsets [m] of a route's via point from the middle of the straight line to the target."""
 BLEND = 2.0
 """Time [s] over which the IK's posture target slides from its default to the hover joints: a posture that jumped
 would swing the arms through the null space at once, and their lag would open the clamp."""
@@ -107,7 +116,7 @@ class Place(Phase):
         self.legs = [np.array([obj[0], obj[1], carry]), np.array([tgt[0], tgt[1], carry]), self.goal]
         self.yaws = [self.yaw, self.goal_yaw, self.goal_yaw]
         self.postures: list[np.ndarray | None] = [None, None, None]  # per leg, the joints the IK heads for
-        self.leg, self.stage = 0, "transit"
+        self.leg, self.stage, self.frac = 0, "transit", 0.0
         self.samples: list[tuple[np.ndarray, float]] = []
         self.corrections = 0
         self.bottom_from: float | None = None
@@ -116,82 +125,94 @@ class Place(Phase):
             self._route(view, obj)
 
     def _route(self, view: View, obj: np.ndarray) -> None:
-        """The transit as object setpoints every ``ROUTE_STEP``, each with the joints the IK heads for there.
+        """Check the route over the obstacles; where it is blocked, take the shortest free lower or sideways one.
 
-        The route over the obstacles, solved point by point and checked between them (the rise not to touch
-        anything: the grasp may have left the arms near something; the rest to keep ``clearance``); where it is out
-        of reach or blocked (or always, ``plan: always``), a planned one.
+        ``plan: always`` skips the route over the obstacles (see the module docstring).
         """
         c = self.spec
-        points, yaws, at, yaw = [], [], self.sp.pos.copy(), self.yaw
-        for goal, goal_yaw in zip(self.legs, self.yaws, strict=True):
+        t0 = time.perf_counter()
+        over = self.legs[0][2]
+        low = max(obj[2] + c.lift, self.rest + c.clearance)
+        heights = [over, *np.linspace(low, over, ROUTE_HEIGHTS)[:-1]] if over > low + 1e-6 else [over]
+        across = self.goal[:2] - obj[:2]
+        side = np.array([-across[1], across[0]]) / max(float(np.linalg.norm(across)), 1e-9)
+        mid = 0.5 * (obj[:2] + self.goal[:2])
+        candidates = [(float(h), mid + d * side if d else None) for h in heights for d in ROUTE_ASIDE]
+        candidates = candidates[:1] + sorted(candidates[1:], key=lambda hv: self._length(obj, *hv))
+        first_why = None
+        for k, (height, via) in enumerate(candidates):
+            if k == 0 and c.plan == "always":
+                first_why = "plan: always"
+                continue
+            legs, yaws = self._corners(obj, height, via)
+            checked = self._check(view, legs, yaws)
+            if isinstance(checked, str):
+                first_why = first_why or checked
+                continue
+            self.info.update(carry="over" if k == 0 else "routed", carry_routes_checked=k + 1,
+                             carry_check_ms=round((time.perf_counter() - t0) * 1e3, 1))
+            if k == 0:
+                return  # the route over the obstacles, driven as it always was
+            points, point_yaws, qs = checked
+            self.legs, self.yaws, self.postures = points, point_yaws, list(qs)
+            self.start_pos, self.start_yaw = self.sp.pos.copy(), self.yaw
+            self.start_q = view.joint_positions(view.joint_names())
+            self.posture = qs[-1]
+            self.info.update(carry_height_m=round(height, 4), carry_blocked=first_why,
+                             carry_via=None if via is None else [round(float(v), 4) for v in via])
+            return
+        raise self.failure(f"no collision-free route to carry {c.object} to {c.target}: over the obstacles, "
+                           f"{first_why}; {len(candidates) - 1} lower and sideways routes blocked too")
+
+    def _corners(self, obj: np.ndarray, height: float,
+                 via: np.ndarray | None) -> tuple[list[np.ndarray], list[float]]:
+        """The corners of a route at ``height`` (through ``via`` on the way across) and the object's yaw there."""
+        legs, yaws = [np.array([obj[0], obj[1], height])], [self.yaw]
+        if via is not None:
+            legs.append(np.array([via[0], via[1], height]))
+            yaws.append(0.5 * (self.yaw + self.goal_yaw))
+        legs += [np.array([self.goal[0], self.goal[1], height]), self.goal]
+        yaws += [self.goal_yaw, self.goal_yaw]
+        return legs, yaws
+
+    def _length(self, obj: np.ndarray, height: float, via: np.ndarray | None) -> float:
+        """A route's length [m]."""
+        corners = [obj, *self._corners(obj, height, via)[0]]
+        return float(sum(np.linalg.norm(b - a) for a, b in itertools.pairwise(corners)))
+
+    def _check(self, view: View, legs: list[np.ndarray],
+               yaws: list[float]) -> tuple[list[np.ndarray], list[float], list[np.ndarray]] | str:
+        """A route's setpoints every ``ROUTE_STEP`` with the clamp's joints at each, or what blocks it.
+
+        Each point is solved from the previous one and the joint segment between them checked with the object
+        attached: the rise not to touch anything (the grasp may have left the arms near something), the rest to
+        keep ``clearance`` less ``ROUTE_SLACK``, or, where the arms are nearer something at the top of the rise,
+        to come no more than twice that nearer.
+        """
+        c = self.spec
+        points, point_yaws, at, yaw = [], [], self.sp.pos.copy(), self.yaw
+        for goal, goal_yaw in zip(legs, yaws, strict=True):
             n = max(1, int(np.ceil(np.linalg.norm(goal - at) / ROUTE_STEP)))
             points += [at + (goal - at) * (k / n) for k in range(1, n + 1)]
-            yaws += [yaw + (goal_yaw - yaw) * (k / n) for k in range(1, n + 1)]
+            point_yaws += [yaw + (goal_yaw - yaw) * (k / n) for k in range(1, n + 1)]
             at, yaw = goal, goal_yaw
-        start = view.joint_positions(view.joint_names())
-        qs = self._solve_along(view, points, yaws, start)
-        lift = next(k for k, p in enumerate(points) if p[2] >= self.legs[0][2] - 1e-9) + 1  # the rise's points
-        why = "plan: always" if c.plan == "always" else \
-            "the route over the obstacles is out of the clamp's reach" if qs is None else \
-            view.path_blocked([start, *qs[:lift]], clearance=0.0, near=(c.target,)) or \
-            view.path_blocked(qs[lift - 1:], clearance=c.clearance - ROUTE_SLACK, near=(c.target,))
-        if why is not None:
-            self._plan_carry(view, obj, why)
-            return
-        self.info["carry"] = "over"
-
-    def _solve_along(self, view: View, points: list[np.ndarray], yaws: list[float],
-                     start: np.ndarray | None) -> list[np.ndarray] | None:
-        """The clamp's joints at each object setpoint, each solved from the previous one (None: one is out of reach)."""
-        qs, q = [], start
-        for p, y in zip(points, yaws, strict=True):
-            q = view.plan(self.clamp.pads(p, y)[0], start=q, allow=frozenset({self.spec.object}), pos_tol=HOVER_TOL,
-                          restarts=False)
-            if q is None:
-                return None
+        rise = next(k for k, p in enumerate(points) if p[2] >= legs[0][2] - 1e-9)  # the rise's last point
+        q = view.joint_positions(view.joint_names())
+        qs: list[np.ndarray] = []
+        keep = c.clearance - ROUTE_SLACK
+        for k, (p, y) in enumerate(zip(points, point_yaws, strict=True)):
+            nxt = view.plan(self.clamp.pads(p, y)[0], start=q, allow=frozenset({c.object}), pos_tol=HOVER_TOL,
+                            restarts=False)
+            if nxt is None:
+                return f"the clamp cannot reach {c.object} at {np.round(p, 3).tolist()}"
+            if k == rise + 1:  # the arms may already be nearer something than the clearance: no nearer, then
+                keep = min(keep, max(0.0, view.room_at(q, near=(c.target,)) - 2 * ROUTE_SLACK))
+            why = view.path_blocked([q, nxt], clearance=0.0 if k <= rise else keep, near=(c.target,))
+            if why is not None:
+                return why
+            q = nxt
             qs.append(q)
-        return qs
-
-    def _plan_carry(self, view: View, obj: np.ndarray, why: str) -> None:
-        """Replace the route over the obstacles by a lift and a planned joint path to the hover."""
-        c = self.spec
-        lift = np.array([obj[0], obj[1], obj[2] + max(c.lift, 0.005)])
-        lifted = self._solve_along(view, [lift], [self.yaw], view.joint_positions(view.joint_names()))
-        if lifted is None:
-            raise self.failure(f"the clamp cannot lift {c.object} {c.lift * 1e3:.0f} mm")
-        plan = view.plan_path(lifted[0], self.posture, always=c.plan == "always", clearance=c.clearance,
-                              near=(c.target,))
-        if not plan.found:
-            raise self.failure(f"no collision-free path to carry {c.object} to {c.target}: {plan.reason()}")
-        g = self.clamp.grip
-        legs, yaws, postures = [lift], [self.yaw], [lifted[0]]
-        for qa, qb in zip(plan.path, plan.path[1:], strict=False):
-            steps = max(1, int(np.ceil(max(float(np.linalg.norm(view.pose_at(f, qb).pos - view.pose_at(f, qa).pos))
-                                           for f in g.frames) / ROUTE_STEP)))
-            for k in range(1, steps + 1):
-                q = qa + (qb - qa) * (k / steps)
-                pos, yaw = self._object_at(view, q)
-                legs.append(pos)
-                yaws.append(yaws[-1] + wrap(yaw - yaws[-1]))  # unwrapped along the path
-                postures.append(q)
-        yaws[-1] = self.goal_yaw  # the path ends at the hover's joints: exactly the goal
-        legs[-1] = self.goal
-        self.legs, self.yaws, self.postures = legs, yaws, postures
-        self.info.update(carry="planned", carry_blocked=why, carry_plan=plan.status,
-                         carry_plan_ms=round(plan.time_s * 1e3, 1), carry_height_m=None)
-
-    def _object_at(self, view: View, q: np.ndarray) -> tuple[np.ndarray, float]:
-        """The object setpoint (origin, yaw) that puts the pads where joints ``q`` put them."""
-        g = self.clamp.grip
-        pos, yaws = np.zeros(3), []
-        for f in g.frames:
-            pad = view.pose_at(f, q)
-            yaw = yaw_of(pad.rot @ g.rotations[f].T)
-            yaws.append(yaw)
-            pos += pad.pos - rot_z(yaw) @ g.offsets[f]
-        yaw = yaws[0] + float(np.mean([wrap(y - yaws[0], 2 * np.pi) for y in yaws]))
-        return pos / len(g.frames), yaw
+        return points, point_yaws, qs
 
     def _reachable_yaw(self, view: View, target_yaw: float) -> tuple[float, np.ndarray]:
         """The equivalent target yaw nearest the object's own that the clamp can reach, and its hover joints.
@@ -223,9 +244,13 @@ class Place(Phase):
         done = False
         if self.stage == "transit":
             goal, goal_yaw = self.legs[self.leg], self.yaws[self.leg]
-            arrived = self.sp.advance(goal, c.speed, view.dt)
-            self.yaw += clamp(float(goal_yaw - self.yaw), -c.turn_rate * view.dt, c.turn_rate * view.dt)
+            if self.postures[self.leg] is not None:  # a planned path's point: timed by its joints' travel too
+                arrived = self._follow(view)
+            else:
+                arrived = self.sp.advance(goal, c.speed, view.dt)
+                self.yaw += clamp(float(goal_yaw - self.yaw), -c.turn_rate * view.dt, c.turn_rate * view.dt)
             if arrived and abs(goal_yaw - self.yaw) < 1e-9:
+                self.frac = 0.0
                 self.leg += 1
                 if self.leg == len(self.legs):
                     self.stage, self.wait_from, self.samples = "hover", view.t, []
@@ -245,14 +270,39 @@ class Place(Phase):
         targets, relative = self.clamp.targets(view, self.sp.pos, self.yaw)
         blend = clamp((view.t - self.t0) / BLEND, 0.0, 1.0)
         planned = self.postures[min(self.leg, len(self.postures) - 1)] if self.stage == "transit" else None
-        if planned is not None:  # along the checked route: its joints (they start where the arms are)
-            posture = planned
+        if planned is not None:  # along a planned path: its joints, as far as the setpoint has come (no jumps)
+            posture = self._along(planned)
         else:
             posture = self._blended if blend == 1.0 and self._blended is not None else \
                 self.posture_from + blend * blend * (3.0 - 2.0 * blend) * (self.posture - self.posture_from)
             if blend == 1.0:  # the same array from now on: the IK keeps its posture target instead of setting it
                 self._blended = posture
         return Command(targets, (relative,), allow=frozenset({c.object}), posture=posture, done=done)
+
+    def _follow(self, view: View) -> bool:
+        """Move the setpoint (and yaw) from a checked route's last point towards its current one; True once there.
+
+        At ``speed``, ``turn_rate`` and the joints' ``POSTURE_RATE``, whichever takes longest.
+        """
+        c, k = self.spec, self.leg
+        prev, prev_yaw = (self.legs[k - 1], self.yaws[k - 1]) if k > 0 else (self.start_pos, self.start_yaw)
+        prev_q = self.postures[k - 1] if k > 0 else self.start_q
+        q = self.postures[k]
+        assert prev_q is not None and q is not None
+        time = max(float(np.linalg.norm(self.legs[k] - prev)) / c.speed, abs(self.yaws[k] - prev_yaw) / c.turn_rate,
+                   float(np.max(np.abs(q - prev_q))) / POSTURE_RATE, view.dt)
+        self.frac = min(1.0, self.frac + view.dt / time)
+        self.sp.jump(prev + self.frac * (self.legs[k] - prev))
+        self.yaw = prev_yaw + self.frac * (self.yaws[k] - prev_yaw)
+        if self.frac >= 1.0:
+            self.yaw = self.yaws[k]
+        return self.frac >= 1.0
+
+    def _along(self, q: np.ndarray) -> np.ndarray:
+        """The joints between the last point's and ``q`` (the current point's), as far as the setpoint has come."""
+        k = min(self.leg, len(self.legs) - 1)
+        prev_q = self.postures[k - 1] if k > 0 else self.start_q
+        return prev_q + self.frac * (q - prev_q)
 
     def _check_stall(self, view: View) -> None:
         """Fail when the setpoint has been at the bottom of its descent ``STALL`` s and the object is ``STALLED`` up.

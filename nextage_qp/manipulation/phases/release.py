@@ -10,8 +10,9 @@ from pydantic import Field
 from nextage_qp.ik import FrameTarget
 from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import Forces, Grip, Setpoint, View
-from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
+from nextage_qp.manipulation.phases.base import Phase, Spec, name_field, plan_field
 from nextage_qp.manipulation.phases.grasp.phase import SIDES, squeeze_force
+from nextage_qp.manipulation.route import PlanMode
 
 UNLOAD_SPEED = 0.005
 """Speed [m/s] at which the pads go down to hand the object's weight to the table."""
@@ -21,6 +22,10 @@ EASE_SPEED = 0.002
 """Speed [m/s] at which a pad still squeezing backs off before the pads open."""
 EASED = 0.5
 """Squeeze force [N] below which a pad has let go (it then holds still until the other has too)."""
+OPEN_FRACTIONS = (1.0, 0.6, 0.35)
+"""Fractions of ``gap`` the pads back away by, the first that touches nothing taken."""
+OPEN_TOL = 0.02
+"""Position error [m] within which the check of an opening solves the pads' targets."""
 MAX_EASE_TRAVEL = 0.005
 """Farthest a pad backs off while easing [m]; past it the pads open anyway."""
 
@@ -39,6 +44,7 @@ class ReleaseSpec(Spec):
         "Most the pads go down before opening [m], until the table carries the object's whole weight (a pad "
         "that still holds some of it lifts and tips the object as it opens)."))
     speed: float = Field(default=0.1, gt=0, le=0.5, description="Lifting speed [m/s].")
+    plan: PlanMode = plan_field()
 
 
 class Release(Phase):
@@ -71,11 +77,22 @@ class Release(Phase):
         # once would swing the arms through the null space while the pads still touch the object.
         self.posture = view.joint_positions(view.joint_names())
 
-    def _open(self) -> None:
-        """The open stage's moves from where the pads are now: back away along the clamp axis, then rise."""
+    def _open(self, view: View) -> None:
+        """The open stage's moves from where the pads are now: back away along the clamp axis, then rise.
+
+        Each pad backs away by ``gap``, or where that would touch anything (clutter beside the object), by the
+        widest of ``OPEN_FRACTIONS`` of it that does not (``plan: never``: by ``gap``, unchecked).
+        """
         c = self.spec
-        opened = [sp.pos + s * c.gap * self.lateral for sp, s in zip(self.points, SIDES, strict=False)]
-        self.legs = [(opened, c.open_speed), ([p + np.array([0.0, 0.0, c.lift]) for p in opened], c.speed)]
+        fractions = OPEN_FRACTIONS if c.plan != "never" else OPEN_FRACTIONS[:1]
+        for k, fraction in enumerate(fractions):
+            gap = fraction * c.gap
+            opened = [sp.pos + s * gap * self.lateral for sp, s in zip(self.points, SIDES, strict=False)]
+            lifted = [p + np.array([0.0, 0.0, c.lift]) for p in opened]
+            if k == len(fractions) - 1 or self._free(view, opened, lifted):
+                break
+        self.info["opened_m"] = round(gap, 4)
+        self.legs = [(opened, c.open_speed), (lifted, c.speed)]
         self.stage = "open"
         self.info["unloaded_m"] = round(max(z - float(sp.pos[2]) for z, sp in zip(self.start_z, self.points,
                                                                                      strict=True)), 4)
@@ -87,7 +104,7 @@ class Release(Phase):
                 self.stage = "ease"
         elif self.stage == "ease":  # ease the squeeze, pad by pad, on each pad's own force
             if self._ease(view):
-                self._open()
+                self._open(view)
         elif self.leg < len(self.legs):
             goals, speed = self.legs[self.leg]
             if all([sp.advance(g, speed, view.dt) for sp, g in zip(self.points, goals, strict=True)]):
@@ -98,6 +115,23 @@ class Release(Phase):
         allow = frozenset({self.spec.object}) if touching else frozenset()
         done = self.stage == "open" and self.leg == len(self.legs) and view.settled()
         return Command(targets, allow=allow, posture=self.posture, done=done)
+
+    def _free(self, view: View, opened: list[np.ndarray], lifted: list[np.ndarray]) -> bool:
+        """Whether the pads open to ``opened`` and rise to ``lifted`` touching nothing but the object.
+
+        Solved with the offline IK (to within ``OPEN_TOL``: its collision rows may hold a pad short of where it
+        goes, as the running IK's do) and checked in the planner's collision world, at its clearance.
+        """
+        q0 = view.joint_positions(view.joint_names())
+        q1 = view.plan(self._targets(opened), start=q0, allow=frozenset({self.spec.object}), restarts=False,
+                       pos_tol=OPEN_TOL)
+        q2 = None if q1 is None else view.plan(self._targets(lifted), start=q1, restarts=False, pos_tol=OPEN_TOL)
+        if q1 is None or q2 is None:
+            return True  # not solved, not checked: the pads open as far as the IK takes them
+        return view.path_blocked([q0, q1], allow=(self.spec.object,)) is None and view.path_blocked([q1, q2]) is None
+
+    def _targets(self, points: list[np.ndarray]) -> tuple[FrameTarget, ...]:
+        return tuple(FrameTarget(f, pos=p, rot=r) for f, p, r in zip(self.frames, points, self.rots, strict=True))
 
     def _ease(self, view: View) -> bool:
         """Back off each pad that still squeezes; True once none does (or the travel allowed is used up)."""

@@ -43,6 +43,7 @@ from nextage_qp.manipulation.phases.grasp.spec import (
     GraspSpec,
 )
 from nextage_qp.manipulation.route import PlannedRoute
+from nextage_qp.robots.model import CLUTTER_GROUP
 
 
 def squeeze_force(view: Forces, frame: str, side: float, lateral: np.ndarray) -> float:
@@ -121,7 +122,7 @@ class Grasp(Phase):
         if c.place_at is not None and not placed:
             raise self.refusal(view, f"the clamp cannot reach {c.place_at}'s pose with "
                              f"{c.object} at any of its equivalent yaws, at the faces' centre or up to "
-                             f"{c.off_centre * 1e3:g} mm off it: the target is out of the arms' reach")
+                             f"{c.off_centre * 1e3:g} mm off it: {self._placement_blocker(view)}")
         if found is None:
             raise self.refusal(view, f"the pads cannot reach both sides of {c.object} "
                              f"({2e3 * self.half:.0f} mm wide at the pads) at any of its headings "
@@ -230,6 +231,23 @@ class Grasp(Phase):
             grip = tried[k]
             if grip is not None:
                 yield grip
+
+    def _placement_blocker(self, view: View) -> str:
+        """Why no grip reaches the placement: the clutter in the way (what the arms would touch), or the reach."""
+        c = self.spec
+        assert c.place_at is not None
+        tgt, trot = view.body_pose(c.place_at)
+        centre = np.array([tgt[0], tgt[1], view.rest_height(c.object, c.place_at) + self.height])
+        rz = rot_z(yaw_of(trot))
+        targets = [FrameTarget(f, pos=centre + rz @ np.array([0.0, s * self.half, 0.0]), axis=np.array([0.0, 1.0, 0.0]),
+                               direction=rz[:, 1]) for f, s in zip(self.frames, SIDES, strict=True)]
+        q = view.plan(targets, allow=frozenset({c.object, CLUTTER_GROUP}))
+        if q is None:
+            return "the target is out of the arms' reach"
+        why = view.path_blocked([q], near=(c.object, c.place_at))
+        if why is None:
+            return "the IK, keeping clear of the clutter, stalls short of it (a pose clear of the clutter exists)"
+        return f"the clutter is in the way (the arms would reach it with {why})"
 
     def _targets(self, points: list[np.ndarray]) -> tuple[FrameTarget, ...]:
         """Pad targets at ``points``.
