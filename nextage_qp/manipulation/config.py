@@ -80,6 +80,13 @@ class SuccessCriteria(YamlModel):
     clutter_contacts: int | None = Field(
         default=None, ge=0, description="Most physics steps [count] in which the robot or what it holds may touch "
                                         "the clutter (scene.clutter), or unjudged.")
+    objects: dict[str, str] = Field(
+        default_factory=dict, description="Further objects judged against their targets, object -> target body, "
+                                          "with the same limits as the task's object (e.g. a two-cube push).")
+    knocked: float | None = Field(
+        default=0.02, gt=0, le=1.0, allow_inf_nan=False,
+        description="Farthest [m] a free object that no phase names (a bystander) may end from where it started, "
+                    "or unjudged.")
 
 
 class RunTiming(Timing):

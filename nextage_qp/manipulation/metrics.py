@@ -89,8 +89,14 @@ class OutcomeMonitor:
         self._robot_geom = np.zeros(m.ngeom, dtype=bool)
         self._robot_geom[[g for k in robot.robot_groups for g in groups.get(k, ())]] = True
         self.has_clutter = bool(clutter)
+        self.starts: dict[str, np.ndarray] = {}
+        """Where each free object started [m] (:meth:`record_starts`)."""
         self.grip: Grip | None = None
         """The clamp in force (set by the runner): its object counts as the robot's for the clutter's contacts."""
+
+    def record_starts(self, sim: Simulation) -> None:
+        """Remember where every free object starts (the knocked criterion compares its end with it)."""
+        self.starts = {n: sim.data.qpos[self.robot.object_qpos_slice(n)][:3].copy() for n in self.robot.object_names}
 
     def attach(self, sim: Simulation) -> None:
         """Register the monitor's hooks with a simulation.
@@ -227,9 +233,14 @@ def object_state(robot: Robot, sim: Simulation, obj: str, target: str) -> Object
 
 
 def judge(criteria: SuccessCriteria, state: ObjectState, *, completed: bool, dropped: bool, limit_violations: int,
-          obstacle_contacts: int, limit_detail: str | None = None,
-          clutter_contacts: int = 0) -> dict[str, dict[str, Any]]:
-    """Every success criterion with its value, limit and verdict (``ok``); a violated joint limit's ``detail``."""
+          obstacle_contacts: int, limit_detail: str | None = None, clutter_contacts: int = 0,
+          others: Mapping[str, ObjectState] | None = None,
+          knocked: Mapping[str, float] | None = None) -> dict[str, dict[str, Any]]:
+    """Every success criterion with its value, limit and verdict (``ok``); a violated joint limit's ``detail``.
+
+    ``others``: the states of ``criteria.objects``, judged as the task's object is (criteria ``NAME:object_error``
+    and so on); ``knocked``: how far [m] each bystander ended from its start.
+    """
     out: dict[str, dict[str, Any]] = {
         "completed": {"ok": completed},
         "object_error": {"value": state.error_xy_m, "limit": criteria.planar_error,
@@ -252,6 +263,21 @@ def judge(criteria: SuccessCriteria, state: ObjectState, *, completed: bool, dro
     if criteria.obstacle_contacts is not None:
         out["obstacle_contacts"] = {"value": obstacle_contacts, "limit": criteria.obstacle_contacts,
                                     "ok": obstacle_contacts <= criteria.obstacle_contacts}
+    for name, other in (others or {}).items():
+        out[f"{name}:object_error"] = {"value": other.error_xy_m, "limit": criteria.planar_error,
+                                       "ok": other.error_xy_m <= criteria.planar_error}
+        if criteria.yaw_error is not None:
+            out[f"{name}:yaw_error"] = {"value": other.yaw_error_rad, "limit": criteria.yaw_error,
+                                        "ok": other.yaw_error_rad <= criteria.yaw_error}
+        if criteria.tilt is not None:
+            out[f"{name}:tilt"] = {"value": other.tilt_rad, "limit": criteria.tilt,
+                                   "ok": other.tilt_rad <= criteria.tilt}
+        if criteria.resting:
+            out[f"{name}:resting"] = {"ok": other.resting}
+    if criteria.knocked is not None and knocked:
+        worst = max(knocked, key=lambda n: knocked[n])
+        out["knocked"] = {"value": knocked[worst], "limit": criteria.knocked, "ok": knocked[worst] <= criteria.knocked,
+                          "detail": f"{worst} moved {knocked[worst] * 1e3:.0f} mm"}
     return out
 
 
@@ -268,9 +294,18 @@ def summarize(
     error: str | None,
     wall_s: float,
     extra: dict[str, Any] | None = None,
+    handled: frozenset[str] = frozenset(),
 ) -> dict[str, Any]:
-    """The result record printed by ``nextage-qp run --json``; ``success`` only when every criterion holds."""
+    """The result record printed by ``nextage-qp run --json``; ``success`` only when every criterion holds.
+
+    ``handled``: the objects the phases name (besides ``obj`` and the judged ones, every other free object is a
+    bystander, judged by ``criteria.knocked``).
+    """
     state = object_state(robot, sim, obj, target)
+    others = {name: object_state(robot, sim, name, tgt) for name, tgt in criteria.objects.items()}
+    bystanders = set(monitor.starts) - handled - {obj} - set(criteria.objects)
+    knocked = {n: float(np.linalg.norm(sim.data.qpos[robot.object_qpos_slice(n)][:3] - monitor.starts[n]))
+               for n in sorted(bystanders)}
     rec = sim.recorder.arrays()
     q = rec["q"]
     viol = int(np.count_nonzero(np.any((q < robot.lower - LIMIT_TOLERANCE) | (q > robot.upper + LIMIT_TOLERANCE),
@@ -280,7 +315,8 @@ def summarize(
     tau = np.abs(rec["tau"]).max() if len(q) else 0.0
     contacts = monitor.obstacle_contacts if monitor.obstacle is not None else 0
     verdict = judge(criteria, state, completed=error is None, dropped=monitor.dropped, limit_violations=viol,
-                    obstacle_contacts=contacts, limit_detail=detail, clutter_contacts=monitor.clutter_contacts)
+                    obstacle_contacts=contacts, limit_detail=detail, clutter_contacts=monitor.clutter_contacts,
+                    others=others, knocked=knocked)
     sim_t = sim.time
     return {
         "task": task,
@@ -300,6 +336,9 @@ def summarize(
         "min_obstacle_clearance_m": monitor.min_clearance,
         "obstacle_contacts": contacts,
         **({"clutter_contacts": monitor.clutter_contacts} if monitor.has_clutter else {}),
+        **({"objects": {n: {"error_xy_m": o.error_xy_m, "yaw_error_rad": o.yaw_error_rad, "tilt_rad": o.tilt_rad,
+                            "resting": o.resting} for n, o in others.items()}} if others else {}),
+        **({"knocked_m": {n: round(v, 5) for n, v in knocked.items()}} if knocked else {}),
         "object_dropped": monitor.dropped,
         "joint_limit_violations": viol,
         "max_abs_torque_nm": float(tau),

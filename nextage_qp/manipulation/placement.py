@@ -56,9 +56,12 @@ def table_top(robot: Robot, data: mujoco.MjData) -> tuple[float, list[int]]:
 
 
 def obstacle_top(robot: Robot, data: mujoco.MjData) -> float:
-    """Height [m] of the highest point of the obstacle and clutter geoms (the table top when the scene has none)."""
+    """Height [m] of the highest point of the obstacles, the clutter and the fixed objects.
+
+    The table top when the scene has none of them.
+    """
     groups = robot.collision_geoms()
-    geoms = [*groups.get("obstacle", ()), *groups.get(CLUTTER_GROUP, ())]
+    geoms = [g for name in ("obstacle", CLUTTER_GROUP, *robot.fixed_objects) for g in groups.get(name, ())]
     if not geoms:
         return table_top(robot, data)[0]
     m = robot.model

@@ -176,6 +176,14 @@ class Runner:
         self.records = [PhaseRecord(cfg.phase_name(i), p.kind) for i, p in enumerate(cfg.phases)]
         self.monitor = OutcomeMonitor(self.robot, cfg.object)
         self.monitor.attach(self.sim)
+        self.monitor.record_starts(self.sim)
+        for name, target in cfg.success.objects.items():  # judged objects: known bodies, or exit 2 now
+            for kind, body in (("object", name), ("target", target)):
+                if mujoco.mj_name2id(self.robot.model, mujoco.mjtObj.mjOBJ_BODY, body) < 0 or (
+                        kind == "object" and body not in self.robot.object_names):
+                    valid = self.robot.object_names if kind == "object" else self.robot.body_names
+                    raise ConfigError(f"{source}: success.objects: {UnknownNameError(kind, body, valid)}",
+                                      key="success.objects")
         self.error: str | None = None
         self.wall_s = 0.0
         self.current: Phase | None = None
@@ -296,11 +304,19 @@ class Runner:
                                  f"in {SEARCH_S:g} s (frames by outcome: {lost})")
             self.tick(HOLD)
 
+    @property
+    def handled(self) -> frozenset[str]:
+        """The free objects some phase names (as its object, target or placement): not bystanders."""
+        names = set(self.robot.object_names)
+        return frozenset(v for spec in self.cfg.phases for v in spec.model_dump().values()
+                         if isinstance(v, str) and v in names)
+
     def summary(self) -> dict[str, Any]:
         """The result record printed by ``nextage-qp run --json``."""
         c = self.cfg
         out = summarize(task=c.task, robot=self.robot, sim=self.sim, monitor=self.monitor, records=self.records,
                          obj=c.object, target=c.target, criteria=c.success, error=self.error, wall_s=self.wall_s,
+                         handled=self.handled,
                          extra={"target_clearance_m": self.placement.target_clearance_m,
                                 "estimation": None if self.sensors is None else self.sensors.report(
                                     self.shoves.windows(SHOVE_SETTLE_S) if self.shoves is not None else ()),

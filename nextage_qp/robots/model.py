@@ -26,9 +26,10 @@ from nextage_qp.scene.compile import compile_spec
 from nextage_qp.scene.files import SceneOverrides, add_touch_sensors
 
 SCENE_GROUP_BODIES = ("table", "obstacle")
+"""Static scene bodies that become collision groups of their own when a scene has them (and every declared fixed
+object: :func:`scene_groups`)."""
 CLUTTER_GROUP = "clutter"
 """The collision group of the generated clutter (:mod:`nextage_qp.scene.clutter`)."""
-"""Static scene bodies that become collision groups of their own when a scene has them."""
 WATCHED_BODIES = ("obstacle",)
 """Scene bodies that get a contact sensor (:func:`~nextage_qp.scene.files.add_touch_sensors`): touching them counts."""
 
@@ -188,6 +189,12 @@ class Robot:
         names = (self.model.body(int(b)).name for b in self.model.jnt_bodyid[free])
         return tuple(n for n in names if self.description.base is None or n != BASE_BODY)  # not the robot's base
 
+    @property
+    def fixed_objects(self) -> tuple[str, ...]:
+        """Declared fixed objects of the scene (static obstacles: ``scene.objects`` with ``fixed: true``)."""
+        return tuple(n for n, decl in self.overrides.objects.items()
+                     if decl.fixed and mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, n) >= 0)
+
     def yaw_symmetry(self, name: str) -> float:
         """The yaw [rad] after which an object looks the same (custom numeric ``NAME_yaw_symmetry``; 2 pi if none)."""
         nid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_NUMERIC, f"{name}_yaw_symmetry")
@@ -312,7 +319,7 @@ def collision_geoms(robot: Robot, extra: Mapping[str, Any] | None = None) -> dic
     if robot.base is not None:  # the base and its wheels: every body below it but those of the robot it carries
         carried = {b for b in range(m.nbody) if any(descends(m, b, r) for r in robot_roots(robot))}
         groups[BASE_BODY] = of_bodies({b for b in range(m.nbody) if descends(m, b, robot.base.body)} - carried)
-    for name in (*SCENE_GROUP_BODIES, *robot.object_names):
+    for name in (*SCENE_GROUP_BODIES, *robot.object_names, *robot.fixed_objects):
         if found := of_bodies(ids([name], False, "body")):
             groups[name] = found
     clutter = {b for b in range(m.nbody) if m.body(b).name.startswith(CLUTTER_PREFIX)}

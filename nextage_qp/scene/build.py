@@ -109,15 +109,19 @@ def declare_objects(spec: mujoco.MjSpec, objects: Mapping[str, ObjectDecl], sour
         if body is not None and not any(j.type == free for j in body.joints):
             raise ConfigError(f"scene.objects.{name}: {name!r} is a fixed body of the scene {source}, not an "
                               "object; choose another name", key=f"scene.objects.{name}")
+        if body is not None and decl.fixed:
+            raise ConfigError(f"scene.objects.{name}: {name!r} is a free object of the scene {source}; a fixed "
+                              "object takes a new name", key=f"scene.objects.{name}")
         if body is None:
             try:
                 body = spec.worldbody.add_body(name=name, pos=[0.5, 0.0, 1.0])
-                body.add_freejoint(name=f"{name}_joint")
+                if not decl.fixed:
+                    body.add_freejoint(name=f"{name}_joint")
             except ValueError as exc:  # MuJoCo: "repeated name 'world' in body"; a robot's link, the world
                 raise ConfigError(f"scene.objects.{name}: {name!r} is taken in the scene {source} "
                                   f"({one_line(exc)}); choose another name", key=f"scene.objects.{name}") from None
         marker = next((b for b in spec.worldbody.bodies if b.name == f"{name}_target"), None)
-        if marker is None and decl.marker:
+        if marker is None and decl.marker and not decl.fixed:
             marker = spec.worldbody.add_body(name=f"{name}_target", pos=[0.5, 0.0, 1.0])
             markers.append(marker.name)
         if marker is not None and not any(g.contype or g.conaffinity for g in marker.geoms):  # takes the new shape
@@ -129,7 +133,8 @@ def declare_objects(spec: mujoco.MjSpec, objects: Mapping[str, ObjectDecl], sour
             spec.delete(geom)
         _add_parts(spec, body, name, decl, visual=False)
         _repoint_pairs(spec, old, [g.name for g in body.geoms])
-        _set_inertial(body, decl)
+        if not decl.fixed:
+            _set_inertial(body, decl)
         if decl.pos is not None:
             body.pos = [decl.pos[0], decl.pos[1], decl.pos[2] if len(decl.pos) == 3 else body.pos[2]]
         if decl.yaw is not None:

@@ -92,6 +92,8 @@ class ObjectDecl(YamlModel):
                                                   "n-sided prism 2 pi/n, cylinder, capsule, sphere 0, compound "
                                                   "2 pi).")
     marker: bool = Field(default=True, description="Add a target marker NAME_target for a new object.")
+    fixed: bool = Field(default=False, description="A static obstacle (a shelf's board, a bin's wall): no joint, no "
+                                                   "marker; it does not move, and its name is a collision group.")
     inertia_scale: float = Field(default=1.0, gt=0, le=100.0, allow_inf_nan=False,
                                  description="Factor [1] on the inertia of uniform density (a model's "
                                              "inertia_scaling); mass and centre of mass unchanged.")
