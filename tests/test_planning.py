@@ -142,6 +142,10 @@ def test_a_held_object_blocks_a_path_that_drags_it_through_an_obstacle():
     ("success.clutter_contacts=-1", "success.clutter_contacts"),
     ("phases[0].plan=sometimes", "phases[0].plan"),
     ("scene.clutter.count=40", "scene.clutter: placed"),
+    ("scene.objects.post={shape: box, size: [0.02, 0.02, 0.05], fixed: maybe}", "scene.objects.post.fixed"),
+    ("success.knocked=-1", "success.knocked"),
+    ("success.objects={cube: nowhere}", "success.objects: unknown target 'nowhere'"),
+    ("phases[0].kind=place", "phases[0]"),
 ])
 def test_every_planning_and_clutter_key_is_validated_in_one_line(override, says, capsys):
     assert main(["run", str(CLUTTER), "--set", override]) == 2
@@ -180,3 +184,17 @@ def test_touching_the_clutter_is_counted_per_physics_step_and_judged(cluttered):
     verdict = judge(SuccessCriteria(clutter_contacts=0), state, completed=True, dropped=False, limit_violations=0,
                     obstacle_contacts=0, clutter_contacts=monitor.clutter_contacts)
     assert verdict["clutter_contacts"] == {"value": 1, "limit": 0, "ok": False}
+
+
+def test_a_shelf_is_reached_by_a_route_between_its_boards_not_over_them():
+    """The route over everything (the shelf's top board) is out of reach; the carry takes the lowest free one."""
+    from nextage_qp.manipulation.config import load_config
+    from nextage_qp.manipulation.runner import Runner
+
+    path = ROOT / "configs" / "shelf_place.yaml"
+    result = Runner(load_config(path, []), path).run()
+    place = next(p for p in result["phases"] if p["kind"] == "place")
+    assert result.success, result["error"] or result["failed_criteria"]
+    assert place["carry"] == "routed" and "cannot reach" in place["carry_blocked"]
+    assert place["carry_height_m"] < 1.34  # under the top board's underside
+    assert result["object_error_xy_m"] < 0.005 and result["criteria"]["resting"]["ok"]  # standing on the board

@@ -220,8 +220,9 @@ def object_state(robot: Robot, sim: Simulation, obj: str, target: str) -> Object
     pos, tgt = d.xpos[bid].copy(), d.xpos[tid].copy()
     rot, trot = d.xmat[bid].reshape(3, 3), d.xmat[tid].reshape(3, 3)
     yaw = np.arctan2(rot[1, 0], rot[0, 0]) - np.arctan2(trot[1, 0], trot[0, 0])
-    groups = robot.collision_geoms()  # its support: the table, or the target when that is an object (a stack)
-    table = set(groups.get(target if target in robot.object_names else "table", ()))
+    groups = robot.collision_geoms()  # its support: the table or a fixed object, or the target object (a stack)
+    supports = [target] if target in robot.object_names else ["table", *robot.fixed_objects]
+    table = {g for name in supports for g in groups.get(name, ())}
     on_table = any((int(m.geom_bodyid[c.geom1]) == bid and c.geom2 in table)
                    or (int(m.geom_bodyid[c.geom2]) == bid and c.geom1 in table) for c in d.contact[: d.ncon])
     dof = int(m.jnt_dofadr[m.body_jntadr[bid]]) if m.body_jntnum[bid] else -1

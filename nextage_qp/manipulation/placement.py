@@ -21,6 +21,9 @@ from nextage_qp.robots.model import CLUTTER_GROUP, Robot
 
 OVERLAP_TOLERANCE = 1e-4
 """Penetration [m] below which two geoms count as touching, not overlapping."""
+SUPPORT_SLACK = 0.005
+"""A fixed object's top up to this far [m] above a target marker's origin still carries the target (a shelf's board
+whose marker was set on its top)."""
 
 
 class Placement(NamedTuple):
@@ -72,7 +75,8 @@ def obstacle_top(robot: Robot, data: mujoco.MjData) -> float:
 def rest_height(robot: Robot, data: mujoco.MjData, obj: str, on: str | None = None) -> float:
     """Height [m] of an object's origin when it stands upright on the table top (its lowest point on the top).
 
-    With ``on`` a free object of the scene, on that object's top instead (a stack); any other body: the table.
+    With ``on`` a free object of the scene, on that object's top instead (a stack); any other body (a target
+    marker): on the highest top of a fixed object's box under it and not above it (a shelf's board), or the table.
     """
     groups = robot.collision_geoms()
     if on is not None and on in robot.object_names:
@@ -81,8 +85,19 @@ def rest_height(robot: Robot, data: mujoco.MjData, obj: str, on: str | None = No
         top = max(float((data.xpos[b] + _geom_corners(m, g) @ rot.T)[:, 2].max()) for g in groups.get(on, ()))
     else:
         top, _ = table_top(robot, data)
+        if on is not None and robot.fixed_objects:
+            at = data.xpos[robot.model.body(on).id]
+            boards = [g for name in robot.fixed_objects for g in groups.get(name, ())]
+            tops = [_box_top(robot, data, g) for g in boards if _over_table(robot, data, [g], at[:2])]
+            top = max([top, *(t for t in tops if t <= at[2] + SUPPORT_SLACK)])
     geoms = list(groups.get(obj, ()))
     return top - min(_geom_corners(robot.model, g)[:, 2].min() for g in geoms)
+
+
+def _box_top(robot: Robot, data: mujoco.MjData, geom: int) -> float:
+    """Height [m] of a box geom's highest point."""
+    rot = data.geom_xmat[geom].reshape(3, 3)
+    return float(data.geom_xpos[geom, 2] + np.abs(rot[2]) @ robot.model.geom_size[geom])
 
 
 def _over_table(robot: Robot, data: mujoco.MjData, geoms: list[int], xy: np.ndarray) -> bool:
