@@ -24,11 +24,21 @@ def rot_of(target):
     return np.eye(3)
 
 
+PLAN_STEP = 0.02
+"""A scripted plan's joint vector is its index times this [rad] (small: neighbouring plans are near in joints)."""
+
+
+def plan_index(q) -> int:
+    """The index of the scripted plan whose joint vector ``q`` is."""
+    return round(float(q[0]) / PLAN_STEP)
+
+
 @dataclass
 class ScriptedView:
     """A View whose every answer the test sets; :meth:`act` plays an ideal robot (frames go where commanded).
 
-    The planner reaches every target unless ``reach(targets)`` says no; a plan's joint vector is its index, and
+    The planner reaches every target unless ``reach(targets)`` says no; a plan's joint vector is its index (times
+    ``PLAN_STEP``), and
     :meth:`pose_at` gives back the targets it was planned for.
     """
 
@@ -91,7 +101,7 @@ class ScriptedView:
     def path_blocked(self, path, clearance=None, near=(), allow=()):
         if self.blocked is None:
             return None
-        planned = [self.plans[int(q[0])] for q in path if q[0] >= 0]  # a plan's joint vector is its index
+        planned = [self.plans[plan_index(q)] for q in path if q[0] >= 0]
         return self.blocked(planned)
 
     def room_at(self, q, near=(), allow=()):
@@ -101,7 +111,7 @@ class ScriptedView:
         if self.reach is not None and not self.reach(tuple(targets)):
             return None
         self.plans.append(tuple(targets))
-        return np.array([len(self.plans) - 1.0])
+        return np.array([(len(self.plans) - 1) * PLAN_STEP])
 
     def check_reach(self, frame, pos, where):
         self.reach_checked.append((frame, tuple(np.round(pos, 6))))
@@ -109,7 +119,7 @@ class ScriptedView:
     def pose_at(self, frame, q):
         if q[0] < 0:
             return self.home
-        target = next(t for t in self.plans[int(q[0])] if t.frame == frame)
+        target = next(t for t in self.plans[plan_index(q)] if t.frame == frame)
         return Pose(np.asarray(target.pos, dtype=float), rot_of(target))
 
     def wrench(self, site):
@@ -136,7 +146,7 @@ class ScriptedView:
     def act(self, cmd):
         """An ideal robot: the frames (commanded and real) take the planned joints' or the targets' poses."""
         if cmd.joints is not None:
-            for target in self.plans[int(cmd.joints["plan"])]:
+            for target in self.plans[plan_index([cmd.joints["plan"]])]:
                 self.commanded[target.frame] = self.frames[target.frame] = Pose(np.asarray(target.pos), rot_of(target))
         for target in cmd.targets:
             self.commanded[target.frame] = self.frames[target.frame] = Pose(np.asarray(target.pos), rot_of(target))

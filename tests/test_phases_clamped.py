@@ -111,14 +111,33 @@ def test_clamp_ties_the_pads_by_their_relative_pose_at_the_close_drawn_in_by_the
     assert targets[0].pos - targets[1].pos == pytest.approx([0.0, 0.141, 0.0])
 
 
-def test_place_slides_the_posture_from_the_default_to_the_hover_joints():
+def test_place_unchecked_slides_the_posture_from_the_default_to_the_hover_joints():
     view = place_view()
-    phase = make("place", object="dumbbell", target="dumbbell_target")
+    phase = make("place", object="dumbbell", target="dumbbell_target", plan="never")
     phase.start(view)
     first = phase.update(view)
     assert first.posture == pytest.approx(view.default_posture(), abs=1e-6)  # no jump at the start of the lift
     view.t += 2.0
     assert phase.update(view).posture == pytest.approx(phase.posture)
+
+
+def test_place_follows_the_joints_its_route_was_checked_with_from_where_the_arms_are():
+    view = place_view()
+    phase = make("place", object="dumbbell", target="dumbbell_target")
+    phase.start(view)
+    assert phase.info["carry"] == "over" and len(phase.postures) == len(phase.legs) > 3
+    start = view.joint_positions(view.joint_names())
+    postures = []
+    carry = carried_by_the_clamp(view, phase, [])
+
+    def each(cmd):
+        carry(cmd)
+        postures.append(cmd.posture)
+
+    run_until_done(phase, view, each=each)
+    steps = np.abs(np.diff(np.array([start, *postures])[:, 0]))
+    assert steps.max() <= 0.3 * DT + 1e-9  # the joints turn no faster than POSTURE_RATE: no jump anywhere
+    assert postures[len(phase.legs) // 2] is not None
 
 
 def test_place_refuses_a_target_pose_the_clamp_cannot_reach():

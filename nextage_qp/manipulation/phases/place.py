@@ -7,10 +7,11 @@ The object's setpoint :math:`(p, \psi)` goes
 2. across to above the target, turning to the target's yaw (the equivalent yaw, modulo the object's symmetry,
    nearest the one it has);
 
-   or, where that route would bring the arms or the object within the planner's clearance of anything (clutter
-   beside or under it; ``plan: auto``) or always (``plan: always``), up by ``lift`` and then along a collision-free
-   joint path to the hover, planned with the object attached to the pads (:meth:`View.plan_path`) and followed as
-   object setpoints at the path's points (a few centimetres apart), the path's joints the IK's posture target;
+   every ``ROUTE_STEP`` of that route solved with the object in the clamp and checked with the object attached
+   (:meth:`View.path_blocked`), and driven with the checked joints as the IK's posture target; where it is out of
+   reach or blocked (clutter beside or under it, a shelf's top board; or always, ``plan: always``), the shortest
+   free one of lower routes and routes through a via point aside, checked alike (``plan: never``: the route over
+   the obstacles, unchecked, the posture sliding from the default to the hover's joints);
 3. down to ``hover`` above its resting height, where it waits for the sway to settle and corrects its planar
    position and yaw from the live pose (the average over ``settle`` seconds, so the correction does not chase
    the swing), up to ``corrections`` times;
@@ -151,8 +152,6 @@ class Place(Phase):
                 continue
             self.info.update(carry="over" if k == 0 else "routed", carry_routes_checked=k + 1,
                              carry_check_ms=round((time.perf_counter() - t0) * 1e3, 1))
-            if k == 0:
-                return  # the route over the obstacles, driven as it always was
             points, point_yaws, qs = checked
             self.legs, self.yaws, self.postures = points, point_yaws, list(qs)
             self.start_pos, self.start_yaw = self.sp.pos.copy(), self.yaw
@@ -270,8 +269,10 @@ class Place(Phase):
         targets, relative = self.clamp.targets(view, self.sp.pos, self.yaw)
         blend = clamp((view.t - self.t0) / BLEND, 0.0, 1.0)
         planned = self.postures[min(self.leg, len(self.postures) - 1)] if self.stage == "transit" else None
-        if planned is not None:  # along a planned path: its joints, as far as the setpoint has come (no jumps)
+        if planned is not None:  # along a checked route: its joints, as far as the setpoint has come (no jumps)
             posture = self._along(planned)
+        elif self.postures[-1] is not None:  # after a checked route: its last joints, the hover's
+            posture = self.posture
         else:
             posture = self._blended if blend == 1.0 and self._blended is not None else \
                 self.posture_from + blend * blend * (3.0 - 2.0 * blend) * (self.posture - self.posture_from)
