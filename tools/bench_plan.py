@@ -2,12 +2,17 @@
 
 Usage: python tools/bench_plan.py [--pairs 40] [--obstacles 6]
 
-Two sets, each over ``--pairs`` random start and goal configurations that are valid in the cluttered scene of
+Four sets, each over ``--pairs`` start and goal configurations that are valid in the cluttered scene of
 ``configs/push_clutter.yaml`` (``--obstacles`` pieces, a new clutter seed every 10 pairs):
 
-* ``single-arm transit``: the left arm's six joints drawn at random, the rest at home;
+* ``single-arm transit``: the left arm's six joints drawn at random within their limits, the rest at home (many
+  such pairs lie in regions no path joins: behind the back, under the table);
+* ``single-arm task``: the joints the offline IK finds for the left tool at random points over the table's work
+  region (3-30 cm over it), the transits a phase asks for;
 * ``dual-arm carry``: both arms and the chest drawn at random, with the cube carried rigidly 10 cm under the left
-  pad (the held object collides with the world too).
+  pad (the held object collides with the world too);
+* ``dual-arm task``: both pads 10 cm apart across a random point over the work region, the cube held, as a clamp
+  carries it.
 
 Each pair is planned twice: as the phases ask (``auto``: the straight segment when nothing touches along it, a
 planned path otherwise) and always planned (RRT-Connect, shortcutting and the dense check). Printed per set and mode:
@@ -29,6 +34,7 @@ import numpy as np
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from nextage_qp.geometry import Pose
+from nextage_qp.ik import QPIK, FrameTarget
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.runner import build_robot
 from nextage_qp.planning.rrt import plan_path
@@ -54,6 +60,23 @@ def sample(world: CollisionWorld, robot: Robot, home: np.ndarray, joints: list[i
             return q
 
 
+REGION = ((0.25, -0.15), (0.60, 0.35))
+"""The work region's x-y rectangle [m] the task sets draw points from."""
+
+
+def task_sample(world: CollisionWorld, ik: QPIK, home: np.ndarray, frames: list[str], top: float,
+                rng: np.random.Generator) -> np.ndarray:
+    """A valid configuration the offline IK finds for ``frames`` at a random point over the work region."""
+    (x0, y0), (x1, y1) = REGION
+    while True:
+        c = np.array([rng.uniform(x0, x1), rng.uniform(y0, y1), top + rng.uniform(0.03, 0.30)])
+        offsets = [np.zeros(3)] if len(frames) == 1 else [np.array([0.0, 0.05, 0.0]), np.array([0.0, -0.05, 0.0])]
+        targets = [FrameTarget(f, pos=c + o) for f, o in zip(frames, offsets, strict=True)]
+        result = ik.solve(targets, home)
+        if result.pos_err_m < 0.005 and world.valid(result.q):
+            return np.asarray(result.q)
+
+
 def main() -> int:
     """Plan every pair of both sets in both modes and print the table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -69,14 +92,18 @@ def main() -> int:
         home = robot.keyframe_q("home")
         left = [robot.joint_index(f"LARM_JOINT{i}") for i in range(6)]
         both = [*left, *(robot.joint_index(f"RARM_JOINT{i}") for i in range(6)), robot.joint_index("CHEST_JOINT0")]
-        sets = {"single-arm transit": (left, None),
-                "dual-arm carry": (both, Held("cube", "left_pad", Pose(np.array([0.0, 0.0, -0.10]), np.eye(3))))}
-        for name, (joints, held) in sets.items():
+        carried = Held("cube", "left_pad", Pose(np.array([0.0, 0.0, -0.10]), np.eye(3)))
+        sets = {"single-arm transit": (left, None, None), "single-arm task": (left, None, ["left_tool"]),
+                "dual-arm carry": (both, carried, None), "dual-arm task": (both, carried, ["left_pad", "right_pad"])}
+        ik = QPIK(robot, cfg.ik)
+        top = float(robot.model.body("table").pos[2] + robot.model.geom("table_top").size[2])
+        for name, (joints, held, frames) in sets.items():
             world = CollisionWorld(robot, clearance=cfg.planning.clearance)
             world.set_world({}, home, held=held)
 
             for k in range(min(10, args.pairs - 10 * block)):
-                a, b = (sample(world, robot, home, joints, rng) for _ in range(2))
+                a, b = ((sample(world, robot, home, joints, rng) if frames is None else
+                         task_sample(world, ik, home, frames, top, rng)) for _ in range(2))
                 for mode in ("auto", "always"):
                     checks0, t0 = world.checks, time.perf_counter()
                     plan = plan_path(world, a, b, lower=robot.lower, upper=robot.upper, joints=joints, seed=k + 1,
