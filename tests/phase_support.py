@@ -104,6 +104,9 @@ class ScriptedView:
         planned = [self.plans[plan_index(q)] for q in path if q[0] >= 0]
         return self.blocked(planned)
 
+    def obstacle_groups(self):
+        return ()
+
     def room_at(self, q, near=(), allow=()):
         return 1.0
 

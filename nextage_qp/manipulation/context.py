@@ -199,6 +199,9 @@ class Reach(Protocol):
         held object (the view's grip) moves with its pads.
         """
 
+    def obstacle_groups(self) -> tuple[str, ...]:
+        """The collision groups of the scene's obstacles: the obstacle, the clutter, the fixed objects it has."""
+
     def room_at(self, q: np.ndarray, near: Sequence[str] = (), allow: Sequence[str] = ()) -> float:
         """How near [m] robot joints ``q`` [rad] (and a held object) come to anything (negative: how deep in it).
 

@@ -21,7 +21,7 @@ from nextage_qp.mobile.drive_models import Pose2
 from nextage_qp.mobile.odometry import to_odometry
 from nextage_qp.planning.rrt import PathPlan, PlanningConfig, plan_path
 from nextage_qp.planning.world import CollisionWorld, Held
-from nextage_qp.robots.model import Robot
+from nextage_qp.robots.model import CLUTTER_GROUP, Robot
 from nextage_qp.sensing.sensors import Wrench
 
 REACH_POS_TOL = 0.003
@@ -142,6 +142,10 @@ class SimView:
         keep = self._worlds_at(np.asarray(path[0], dtype=float), near, clearance, allow)[1]
         hit = keep.first_on_path([np.asarray(q, dtype=float) for q in path])
         return None if hit is None else str(hit[2])
+
+    def obstacle_groups(self) -> tuple[str, ...]:  # noqa: D102
+        groups = self.robot.collision_geoms()
+        return tuple(g for g in ("obstacle", CLUTTER_GROUP, *self.robot.fixed_objects) if groups.get(g))
 
     def room_at(self, q: np.ndarray, near: Sequence[str] = (), allow: Sequence[str] = ()) -> float:  # noqa: D102
         touch = self._worlds_at(np.asarray(q, dtype=float), near, 0.0, allow)[0]

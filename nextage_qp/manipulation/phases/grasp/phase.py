@@ -43,7 +43,6 @@ from nextage_qp.manipulation.phases.grasp.spec import (
     GraspSpec,
 )
 from nextage_qp.manipulation.route import PlannedRoute
-from nextage_qp.robots.model import CLUTTER_GROUP
 
 
 def squeeze_force(view: Forces, frame: str, side: float, lateral: np.ndarray) -> float:
@@ -233,7 +232,7 @@ class Grasp(Phase):
                 yield grip
 
     def _placement_blocker(self, view: View) -> str:
-        """Why no grip reaches the placement: the clutter in the way (what the arms would touch), or the reach."""
+        """Why no grip reaches the placement: an obstacle in the way (what the arms would touch), or the reach."""
         c = self.spec
         assert c.place_at is not None
         tgt, trot = view.body_pose(c.place_at)
@@ -241,13 +240,13 @@ class Grasp(Phase):
         rz = rot_z(yaw_of(trot))
         targets = [FrameTarget(f, pos=centre + rz @ np.array([0.0, s * self.half, 0.0]), axis=np.array([0.0, 1.0, 0.0]),
                                direction=rz[:, 1]) for f, s in zip(self.frames, SIDES, strict=True)]
-        q = view.plan(targets, allow=frozenset({c.object, CLUTTER_GROUP}))
+        q = view.plan(targets, allow=frozenset({c.object, *view.obstacle_groups()}))
         if q is None:
             return "the target is out of the arms' reach"
         why = view.path_blocked([q], near=(c.object, c.place_at))
         if why is None:
-            return "the IK, keeping clear of the clutter, stalls short of it (a pose clear of the clutter exists)"
-        return f"the clutter is in the way (the arms would reach it with {why})"
+            return "the IK, keeping clear of the obstacles, stalls short of it (a pose clear of them exists)"
+        return f"an obstacle is in the way (the arms would reach it with {why})"
 
     def _targets(self, points: list[np.ndarray]) -> tuple[FrameTarget, ...]:
         """Pad targets at ``points``.
