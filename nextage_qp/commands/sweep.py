@@ -279,8 +279,8 @@ def _print_summary(s: dict[str, Any], console: Console, *, only: bool, episodes:
         console.print(bins)
     if only:
         for ep in episodes:
-            err = (ep.result or {}).get("object_error_m")
-            console.print(f"episode {ep.index}: {ep.status}; object error {_mm(err)} mm"
+            err = (ep.result or {}).get("object_error_xy_m")  # as the success criterion judges it
+            console.print(f"episode {ep.index}: {ep.status}; object error (x-y) {_mm(err)} mm"
                           + (f"; {ep.reason}" if ep.reason else ""), markup=False)
     failed = s["failed"]
     if failed:

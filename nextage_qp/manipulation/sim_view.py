@@ -20,7 +20,7 @@ from nextage_qp.mobile.base import MobileBase
 from nextage_qp.mobile.drive_models import Pose2
 from nextage_qp.mobile.odometry import to_odometry
 from nextage_qp.planning.rrt import PathPlan, PlanningConfig, plan_path
-from nextage_qp.planning.world import CollisionWorld, Held
+from nextage_qp.planning.world import CHAIN_SLOP, SELF_SLOP, CollisionWorld, Held
 from nextage_qp.robots.model import CLUTTER_GROUP, Robot
 from nextage_qp.sensing.sensors import Wrench
 
@@ -140,7 +140,11 @@ class SimView:
     def path_blocked(self, path: Sequence[np.ndarray], clearance: float | None = None,  # noqa: D102
                      near: Sequence[str] = (), allow: Sequence[str] = ()) -> str | None:
         keep = self._worlds_at(np.asarray(path[0], dtype=float), near, clearance, allow)[1]
-        hit = keep.first_on_path([np.asarray(q, dtype=float) for q in path])
+        keep.chain_slop = CHAIN_SLOP  # the IK drives the route: it presses a chain's own links together softly
+        try:
+            hit = keep.first_on_path([np.asarray(q, dtype=float) for q in path])
+        finally:
+            keep.chain_slop = SELF_SLOP
         return None if hit is None else str(hit[2])
 
     def obstacle_groups(self) -> tuple[str, ...]:  # noqa: D102

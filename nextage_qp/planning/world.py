@@ -36,6 +36,10 @@ or no more than the room a state leaves (conservative advancement)."""
 SELF_SLOP = 0.01
 """Two robot links count as colliding only past this penetration [m]: soft contacts between neighbouring links that a
 folded arm presses together (the robot file's excluded pairs aside) are the physics', not an obstacle's."""
+CHAIN_SLOP = 0.03
+"""The penetration [m] past which two links of one chain (one below the other: a wrist folded back onto its upper
+arm) collide, where a check asks for it (:attr:`CollisionWorld.chain_slop`): the IK keeps no collision row between a
+chain's own links, so the routes it drives press them together softly."""
 RESTING = 0.003
 """A held object may sink this far into the table [m]: it stands on it before a lift and after a set-down (the
 contact's soft penetration)."""
@@ -105,6 +109,14 @@ class CollisionWorld:
         self._near_body = np.zeros(m.nbody, dtype=bool)
         self._held_body = np.zeros(m.nbody, dtype=bool)
         self._held_reach = 0.0
+        self._chain = np.zeros((m.nbody, m.nbody), dtype=bool)  # one body below the other
+        for b in range(1, m.nbody):
+            a = int(m.body_parentid[b])
+            while a > 0:
+                self._chain[a, b] = self._chain[b, a] = True
+                a = int(m.body_parentid[a])
+        self.chain_slop = SELF_SLOP
+        """Penetration [m] two links of one chain may reach (:data:`CHAIN_SLOP` for a check that allows it)."""
         self.checks = 0
         """States checked so far."""
 
@@ -186,7 +198,8 @@ class CollisionWorld:
         needed = np.where(table, self.table_clearance, np.where(self._near_body[other], 0.0, self.clearance))
         needed = np.where(table & held.any(axis=1), -RESTING, needed)  # a held object may stand on the table
         selfhit = both & robot.all(axis=1)  # robot links: deep penetration only
-        needed = np.where(selfhit, -SELF_SLOP, needed)
+        needed = np.where(selfhit, np.where(self._chain[bodies[:, 0], bodies[:, 1]], -self.chain_slop, -SELF_SLOP),
+                          needed)
         counted = ~allowed & (one | selfhit) & (bodies != 0).all(axis=1)  # the ground: wheels stand on it
         if not counted.any():
             return free, None
