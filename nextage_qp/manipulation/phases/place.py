@@ -59,6 +59,8 @@ their tops."""
 POSTURE_RATE = 0.3
 """Fastest a planned carry's joints turn [rad/s]: the arms swing through the null space no faster (their lag would
 open the clamp)."""
+TOUCHING = 0.003
+"""Penetration [m] a descent may show where its target touches an obstacle (the IK's and the contact's slop)."""
 ROUTE_HEIGHTS = 4
 """Heights tried for a route lower than over the obstacles: evenly from the lowest to that one [count]."""
 ROUTE_ASIDE = (0.0, 0.1, -0.1, 0.2, -0.2)
@@ -186,7 +188,8 @@ class Place(Phase):
         Each point is solved from the previous one and the joint segment between them checked with the object
         attached: the rise not to touch anything (the grasp may have left the arms near something), the rest to
         keep ``clearance`` less ``ROUTE_SLACK``, or, where the arms are nearer something at the top of the rise,
-        to come no more than twice that nearer.
+        to come no more than twice that nearer; the descent to the hover, no nearer than the hover itself less
+        ``ROUTE_SLACK`` (a target beside a wall; one touching it, ``TOUCHING`` into it).
         """
         c = self.spec
         points, point_yaws, at, yaw = [], [], self.sp.pos.copy(), self.yaw
@@ -196,6 +199,8 @@ class Place(Phase):
             point_yaws += [yaw + (goal_yaw - yaw) * (k / n) for k in range(1, n + 1)]
             at, yaw = goal, goal_yaw
         rise = next(k for k, p in enumerate(points) if p[2] >= legs[0][2] - 1e-9)  # the rise's last point
+        descent = len(points) - max(1, int(np.ceil(np.linalg.norm(legs[-1] - legs[-2]) / ROUTE_STEP)))
+        at_goal = max(-TOUCHING, view.room_at(self.posture, near=(c.target,)) - ROUTE_SLACK)  # the hover's own room
         q = view.joint_positions(view.joint_names())
         qs: list[np.ndarray] = []
         keep = c.clearance - ROUTE_SLACK
@@ -206,7 +211,8 @@ class Place(Phase):
                 return f"the clamp cannot reach {c.object} at {np.round(p, 3).tolist()}"
             if k == rise + 1:  # the arms may already be nearer something than the clearance: no nearer, then
                 keep = min(keep, max(0.0, view.room_at(q, near=(c.target,)) - 2 * ROUTE_SLACK))
-            why = view.path_blocked([q, nxt], clearance=0.0 if k <= rise else keep, near=(c.target,))
+            clearance = 0.0 if k <= rise else min(keep, at_goal) if k >= descent else keep
+            why = view.path_blocked([q, nxt], clearance=clearance, near=(c.target,))
             if why is not None:
                 return why
             q = nxt
