@@ -52,12 +52,12 @@ STALL = 3.0
 STALLED = 0.01
 """Height over its resting height [m] at which an object still up ``STALL`` s after that fails the phase."""
 ROUTE_STEP = 0.03
-"""Spacing [m] of the object setpoints at which the carry's route is solved and checked, or a planned path followed."""
+"""Spacing [m] of the object setpoints at which the carry's route is solved, checked and followed."""
 ROUTE_SLACK = 0.005
 """The route over the obstacles is checked at ``clearance`` less this [m]: it passes exactly ``clearance`` over
 their tops."""
 POSTURE_RATE = 0.3
-"""Fastest a planned carry's joints turn [rad/s]: the arms swing through the null space no faster (their lag would
+"""Fastest a checked route's joints turn [rad/s]: the arms swing through the null space no faster (their lag would
 open the clamp)."""
 TOUCHING = 0.003
 """Penetration [m] a descent may show where its target touches an obstacle (the IK's and the contact's slop)."""
@@ -142,13 +142,14 @@ class Place(Phase):
         mid = 0.5 * (obj[:2] + self.goal[:2])
         candidates = [(float(h), mid + d * side if d else None) for h in heights for d in ROUTE_ASIDE]
         candidates = candidates[:1] + sorted(candidates[1:], key=lambda hv: self._length(obj, *hv))
+        at_goal = max(-TOUCHING, view.room_at(self.posture, near=(c.target,)) - ROUTE_SLACK)  # the hover's own room
         first_why = None
         for k, (height, via) in enumerate(candidates):
             if k == 0 and c.plan == "always":
                 first_why = "plan: always"
                 continue
             legs, yaws = self._corners(obj, height, via)
-            checked = self._check(view, legs, yaws)
+            checked = self._check(view, legs, yaws, at_goal)
             if isinstance(checked, str):
                 first_why = first_why or checked
                 continue
@@ -181,15 +182,15 @@ class Place(Phase):
         corners = [obj, *self._corners(obj, height, via)[0]]
         return float(sum(np.linalg.norm(b - a) for a, b in itertools.pairwise(corners)))
 
-    def _check(self, view: View, legs: list[np.ndarray],
-               yaws: list[float]) -> tuple[list[np.ndarray], list[float], list[np.ndarray]] | str:
+    def _check(self, view: View, legs: list[np.ndarray], yaws: list[float],
+               at_goal: float) -> tuple[list[np.ndarray], list[float], list[np.ndarray]] | str:
         """A route's setpoints every ``ROUTE_STEP`` with the clamp's joints at each, or what blocks it.
 
         Each point is solved from the previous one and the joint segment between them checked with the object
         attached: the rise not to touch anything (the grasp may have left the arms near something), the rest to
         keep ``clearance`` less ``ROUTE_SLACK``, or, where the arms are nearer something at the top of the rise,
-        to come no more than twice that nearer; the descent to the hover, no nearer than the hover itself less
-        ``ROUTE_SLACK`` (a target beside a wall; one touching it, ``TOUCHING`` into it).
+        to come no more than twice that nearer; the descent to the hover, no nearer than ``at_goal`` [m] (the hover's
+        own room less ``ROUTE_SLACK``: a target beside a wall; one touching it, ``TOUCHING`` into it).
         """
         c = self.spec
         points, point_yaws, at, yaw = [], [], self.sp.pos.copy(), self.yaw
@@ -200,7 +201,6 @@ class Place(Phase):
             at, yaw = goal, goal_yaw
         rise = next(k for k, p in enumerate(points) if p[2] >= legs[0][2] - 1e-9)  # the rise's last point
         descent = len(points) - max(1, int(np.ceil(np.linalg.norm(legs[-1] - legs[-2]) / ROUTE_STEP)))
-        at_goal = max(-TOUCHING, view.room_at(self.posture, near=(c.target,)) - ROUTE_SLACK)  # the hover's own room
         q = view.joint_positions(view.joint_names())
         qs: list[np.ndarray] = []
         keep = c.clearance - ROUTE_SLACK
@@ -249,7 +249,7 @@ class Place(Phase):
         done = False
         if self.stage == "transit":
             goal, goal_yaw = self.legs[self.leg], self.yaws[self.leg]
-            if self.postures[self.leg] is not None:  # a planned path's point: timed by its joints' travel too
+            if self.postures[self.leg] is not None:  # a checked route's point: timed by its joints' travel too
                 arrived = self._follow(view)
             else:
                 arrived = self.sp.advance(goal, c.speed, view.dt)
@@ -292,10 +292,9 @@ class Place(Phase):
         At ``speed``, ``turn_rate`` and the joints' ``POSTURE_RATE``, whichever takes longest.
         """
         c, k = self.spec, self.leg
-        prev, prev_yaw = (self.legs[k - 1], self.yaws[k - 1]) if k > 0 else (self.start_pos, self.start_yaw)
-        prev_q = self.postures[k - 1] if k > 0 else self.start_q
+        prev, prev_yaw, prev_q = self._previous(k)
         q = self.postures[k]
-        assert prev_q is not None and q is not None
+        assert q is not None
         time = max(float(np.linalg.norm(self.legs[k] - prev)) / c.speed, abs(self.yaws[k] - prev_yaw) / c.turn_rate,
                    float(np.max(np.abs(q - prev_q))) / POSTURE_RATE, view.dt)
         self.frac = min(1.0, self.frac + view.dt / time)
@@ -307,9 +306,16 @@ class Place(Phase):
 
     def _along(self, q: np.ndarray) -> np.ndarray:
         """The joints between the last point's and ``q`` (the current point's), as far as the setpoint has come."""
-        k = min(self.leg, len(self.legs) - 1)
-        prev_q = self.postures[k - 1] if k > 0 else self.start_q
+        prev_q = self._previous(min(self.leg, len(self.legs) - 1))[2]
         return prev_q + self.frac * (q - prev_q)
+
+    def _previous(self, k: int) -> tuple[np.ndarray, float, np.ndarray]:
+        """The setpoint, yaw and joints a checked route's point ``k`` starts from (the route's start for the first)."""
+        if k == 0:
+            return self.start_pos, self.start_yaw, self.start_q
+        q = self.postures[k - 1]
+        assert q is not None
+        return self.legs[k - 1], self.yaws[k - 1], q
 
     def _check_stall(self, view: View) -> None:
         """Fail when the setpoint has been at the bottom of its descent ``STALL`` s and the object is ``STALLED`` up.
