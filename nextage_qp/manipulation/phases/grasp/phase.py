@@ -214,33 +214,37 @@ class Grasp(Phase):
         c = self.spec
         if c.place_at is None:
             return
-        height, half = self.height, self.half
-        tried = self.placements.setdefault((round(shift, 6), round(height, 6), round(half, 6)), [])
-        tgt, trot = view.body_pose(c.place_at)
+        tried = self.placements.setdefault((round(shift, 6), round(self.height, 6), round(self.half, 6)), [])
         sym = view.yaw_symmetry(c.object) or ROUND_HEADINGS  # a round object: headings this far apart
-        centre = np.array([tgt[0], tgt[1], view.rest_height(c.object, c.place_at) + height])
         for k in range(max(1, round(2 * np.pi / sym))):
             if k == len(tried):
-                rz = rot_z(yaw_of(trot) + k * sym)
-                points = [centre + rz @ np.array([shift, s * half, 0.0]) for s in SIDES]
-                targets = [FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=rz[:, 1])
-                           for f, p in zip(self.frames, points, strict=True)]
+                rz, targets = self._placement_pads(view, shift, k * sym)
                 q = view.plan(targets, allow=frozenset({c.object}))
                 tried.append(None if q is None else ([rz.T @ view.pose_at(f, q).rot for f in self.frames], q))
             grip = tried[k]
             if grip is not None:
                 yield grip
 
-    def _placement_blocker(self, view: View) -> str:
-        """Why no grip reaches the placement: an obstacle in the way (what the arms would touch), or the reach."""
+    def _placement_pads(self, view: View, shift: float, turn: float) -> tuple[np.ndarray, list[FrameTarget]]:
+        """The clamp's frame at ``place_at`` turned by ``turn`` [rad], and the pads' targets there.
+
+        ``shift`` along the faces, at the current clamp height and half-width; each pad's y axis along the clamp axis,
+        its roll free.
+        """
         c = self.spec
         assert c.place_at is not None
         tgt, trot = view.body_pose(c.place_at)
         centre = np.array([tgt[0], tgt[1], view.rest_height(c.object, c.place_at) + self.height])
-        rz = rot_z(yaw_of(trot))
-        targets = [FrameTarget(f, pos=centre + rz @ np.array([0.0, s * self.half, 0.0]), axis=np.array([0.0, 1.0, 0.0]),
-                               direction=rz[:, 1]) for f, s in zip(self.frames, SIDES, strict=True)]
-        q = view.plan(targets, allow=frozenset({c.object, *view.obstacle_groups()}))
+        rz = rot_z(yaw_of(trot) + turn)
+        points = [centre + rz @ np.array([shift, s * self.half, 0.0]) for s in SIDES]
+        return rz, [FrameTarget(f, pos=p, axis=np.array([0.0, 1.0, 0.0]), direction=rz[:, 1])
+                    for f, p in zip(self.frames, points, strict=True)]
+
+    def _placement_blocker(self, view: View) -> str:
+        """Why no grip reaches the placement: an obstacle in the way (what the arms would touch), or the reach."""
+        c = self.spec
+        assert c.place_at is not None
+        q = view.plan(self._placement_pads(view, 0.0, 0.0)[1], allow=frozenset({c.object, *view.obstacle_groups()}))
         if q is None:
             return "the target is out of the arms' reach"
         why = view.path_blocked([q], near=(c.object, c.place_at))
