@@ -178,10 +178,9 @@ class Runner:
         self.monitor.attach(self.sim)
         self.monitor.record_starts(self.sim)
         for name, target in cfg.success.objects.items():  # judged objects: known bodies, or exit 2 now
-            for kind, body in (("object", name), ("target", target)):
-                if mujoco.mj_name2id(self.robot.model, mujoco.mjtObj.mjOBJ_BODY, body) < 0 or (
-                        kind == "object" and body not in self.robot.object_names):
-                    valid = self.robot.object_names if kind == "object" else self.robot.body_names
+            for kind, body, valid in (("object", name, self.robot.object_names),
+                                      ("target", target, self.robot.body_names)):
+                if body not in valid:
                     raise ConfigError(f"{source}: success.objects: {UnknownNameError(kind, body, valid)}",
                                       key="success.objects")
         self.error: str | None = None

@@ -25,12 +25,12 @@ from nextage_qp.manipulation.context import Grip, View, refusal
 __all__ = ["MAX_SECONDS", "NameKind", "Phase", "Spec", "name_field"]
 
 
-
 def plan_field() -> Any:
-    """The ``plan`` key of a phase with a planned transit (push, grasp)."""
+    """The ``plan`` key of a phase whose motion is checked against the world (push, grasp, place, release)."""
     return Field(default="auto", description="The transit's joint-space legs: planned around obstacles where the "
                                              "straight leg would touch one (auto), always planned, or driven straight "
                                              "(never).")
+
 
 class Spec(YamlModel):
     """Fields every phase has; subclasses add ``kind: Literal[...]`` and their own."""
