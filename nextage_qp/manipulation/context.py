@@ -190,13 +190,12 @@ class Reach(Protocol):
         """
 
     def plan_path(self, q_start: np.ndarray, q_goal: np.ndarray, *, near: Sequence[str] = (),
-                  always: bool = False, clearance: float | None = None) -> PathPlan:
+                  always: bool = False) -> PathPlan:
         """A collision-free joint path from ``q_start`` to ``q_goal`` [rad] through the world as it is believed now.
 
         The straight joint-space segment when nothing touches along it (unless ``always``), else a planned path that
         keeps the planner's clearance from obstacles and objects (``near``: bodies it may come close to but not
-        touch, e.g. the object a push or grasp goes to; ``clearance`` [m]: another than the planning config's). A
-        held object (the view's grip) moves with its pads.
+        touch, e.g. the object a push or grasp goes to). A held object (the view's grip) moves with its pads.
         """
 
     def obstacle_groups(self) -> tuple[str, ...]:

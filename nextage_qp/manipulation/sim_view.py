@@ -156,13 +156,12 @@ class SimView:
         return touch.room(np.asarray(q, dtype=float))[0]
 
     def plan_path(self, q_start: np.ndarray, q_goal: np.ndarray, *, near: Sequence[str] = (),  # noqa: D102
-                  always: bool = False, clearance: float | None = None) -> PathPlan:
+                  always: bool = False) -> PathPlan:
         qa, qb = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
-        touch, keep = self._worlds_at(qa, near, clearance)
+        touch, keep = self._worlds_at(qa, near)
         seed = 1 + len(self.plans)  # a run's plans repeat: each seeded by its place in the run
         t0, checks0 = time.perf_counter(), touch.checks
-        straight = touch if clearance is None else keep  # a clearance asked for: the straight segment keeps it too
-        if not always and straight.first_on_segment(qa, qb) is None:
+        if not always and touch.first_on_segment(qa, qb) is None:
             plan = PathPlan([qa, qb], "straight", time_s=time.perf_counter() - t0, checks=touch.checks - checks0)
         else:
             names = self.robot.joint_names
