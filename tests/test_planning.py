@@ -198,3 +198,77 @@ def test_a_shelf_is_reached_by_a_route_between_its_boards_not_over_them():
     assert place["carry"] == "routed" and "cannot reach" in place["carry_blocked"]
     assert place["carry_height_m"] < 1.34  # under the top board's underside
     assert result["object_error_xy_m"] < 0.005 and result["criteria"]["resting"]["ok"]  # standing on the board
+
+
+def test_a_turning_torso_plans_over_both_arms_an_arm_over_itself(cluttered):
+    robot = cluttered
+    left, right = list(robot.group("left_arm")), list(robot.group("right_arm"))
+    chest = robot.joint_index("CHEST_JOINT0")
+    assert robot.moved_groups([left[2]]) == sorted(left)
+    assert robot.moved_groups([chest]) == sorted([chest, *left, *right])  # the chest carries both arms
+    assert robot.moved_groups([]) == []
+
+
+def test_a_chest_turn_that_swings_the_other_arm_into_clutter_is_planned_around_it(cluttered):
+    """The right arm, held still, would sweep through the clutter as the chest turns: it moves aside and back."""
+    robot = cluttered
+    world = CollisionWorld(robot, clearance=0.01)
+    home = robot.keyframe_q("home")
+    world.set_world({}, home)
+    chest = robot.joint_index("CHEST_JOINT0")
+    right = list(robot.group("right_arm"))
+    rng = np.random.default_rng(0)
+    for _ in range(400):  # a chest turn whose straight sweep puts the right hand into something
+        a, b = home.copy(), home.copy()
+        a[chest], b[chest] = rng.uniform(-1.0, 1.0, 2)
+        if world.valid(a) and world.valid(b) and (hit := world.first_on_segment(a, b)) is not None:
+            break
+    else:
+        pytest.skip("no blocked chest turn in this clutter")
+    assert hit is not None
+    narrow = plan_path(world, a, b, lower=robot.lower, upper=robot.upper, joints=[chest], time_limit=0.5)
+    wide = plan_path(world, a, b, lower=robot.lower, upper=robot.upper, joints=robot.moved_groups([chest]),
+                     time_limit=2.0)
+    assert wide.found and set(right) <= set(wide.joints)
+    assert world.first_on_path(wide.path) is None
+    assert not narrow.found or narrow.joints == (chest,)
+
+
+def test_the_compiled_validity_rule_equals_its_array_statement(cluttered):
+    """Every state's worst contact, as :meth:`CollisionWorld.room` finds it, against the rule written with arrays."""
+    from nextage_qp.planning.world import LOOKAHEAD, RESTING, SELF_SLOP
+
+    robot = cluttered
+    world = CollisionWorld(robot, clearance=0.02, table_clearance=0.005)
+    held = Held("cube", "left_pad", Pose(np.array([0.0, 0.0, -0.08]), np.eye(3)))
+    world.set_world({}, robot.keyframe_q("home"), held=held, near=["clutter_0"], allow=["clutter_1"])
+    rng = np.random.default_rng(1)
+    m, d = world.model, world.data
+    compared = 0
+    for _ in range(150):
+        q = robot.keyframe_q("home")
+        arm = _arm(robot)
+        q[arm] = rng.uniform(robot.lower[arm], robot.upper[arm])
+        room, why = world.room(q)
+        if d.ncon == 0:
+            continue
+        bodies = m.geom_bodyid[d.contact.geom[: d.ncon]]
+        dist = d.contact.dist[: d.ncon]
+        mine = world._robot_bodies[bodies] | world._held_body[bodies]
+        is_held = world._held_body[bodies].any(axis=1)
+        both, one = mine.all(axis=1), mine.any(axis=1) & ~mine.all(axis=1)
+        selfhit = both & ~is_held
+        other = np.where(mine[:, 0], bodies[:, 1], bodies[:, 0])
+        table = world._table[other]
+        needed = np.where(table, world.table_clearance, np.where(world._near_body[other], 0.0, world.clearance))
+        needed = np.where(table & is_held, -RESTING, needed)
+        needed = np.where(selfhit, np.where(world._chain[bodies[:, 0], bodies[:, 1]], -world.chain_slop,
+                                            -SELF_SLOP), needed)
+        counted = ~world._allowed_body[bodies].any(axis=1) & (one | selfhit) & (bodies != 0).all(axis=1)
+        slack = np.where(selfhit, 0.5 * (dist - needed), dist - needed)[counted]
+        free = LOOKAHEAD - max(world.clearance, world.table_clearance)
+        expected = free if not counted.any() or slack.min() >= free else float(slack.min())
+        assert room == pytest.approx(expected)
+        assert (why is None) == (not counted.any() or slack.min() >= 0)
+        compared += 1
+    assert compared > 100

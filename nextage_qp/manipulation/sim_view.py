@@ -164,10 +164,7 @@ class SimView:
         if not always and touch.first_on_segment(qa, qb) is None:
             plan = PathPlan([qa, qb], "straight", time_s=time.perf_counter() - t0, checks=touch.checks - checks0)
         else:
-            names = self.robot.joint_names
-            moving = {names[j] for j in np.flatnonzero(np.abs(qb - qa) > 1e-6)}
-            groups = [g for g in self.robot.description.groups.values() if moving & set(g)]
-            joints = sorted({self.robot.joint_index(j) for g in groups for j in g} | {names.index(j) for j in moving})
+            joints = self.robot.moved_groups(np.flatnonzero(np.abs(qb - qa) > 1e-6))
 
             def planned(world: CollisionWorld) -> PathPlan:  # over the whole groups (arms, torso) that move
                 return plan_path(world, qa, qb, lower=self.robot.lower, upper=self.robot.upper, joints=joints,

@@ -273,3 +273,41 @@ def clearance_python(model: mujoco.MjModel, data: mujoco.MjData, pair1: np.ndarr
         best, nearest = min(best, dist), min(nearest, dist)
         cut = max(best, watch)
     return best, nearest
+
+
+@njit(cache=True)
+def worst_contact(geom, dist, bodyid, mine, held, allowed, near, table, chain, clearance, table_clearance,
+                  chain_slop, self_slop, resting):  # pragma: no cover - compiled
+    """The counted contact with the least slack (distance less the distance it needs): (slack, index, needed).
+
+    The planner's validity rule (:meth:`~nextage_qp.planning.world.CollisionWorld.room`) over MuJoCo's contacts
+    ``geom`` (pairs of geom ids) at signed distances ``dist``: a contact counts when exactly one side is the robot's
+    or a held object's (``mine``), or both are robot links (self-collision, half the slack: both may move), neither
+    side is ``allowed`` nor the world body. Index -1: no contact counts.
+    """
+    best, at, need = np.inf, -1, 0.0
+    for k in range(dist.shape[0]):
+        b0 = bodyid[geom[k, 0]]
+        b1 = bodyid[geom[k, 1]]
+        if b0 == 0 or b1 == 0 or allowed[b0] or allowed[b1]:
+            continue
+        m0, m1 = mine[b0], mine[b1]
+        if m0 and m1:
+            if held[b0] or held[b1]:
+                continue
+            needed = -chain_slop if chain[b0, b1] else -self_slop
+            slack = 0.5 * (dist[k] - needed)
+        elif m0 or m1:
+            other = b1 if m0 else b0
+            if table[other]:
+                needed = -resting if (held[b0] or held[b1]) else table_clearance
+            elif near[other]:
+                needed = 0.0
+            else:
+                needed = clearance
+            slack = dist[k] - needed
+        else:
+            continue
+        if slack < best:
+            best, at, need = slack, k, needed
+    return best, at, need

@@ -108,8 +108,11 @@ def plan_path(world: CollisionWorld, q_start: np.ndarray, q_goal: np.ndarray, *,
         return done([qa, qb], "straight")
     if not differ:
         return done([qa, qb], "straight")
-    for attempt in range(3):  # a path the dense check refutes is planned again from another seed
-        path = _ompl(world, qa, qb, moving, lower, upper, time_limit, seed + attempt)
+    for attempt in range(3):  # a path the dense check refutes is planned again, from another seed, checked finer
+        left = time_limit - (time.perf_counter() - t0)  # the attempts share the time limit
+        if left <= 0:
+            break
+        path = _ompl(world, qa, qb, moving, lower, upper, left, seed + attempt, OMPL_RESOLUTION / 2**attempt)
         if path is None:
             return done([], "no_path")
         if world.first_on_path(path) is None:
@@ -118,7 +121,7 @@ def plan_path(world: CollisionWorld, q_start: np.ndarray, q_goal: np.ndarray, *,
 
 
 def _ompl(world: CollisionWorld, qa: np.ndarray, qb: np.ndarray, moving: Sequence[int], lower: np.ndarray,
-          upper: np.ndarray, time_limit: float, seed: int) -> list[np.ndarray] | None:
+          upper: np.ndarray, time_limit: float, seed: int, resolution: float) -> list[np.ndarray] | None:
     """RRT-Connect and its simplification over the ``moving`` joints; None when no path is found in time."""
     from ompl import base as ob
     from ompl import geometric as og
@@ -145,7 +148,7 @@ def _ompl(world: CollisionWorld, qa: np.ndarray, qb: np.ndarray, moving: Sequenc
 
     setup.setStateValidityChecker(valid)
     info = setup.getSpaceInformation()
-    info.setStateValidityCheckingResolution(OMPL_RESOLUTION)
+    info.setStateValidityCheckingResolution(resolution)
     start, goal = space.allocState(), space.allocState()
     for k, j in enumerate(idx):
         start[k], goal[k] = float(qa[j]), float(qb[j])

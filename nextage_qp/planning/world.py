@@ -28,6 +28,7 @@ import numpy as np
 
 from nextage_qp.geometry import Pose
 from nextage_qp.ik.kinematic_model import lever_bounds
+from nextage_qp.native.kernels import worst_contact
 from nextage_qp.robots.model import Robot, robot_bodies
 
 RESOLUTION = 0.003
@@ -108,6 +109,7 @@ class CollisionWorld:
         self._allowed_body = np.zeros(m.nbody, dtype=bool)
         self._near_body = np.zeros(m.nbody, dtype=bool)
         self._held_body = np.zeros(m.nbody, dtype=bool)
+        self._mine = self._robot_bodies.copy()
         self._held_reach = 0.0
         self._chain = np.zeros((m.nbody, m.nbody), dtype=bool)  # one body below the other
         for b in range(1, m.nbody):
@@ -142,6 +144,7 @@ class CollisionWorld:
         self._allowed_body = self._subtrees(allow)
         self._near_body = self._subtrees(near)
         self._held_body = self._subtrees([held.object] if held is not None else [])
+        self._mine = self._robot_bodies | self._held_body
         m = self.model
         m.geom_margin[:] = self._base_margin
         self._held_reach = 0.0
@@ -185,31 +188,16 @@ class CollisionWorld:
         free = LOOKAHEAD - max(self.clearance, self.table_clearance)
         if d.ncon == 0:
             return free, None
-        bodies = m.geom_bodyid[d.contact.geom[: d.ncon]]  # (ncon, 2)
-        dist = d.contact.dist[: d.ncon]
-        robot = self._robot_bodies[bodies]
-        held = self._held_body[bodies]
-        mine = robot | held
-        allowed = self._allowed_body[bodies].any(axis=1)
-        both = mine.all(axis=1)
-        one = mine.any(axis=1) & ~both
-        other = np.where(mine[:, 0], bodies[:, 1], bodies[:, 0])
-        table = self._table[other]
-        needed = np.where(table, self.table_clearance, np.where(self._near_body[other], 0.0, self.clearance))
-        needed = np.where(table & held.any(axis=1), -RESTING, needed)  # a held object may stand on the table
-        selfhit = both & robot.all(axis=1)  # robot links: deep penetration only
-        needed = np.where(selfhit, np.where(self._chain[bodies[:, 0], bodies[:, 1]], -self.chain_slop, -SELF_SLOP),
-                          needed)
-        counted = ~allowed & (one | selfhit) & (bodies != 0).all(axis=1)  # the ground: wheels stand on it
-        if not counted.any():
+        contact = d.contact
+        slack, k, needed = worst_contact(contact.geom, contact.dist, m.geom_bodyid, self._mine, self._held_body,
+                                         self._allowed_body, self._near_body, self._table, self._chain,
+                                         self.clearance, self.table_clearance, self.chain_slop, SELF_SLOP, RESTING)
+        if k < 0:
             return free, None
-        slack = np.where(selfhit, 0.5 * (dist - needed), dist - needed)[counted]
-        k = int(np.argmin(slack))
-        if slack[k] >= 0:
-            return min(free, float(slack[k])), None
-        k = int(np.flatnonzero(counted)[k])
-        return float(slack.min()), Collision(_name(m, int(bodies[k, 0])), _name(m, int(bodies[k, 1])),
-                                             float(dist[k]), float(needed[k]))
+        if slack >= 0:
+            return min(free, float(slack)), None
+        b1, b2 = (int(m.geom_bodyid[g]) for g in contact.geom[k])
+        return float(slack), Collision(_name(m, b1), _name(m, b2), float(contact.dist[k]), float(needed))
 
     def first_collision(self, q: np.ndarray) -> Collision | None:
         """The worst violation at robot joints ``q`` [rad], or None when ``q`` is valid."""
@@ -231,10 +219,12 @@ class CollisionWorld:
             travel = max(travel, float(self.lever() @ dq))
         return max(1, int(np.ceil(travel / RESOLUTION)))
 
-    def first_on_segment(self, qa: np.ndarray, qb: np.ndarray) -> tuple[float, Collision] | None:
+    def first_on_segment(self, qa: np.ndarray, qb: np.ndarray,
+                         step: float = RESOLUTION) -> tuple[float, Collision] | None:
         """The first invalid state on the straight segment ``qa`` -> ``qb``, as (fraction, why), or None.
 
-        Dense: no point of the robot moves more than :data:`RESOLUTION` between two checked states.
+        Dense: no point of the robot moves more than ``step`` [m] (default :data:`RESOLUTION`) between two checked
+        states, nor farther than the room the last one left.
         """
         qa, qb = np.asarray(qa, dtype=float), np.asarray(qb, dtype=float)
         travel = self.steps(qa, qb) * RESOLUTION  # the most any point moves along the segment [m], rounded up
@@ -245,7 +235,7 @@ class CollisionWorld:
                 return s, why
             if s >= 1.0:
                 return None
-            s = min(1.0, s + max(room, RESOLUTION) / travel)
+            s = min(1.0, s + max(room, step) / travel)
 
     def first_on_path(self, path: Sequence[np.ndarray]) -> tuple[int, float, Collision] | None:
         """The first invalid state along a path of joint waypoints: (segment, fraction, why), or None."""

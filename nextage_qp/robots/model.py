@@ -9,7 +9,7 @@ independent of any free joints the scene adds for objects.
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -152,6 +152,31 @@ class Robot:
         if name not in groups:
             raise UnknownNameError("joint group", name, groups)
         return np.array([self._joint_index[j] for j in groups[name]])
+
+    def moved_groups(self, moving: Iterable[int]) -> list[int]:
+        """Indices into q of the joint groups a motion of joints ``moving`` must plan over, with ``moving`` itself.
+
+        A group counts when one of its joints moves; an arm also when a moving joint carries it (a torso that turns
+        swings both arms: each may have to move aside and come back).
+        """
+        m, moving = self.model, {int(j) for j in moving}
+        bodies = [int(m.jnt_bodyid[self.joint_ids[j]]) for j in moving]
+
+        def carried(j: int) -> bool:
+            b = int(m.jnt_bodyid[self.joint_ids[j]])
+            while b > 0:
+                b = int(m.body_parentid[b])
+                if b in bodies:
+                    return True
+            return False
+
+        out = set(moving)
+        arms = {arm.group for arm in self.arms}
+        for name, joints in self.description.groups.items():
+            idx = [self._joint_index[j] for j in joints]
+            if moving & set(idx) or (name in arms and any(carried(j) for j in idx)):
+                out.update(idx)
+        return sorted(out)
 
     @property
     def site_names(self) -> tuple[str, ...]:
