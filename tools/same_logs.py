@@ -30,8 +30,8 @@ RUNS = {
     "stack": ["configs/stack_boxes.yaml"],
     "fetch_push": ["configs/fetch_push.yaml"],
     "park": ["configs/park_car.yaml"],
-    "yumi_push": ["configs/yumi/push_cube.yaml"],
-    "aloha_push": ["configs/aloha/push_cube.yaml"],
+    "yumi_push": ["configs/push_across.yaml", "--robot", "yumi"],
+    "aloha_push": ["configs/push_across.yaml", "--robot", "aloha"],
     "aloha_park": ["configs/aloha/park.yaml"],
     "camera_push": ["configs/push_cube.yaml", "--set", "perception.source=camera"],
 }

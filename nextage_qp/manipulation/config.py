@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import Annotated, Any, Union
+from typing import Annotated, Any, Literal, Union
 
 import numpy as np
 import yaml
@@ -51,6 +51,10 @@ class SceneConfig(YamlModel):
     """Which scene to load and what to change in it without editing XML."""
 
     file: str = Field(description="Bundled scene name (push_cube, dock_dumbbell) or MJCF path.")
+    frame: Literal["world", "workspace"] = Field(
+        default="world", description="Frame of the positions below: world, or the robot file's workspace (x-y from "
+                                     "the work region's centre, z above the table top; the table stands where the "
+                                     "robot file puts it), so that one config serves every robot.")
     poses: dict[str, PoseOverride] = Field(default_factory=dict, description="Body -> start/fixed pose.")
     masses: dict[str, Annotated[float, Field(ge=1e-4, le=50.0)]] = Field(
         default_factory=dict, description="Body -> mass [kg], 0.1 g to 50 kg (as a declared object's).")

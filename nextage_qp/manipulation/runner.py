@@ -29,14 +29,16 @@ from nextage_qp.manipulation.config import ManipulationConfig
 from nextage_qp.manipulation.joint_checks import check_angles
 from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, RunResult, summarize
 from nextage_qp.manipulation.phases import Phase, build, names_in
+from nextage_qp.manipulation.phases.push.spec import FULL_ORIENT_JOINTS, PushSpec
 from nextage_qp.manipulation.placement import Placement, check_placement
 from nextage_qp.manipulation.sim_view import SimView
+from nextage_qp.manipulation.workspace import to_world
 from nextage_qp.mobile.build import BASE_BODY
 from nextage_qp.mobile.odometry import base_report
 from nextage_qp.planning.rrt import PathPlan
 from nextage_qp.robots.check_report import check_own_names
 from nextage_qp.robots.description import load_robot
-from nextage_qp.robots.gains import load_gains, robot_gains
+from nextage_qp.robots.gains import config_gains, robot_gains
 from nextage_qp.robots.model import Robot, robot_bodies, scene_bodies, tool_frames
 from nextage_qp.scene.checks import check_clear, check_robot_clear
 from nextage_qp.scene.clutter import ClutterDecl
@@ -76,6 +78,18 @@ def start_footprint(robot: Robot, q: np.ndarray, clutter: ClutterDecl) -> tuple[
     return tuple(circles)
 
 
+def for_robot(cfg: ManipulationConfig, robot: Robot) -> ManipulationConfig:
+    """``cfg`` with what it leaves to the robot decided: a push's ``orient: auto`` (see ``FULL_ORIENT_JOINTS``)."""
+    phases = []
+    for spec in cfg.phases:
+        if isinstance(spec, PushSpec) and spec.orient == "auto":
+            tools = [spec.frame, *spec.other_frames]
+            full = min(len(robot.chain_joints(f)) for f in tools) >= FULL_ORIENT_JOINTS
+            spec = spec.model_copy(update={"orient": "full" if full else "normal"})
+        phases.append(spec)
+    return cfg.model_copy(update={"phases": phases})
+
+
 def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
     """Compile the config's scene with its overrides, and check every name the config uses.
 
@@ -83,7 +97,11 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
         ConfigError: A body, frame, object or joint named in the config is not in the scene (the message names
             the dotted key and the valid names).
     """
-    scene = cfg.scene
+    try:
+        description = load_robot(cfg.robot)
+    except ConfigError as exc:
+        raise ConfigError(f"{source}: robot: {exc}") from None
+    scene = to_world(cfg.scene, description.workspace, cfg.robot, source)
     poses = {name: BodyPose(pos=p.pos, yaw=p.yaw) for name, p in scene.poses.items()}
     stereo = cfg.perception.source == "camera" and cfg.perception.depth == "stereo"
     clutter = scene.clutter
@@ -91,10 +109,6 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
         clutter = clutter.model_copy(update={"seed": cfg.seed})
     overrides = SceneOverrides(poses=poses, masses=dict(scene.masses), friction_scale=dict(scene.friction_scale),
                                objects=dict(scene.objects), speckle=stereo, clutter=clutter)
-    try:
-        description = load_robot(cfg.robot)
-    except ConfigError as exc:
-        raise ConfigError(f"{source}: robot: {exc}") from None
     if cfg.mount is not None:
         description = dataclasses.replace(description, mount=cfg.mount)
     try:
@@ -144,10 +158,11 @@ class Runner:
     """
 
     def __init__(self, cfg: ManipulationConfig, source: str = "<config>", robot: Robot | None = None) -> None:
-        self.cfg, self.source = cfg, source
         self.robot = robot or build_robot(cfg, source)
+        self.cfg, self.source = for_robot(cfg, self.robot), source
+        cfg = self.cfg
         try:
-            gains = robot_gains(self.robot) if cfg.gains is None else load_gains(cfg.gains, self.robot)
+            gains = robot_gains(self.robot) if cfg.gains is None else config_gains(cfg.gains, self.robot)
         except ConfigError as exc:
             raise ConfigError(f"{source}: gains: {exc}") from None
         try:

@@ -12,7 +12,7 @@ from nextage_qp.io.yaml_file import read_yaml_mapping, validate
 from nextage_qp.mobile.base_file import BaseFile
 from nextage_qp.robots.cameras import CameraFile
 from nextage_qp.robots.package_urls import PREFIX, missing_package_hint, resolve_package, split_package
-from nextage_qp.robots.robot_file import FrameFile, GainRule, GroupFile, MountFile, RobotFile
+from nextage_qp.robots.robot_file import FrameFile, GainRule, GroupFile, MountFile, RobotFile, WorkspaceFile
 
 DEFAULT_ROBOT = "nextage"
 """The robot a config or command uses when it names none."""
@@ -63,6 +63,7 @@ class RobotDescription:
     velocity_limits: float | Mapping[str, float] | None
     cameras: Mapping[str, CameraFile] = field(default_factory=dict)
     base: BaseFile | None = None
+    workspace: WorkspaceFile | None = None
 
     @property
     def joints(self) -> tuple[str, ...]:
@@ -221,4 +222,5 @@ def load_robot(ref: str | Path | None = None) -> RobotDescription:
         velocity_limits=doc.velocity_limits,
         cameras=dict(doc.cameras),
         base=doc.base,
+        workspace=doc.workspace,
     )

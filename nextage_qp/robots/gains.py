@@ -161,8 +161,34 @@ def robot_gains(robot: Robot) -> Gains:
     return rule_gains(robot, spec)
 
 
-def rule_gains(robot: Robot, rule: GainRule) -> Gains:
-    """Gains from each joint's reflected inertia at ``home`` (see the module docstring)."""
+PROFILES = {"stiff_wrist": 2.0}
+"""Named gains a task config may ask of any robot (``gains: NAME``) where its robot file has no file of that name:
+the rule's gains with the last three joints of each arm (forearm roll and wrist) this many times faster, so the hand
+holds its pose under contact forces."""
+
+
+def config_gains(name: str, robot: Robot) -> Gains:
+    """The gains a task config names: a file (a path, or bundled in the robot file's ``gains_dir``), or a profile.
+
+    A profile (:data:`PROFILES`) serves a robot whose gains come from the rule and that bundles no file of that name.
+
+    Raises:
+        ConfigError: Neither a gains file nor a profile this robot has.
+    """
+    desc = robot.description
+    if name in PROFILES and isinstance(desc.gains, GainRule) and not Path(name).is_file() and (
+            desc.gains_dir is None or not any((desc.gains_dir / n).is_file() for n in (name, f"{name}.yaml"))):
+        wrists = [robot.joint_index(j) for arm in robot.arms for j in arm.joints[-3:]]
+        return rule_gains(robot, desc.gains, faster=dict.fromkeys(wrists, PROFILES[name]), source=name)
+    return load_gains(name, robot)
+
+
+def rule_gains(robot: Robot, rule: GainRule, faster: dict[int, float] | None = None,
+               source: str = "rule") -> Gains:
+    """Gains from each joint's reflected inertia at ``home`` (see the module docstring).
+
+    ``faster``: joint index -> factor on the rule's bandwidth for that joint.
+    """
     m = robot.model
     d = mujoco.MjData(m)
     robot.set_q(d, robot.keyframe_q("home"))
@@ -173,7 +199,9 @@ def rule_gains(robot: Robot, rule: GainRule) -> Gains:
     else:  # MuJoCo 4: mj_fullM(m, d, dst)
         mujoco.mj_fullM(m, d, full)
     inertia = full[robot.dof_idx, robot.dof_idx]
-    w, zeta = rule.bandwidth, rule.damping_ratio
+    w, zeta = np.full(robot.nq, rule.bandwidth), rule.damping_ratio
+    for j, factor in (faster or {}).items():
+        w[j] *= factor
     kp = inertia * w * w
     kd = np.maximum(2.0 * zeta * inertia * w - m.dof_damping[robot.dof_idx], 0.0)
-    return Gains(kp, kd, rule.gravity_compensation, "rule", robot.joint_names)
+    return Gains(kp, kd, rule.gravity_compensation, source, robot.joint_names)

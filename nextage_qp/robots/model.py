@@ -207,6 +207,17 @@ class Robot:
             return "body", bid
         raise UnknownFrameError(name, self.frame_names)
 
+    def chain_joints(self, frame: str) -> list[int]:
+        """Indices into q of the robot joints that move ``frame`` (those above it in the kinematic tree)."""
+        kind, i = self.frame(frame)
+        m = self.model
+        b = int(m.site_bodyid[i]) if kind == "site" else i
+        above = set()
+        while b > 0:
+            above.add(b)
+            b = int(m.body_parentid[b])
+        return [k for k, j in enumerate(self.joint_ids) if int(m.jnt_bodyid[j]) in above]
+
     @functools.cached_property
     def object_names(self) -> tuple[str, ...]:
         """Free bodies of the scene (the manipulated objects, e.g. ``cube``, ``dumbbell``)."""

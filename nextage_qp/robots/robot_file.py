@@ -107,6 +107,21 @@ class MountFile(YamlModel):
     yaw: float = Field(default=0.0, ge=-7.0, le=7.0, description="Yaw of the robot's own frame about world z [rad].")
 
 
+class WorkspaceFile(YamlModel):
+    """Where the robot works at a table: the frame of task configs written with ``scene.frame: workspace``.
+
+    A point ``[x, y, z]`` of such a config is ``centre + (x, y)`` on the table top, ``z`` above it.
+    """
+
+    centre: tuple[float, float] = Field(description="World x-y [m] of the work region's centre on the table top.")
+    size: tuple[Positive, Positive] = Field(
+        description="Half-extent [m] of the work region both tools reach, along world x (forward) and y (left).")
+    top: float = Field(ge=0.0, le=3.0, allow_inf_nan=False, description="Height of the table top [m].")
+    table: tuple[float, float, float] | None = Field(
+        default=None, description="Where the scene's table body stands for this robot [m] (default: where the "
+                                  "scene has it).")
+
+
 class RobotFile(YamlModel):
     """The schema of a robot file (see the module docstring)."""
 
@@ -158,6 +173,9 @@ class RobotFile(YamlModel):
         default_factory=dict, description="Cameras on the robot (nextage_qp.robots.cameras), by name."
     )
     base: BaseFile | None = Field(default=None, description="A wheeled base under the robot (nextage_qp.mobile).")
+    workspace: WorkspaceFile | None = Field(
+        default=None, description="Where the robot works at a table: the frame of task configs with scene.frame: "
+                                  "workspace.")
 
     @field_validator("torque_limits", "velocity_limits", mode="before")
     @classmethod

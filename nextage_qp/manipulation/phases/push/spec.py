@@ -33,6 +33,9 @@ PRESS_M = 0.005
 """A tool this far [m] past the object's estimated face while the wrist feels nothing has moved it (a light object
 slides under less force than the sensor's threshold; or the estimate fell short): an object cannot be inside the tool,
 so the push then carries the estimate as if felt."""
+FULL_ORIENT_JOINTS = 7
+"""Joints that must move a tool for ``orient: auto`` to hold its whole rotation: six place the face and its normal;
+the roll about the normal needs one more (a torso joint counts)."""
 LOOK_S = 2.0
 """After backing off from a push the camera could not see, wait at most this long [s] for a view before judging it."""
 SEEN_S = 0.4
@@ -93,9 +96,10 @@ class PushSpec(Spec):
     settle: float = Field(default=0.3, ge=0, le=MAX_SECONDS, description="Rest before the error is judged [s].")
     yaw: float = Field(default=0.0, ge=-np.pi, le=np.pi, description="Tool yaw relative to the push [rad].")
     plan: PlanMode = plan_field()
-    orient: Literal["full", "normal"] = Field(
-        default="full", description="Hold the tool's whole rotation (x: the push, z: up), or only its face normal "
-                                    "(x) along the push: for arms with too few joints for both, a roll is harmless.")
+    orient: Literal["auto", "full", "normal"] = Field(
+        default="auto", description="Hold the tool's whole rotation (x: the push, z: up), or only its face normal "
+                                    "(x) along the push, a roll left free; auto: the whole rotation where at least "
+                                    f"{FULL_ORIENT_JOINTS} joints move every pushing tool, else the normal.")
     pitch: float = Field(default=0.0, ge=-0.8, le=0.8,
                          description="Tool pitch [rad]; > 0 tilts the push face's normal down.")
     standoff: float = Field(default=0.004, ge=0, le=0.05,

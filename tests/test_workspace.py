@@ -1,0 +1,85 @@
+"""One task config, any robot: positions in the robot file's workspace, what the config leaves to the robot."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from nextage_qp.cli import main
+from nextage_qp.manipulation.config import load_config
+from nextage_qp.manipulation.runner import Runner, build_robot, for_robot
+from nextage_qp.robots.description import load_robot
+from nextage_qp.robots.gains import config_gains, rule_gains
+
+ROOT = Path(__file__).resolve().parents[1]
+ACROSS = ROOT / "configs" / "push_across.yaml"
+needs_robosuite = pytest.mark.skipif(importlib.util.find_spec("robosuite_models") is None,
+                                     reason="robosuite_models is not installed (the robots extra)")
+
+
+@needs_robosuite
+@pytest.mark.parametrize("robot", ["nextage", "yumi", "aloha"])
+def test_a_workspace_config_puts_the_scene_where_each_robot_works(robot):
+    cfg = load_config(ACROSS, [f"robot={robot}"])
+    built = build_robot(cfg, str(ACROSS))
+    ws = load_robot(robot).workspace
+    assert ws is not None
+    cube = built.model.body("cube").pos
+    assert np.allclose(cube, [ws.centre[0], ws.centre[1] + 0.10, ws.top + 0.035])
+    target = built.model.body("cube_target").pos
+    assert np.allclose(target[:2], [ws.centre[0], ws.centre[1] - 0.10])
+    table = built.model.body("table")
+    top = table.pos[2] + built.model.geom("table_top").pos[2] + built.model.geom("table_top").size[2]
+    assert top == pytest.approx(ws.top)  # the robot file's table top is where the table is
+    if ws.table is not None:
+        assert np.allclose(table.pos, ws.table)
+
+
+@needs_robosuite
+@pytest.mark.parametrize("robot", ["nextage", "aloha"])
+def test_a_task_config_written_once_runs_on_two_robots(robot):
+    cfg = load_config(ACROSS, [f"robot={robot}"])
+    result = Runner(cfg, str(ACROSS)).run()
+    assert result["success"], result.get("error")
+    assert result["object_error_xy_m"] < 0.005
+
+
+def test_a_workspace_config_on_a_robot_without_one_is_refused_in_one_line(tmp_path, capsys):
+    robot = tmp_path / "bare.yaml"
+    text = (ROOT / "robots" / "nextage.yaml").read_text()
+    start = text.index("workspace:")
+    end = text.index("keyframes:")
+    robot.write_text(text[:start] + text[end:])
+    for line in text.splitlines():
+        if line.startswith(("model:", "gains:", "gains_dir:")):  # paths relative to the bundled file
+            key, value = line.split(":", 1)
+            value = value.split("#")[0].strip()
+            robot.write_text(robot.read_text().replace(line, f"{key}: {(ROOT / 'robots' / value).resolve()}"))
+    assert main(["run", str(ACROSS), "--robot", str(robot)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "declares no workspace" in err and "scene.frame: world" in err
+
+
+@needs_robosuite
+def test_orient_auto_holds_the_whole_rotation_only_with_seven_joints_to_the_tool():
+    for robot, expected in (("nextage", "full"), ("yumi", "full"), ("aloha", "normal")):
+        cfg = load_config(ACROSS, [f"robot={robot}"])
+        assert cfg.phases[0].orient == "auto"
+        resolved = for_robot(cfg, build_robot(cfg, str(ACROSS)))
+        assert resolved.phases[0].orient == expected, robot
+
+
+@needs_robosuite
+def test_a_gains_profile_serves_a_robot_whose_gains_come_from_the_rule():
+    cfg = load_config(ACROSS, ["robot=yumi"])
+    robot = build_robot(cfg, str(ACROSS))
+    base = rule_gains(robot, robot.description.gains)
+    stiff = config_gains("stiff_wrist", robot)
+    wrists = {robot.joint_index(j) for arm in robot.arms for j in arm.joints[-3:]}
+    for j in range(robot.nq):
+        factor = 4.0 if j in wrists else 1.0  # twice the bandwidth: kp x 4
+        assert stiff.kp[j] == pytest.approx(factor * base.kp[j])
+    nextage = build_robot(load_config(ACROSS), str(ACROSS))
+    assert config_gains("stiff_wrist", nextage).source.endswith("stiff_wrist.yaml")  # its own file wins
