@@ -79,13 +79,25 @@ def start_footprint(robot: Robot, q: np.ndarray, clutter: ClutterDecl) -> tuple[
 
 
 def for_robot(cfg: ManipulationConfig, robot: Robot) -> ManipulationConfig:
-    """``cfg`` with what it leaves to the robot decided: a push's ``orient: auto`` (see ``FULL_ORIENT_JOINTS``)."""
+    """``cfg`` with what it leaves to the robot decided.
+
+    A push's ``orient: auto`` (see ``FULL_ORIENT_JOINTS``), and its height and pitch where unset (the robot file's
+    ``push_face``).
+    """
     phases = []
+    face = robot.description.push_face
     for spec in cfg.phases:
-        if isinstance(spec, PushSpec) and spec.orient == "auto":
-            tools = [spec.frame, *spec.other_frames]
-            full = min(len(robot.chain_joints(f)) for f in tools) >= FULL_ORIENT_JOINTS
-            spec = spec.model_copy(update={"orient": "full" if full else "normal"})
+        if isinstance(spec, PushSpec):
+            update: dict[str, object] = {}
+            if spec.orient == "auto":
+                tools = [spec.frame, *spec.other_frames]
+                full = min(len(robot.chain_joints(f)) for f in tools) >= FULL_ORIENT_JOINTS
+                update["orient"] = "full" if full else "normal"
+            if spec.height is None:
+                update["height"] = face.height
+            if spec.pitch is None:
+                update["pitch"] = face.pitch
+            spec = spec.model_copy(update=update)
         phases.append(spec)
     return cfg.model_copy(update={"phases": phases})
 

@@ -12,7 +12,15 @@ from nextage_qp.io.yaml_file import read_yaml_mapping, validate
 from nextage_qp.mobile.base_file import BaseFile
 from nextage_qp.robots.cameras import CameraFile
 from nextage_qp.robots.package_urls import PREFIX, missing_package_hint, resolve_package, split_package
-from nextage_qp.robots.robot_file import FrameFile, GainRule, GroupFile, MountFile, RobotFile, WorkspaceFile
+from nextage_qp.robots.robot_file import (
+    FrameFile,
+    GainRule,
+    GroupFile,
+    MountFile,
+    PushFaceFile,
+    RobotFile,
+    WorkspaceFile,
+)
 
 DEFAULT_ROBOT = "nextage"
 """The robot a config or command uses when it names none."""
@@ -64,6 +72,7 @@ class RobotDescription:
     cameras: Mapping[str, CameraFile] = field(default_factory=dict)
     base: BaseFile | None = None
     workspace: WorkspaceFile | None = None
+    push_face: PushFaceFile = field(default_factory=PushFaceFile)
 
     @property
     def joints(self) -> tuple[str, ...]:
@@ -223,4 +232,5 @@ def load_robot(ref: str | Path | None = None) -> RobotDescription:
         cameras=dict(doc.cameras),
         base=doc.base,
         workspace=doc.workspace,
+        push_face=doc.push_face,
     )

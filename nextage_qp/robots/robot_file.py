@@ -122,6 +122,16 @@ class WorkspaceFile(YamlModel):
                                   "scene has it).")
 
 
+class PushFaceFile(YamlModel):
+    """How a tool's face meets an object it pushes: the defaults of a push phase that leaves them unset."""
+
+    height: float = Field(default=0.0, ge=-0.2, le=0.2, allow_inf_nan=False,
+                          description="The tool frame's height over the pushed object's centre [m].")
+    pitch: float = Field(default=0.0, ge=-0.8, le=0.8, allow_inf_nan=False,
+                         description="The tool's pitch [rad]; < 0 tilts the face's normal up, so its lower rim "
+                                     "leads (a round face pushes low, the object slides instead of tipping).")
+
+
 class RobotFile(YamlModel):
     """The schema of a robot file (see the module docstring)."""
 
@@ -173,6 +183,9 @@ class RobotFile(YamlModel):
         default_factory=dict, description="Cameras on the robot (nextage_qp.robots.cameras), by name."
     )
     base: BaseFile | None = Field(default=None, description="A wheeled base under the robot (nextage_qp.mobile).")
+    push_face: PushFaceFile = Field(
+        default=PushFaceFile(), description="How the tools' faces meet an object they push (a push phase's height "
+                                            "and pitch where it leaves them unset).")
     workspace: WorkspaceFile | None = Field(
         default=None, description="Where the robot works at a table: the frame of task configs with scene.frame: "
                                   "workspace.")

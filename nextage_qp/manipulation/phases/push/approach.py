@@ -63,7 +63,7 @@ def routes(view: View, spec, tool: np.ndarray, d: np.ndarray, raise_by: float = 
     obj[2] = view.rest_height(spec.object)  # a pushed object stands on the table: its height is known, not seen
     d3, n3 = np.array([*d, 0.0]), np.array([-d[1], d[0], 0.0])
     behind = obj - d3 * (view.extent(spec.object, -d3) + spec.approach)  # off the face pushed (any shape)
-    behind[2] = obj[2] + spec.height + raise_by
+    behind[2] = obj[2] + (spec.height or 0.0) + raise_by
     top = obj[2] + view.extent(spec.object, np.array([0.0, 0.0, 1.0]))
     lift = max(tool[2], top + spec.clearance)
     side = 1.0 if float((tool - obj) @ n3) >= 0 else -1.0
@@ -109,7 +109,7 @@ def raises(view: Geometry, spec) -> list[float]:
     low object the tool cannot reach down to at the configured height is pushed as low as the arm can go.
     """
     top = view.extent(spec.object, np.array([0.0, 0.0, 1.0]))
-    room = top - FACE_MARGIN - spec.height
+    room = top - FACE_MARGIN - (spec.height or 0.0)
     return [0.0] + [k * RAISE_STEP for k in range(1, int(room / RAISE_STEP) + 1)]
 
 

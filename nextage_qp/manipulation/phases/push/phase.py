@@ -262,7 +262,7 @@ class Push(Phase):
 
     @functools.cached_property
     def _pitch(self) -> np.ndarray:
-        return rot_of(np.array([0.0, self.spec.pitch, 0.0]))  # about the tool's y axis
+        return rot_of(np.array([0.0, self.spec.pitch or 0.0, 0.0]))  # about the tool's y axis
 
     def _turn_tool(self, view: RunState) -> None:  # towards the goal at the turn rate
         step = self.spec.turn_rate * view.dt

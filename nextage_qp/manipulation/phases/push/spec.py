@@ -72,7 +72,9 @@ class PushSpec(Spec):
         "frame", default=(), description="Other tool frames (e.g. the other arm's) that may take over a correction: "
         "it is made by the tool that reaches the direction nearest the error (ties: the tool pushing), the other one "
         "going home.")
-    height: float = Field(default=0.0, ge=-0.2, le=0.2, description="Tool height over the object centre [m].")
+    height: float | None = Field(default=None, ge=-0.2, le=0.2,
+                                 description="Tool height over the object centre [m] (unset: the robot file's "
+                                             "push_face, else 0).")
     approach: float = Field(default=0.04, gt=0, le=0.3, description="Gap behind the object before a push [m].")
     clearance: float = Field(default=0.07, gt=0, le=0.5, description="Height over the object's top in transit [m].")
     tolerance: float = Field(default=0.002, gt=0, le=0.1, description="Planar error that ends the phase [m].")
@@ -100,8 +102,9 @@ class PushSpec(Spec):
         default="auto", description="Hold the tool's whole rotation (x: the push, z: up), or only its face normal "
                                     "(x) along the push, a roll left free; auto: the whole rotation where at least "
                                     f"{FULL_ORIENT_JOINTS} joints move every pushing tool, else the normal.")
-    pitch: float = Field(default=0.0, ge=-0.8, le=0.8,
-                         description="Tool pitch [rad]; > 0 tilts the push face's normal down.")
+    pitch: float | None = Field(default=None, ge=-0.8, le=0.8,
+                                description="Tool pitch [rad]; > 0 tilts the push face's normal down (unset: the "
+                                            "robot file's push_face, else 0).")
     standoff: float = Field(default=0.004, ge=0, le=0.05,
                             description="The first push stops this short of the target; a short push aimed from "
                                         "the side the error then points to finishes the job [m].")
