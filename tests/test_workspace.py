@@ -46,16 +46,9 @@ def test_a_task_config_written_once_runs_on_two_robots(robot):
 
 
 def test_a_workspace_config_on_a_robot_without_one_is_refused_in_one_line(tmp_path, capsys):
-    robot = tmp_path / "bare.yaml"
     text = (ROOT / "robots" / "nextage.yaml").read_text()
-    start = text.index("workspace:")
-    end = text.index("keyframes:")
-    robot.write_text(text[:start] + text[end:])
-    for line in text.splitlines():
-        if line.startswith(("model:", "gains:", "gains_dir:")):  # paths relative to the bundled file
-            key, value = line.split(":", 1)
-            value = value.split("#")[0].strip()
-            robot.write_text(robot.read_text().replace(line, f"{key}: {(ROOT / 'robots' / value).resolve()}"))
+    block = text[text.index("workspace:"):text.index("keyframes:")]
+    robot = _nextage_copy(tmp_path, block, "")
     assert main(["run", str(ACROSS), "--robot", str(robot)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
@@ -83,3 +76,36 @@ def test_a_gains_profile_serves_a_robot_whose_gains_come_from_the_rule():
         assert stiff.kp[j] == pytest.approx(factor * base.kp[j])
     nextage = build_robot(load_config(ACROSS), str(ACROSS))
     assert config_gains("stiff_wrist", nextage).source.endswith("stiff_wrist.yaml")  # its own file wins
+
+
+def _nextage_copy(tmp_path, old="", new=""):
+    """The bundled Nextage's robot file, with its paths made absolute and ``old`` replaced by ``new``."""
+    text = (ROOT / "robots" / "nextage.yaml").read_text()
+    out = []
+    for line in text.splitlines():
+        if line.startswith(("model:", "gains:", "gains_dir:")):
+            key, value = line.split(":", 1)
+            line = f"{key}: {(ROOT / 'robots' / value.split('#')[0].strip()).resolve()}"
+        out.append(line)
+    path = tmp_path / "mine.yaml"
+    path.write_text("\n".join(out).replace(old, new) + "\n")
+    return path
+
+
+def test_robot_check_judges_the_workspace_reach_and_table():
+    from nextage_qp.robots.check_report import check_robot
+
+    report = check_robot(ROOT / "robots" / "nextage.yaml")
+    assert not [f for f in report.findings if f.topic == "workspace"]
+
+
+@pytest.mark.parametrize("old, new, says", [
+    ("centre: [0.45, 0.0]", "centre: [1.6, 0.0]", "falls short of the work region's centre"),
+    ("top: 0.875", "top: 0.95", "workspace.top: 0.95 m, but the table's top stands at 0.875 m"),
+])
+def test_robot_check_names_a_workspace_the_robot_cannot_work_in(tmp_path, old, new, says):
+    from nextage_qp.robots.check_report import check_robot
+
+    report = check_robot(_nextage_copy(tmp_path, old, new))
+    problems = [f for f in report.problems if f.topic == "workspace"]
+    assert problems and says in problems[0].message, report.findings
