@@ -93,9 +93,9 @@ def _nextage_copy(tmp_path, old="", new=""):
 
 
 def test_robot_check_judges_the_workspace_reach_and_table():
-    from nextage_qp.robots.check_report import check_robot
+    from nextage_qp.experiments.table_ready import check_at_table
 
-    report = check_robot(ROOT / "robots" / "nextage.yaml")
+    report = check_at_table(ROOT / "robots" / "nextage.yaml")
     assert not [f for f in report.findings if f.topic == "workspace"]
 
 
@@ -104,8 +104,43 @@ def test_robot_check_judges_the_workspace_reach_and_table():
     ("top: 0.875", "top: 0.95", "workspace.top: 0.95 m, but the table's top stands at 0.875 m"),
 ])
 def test_robot_check_names_a_workspace_the_robot_cannot_work_in(tmp_path, old, new, says):
-    from nextage_qp.robots.check_report import check_robot
+    from nextage_qp.experiments.table_ready import check_at_table
 
-    report = check_robot(_nextage_copy(tmp_path, old, new))
+    report = check_at_table(_nextage_copy(tmp_path, old, new))
     problems = [f for f in report.problems if f.topic == "workspace"]
     assert problems and says in problems[0].message, report.findings
+
+
+@needs_robosuite
+def test_robot_init_drafts_a_robot_ready_for_the_shared_push(tmp_path, capsys):
+    """The YuMi's model, never seen by a robot file: tools, a workspace, a ready home, and the push runs on it."""
+    import mujoco
+
+    from nextage_qp.robots.model import Robot
+    from nextage_qp.robots.modelfile import self_contacts
+
+    model = Path(importlib.util.find_spec("robosuite_models").origin).parent / "assets" / "robots" / "yumi" / "robot.xml"
+    out = tmp_path / "yumi.yaml"
+    assert main(["robot", "init", str(model), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "robot check finds no problems" in printed and "ready home" in printed
+    desc = load_robot(out)
+    assert desc.workspace is not None and {a.tool for a in desc.arms} == {"left_tool", "right_tool"}
+    robot = Robot.from_scene("push_cube", None, desc)
+    d = mujoco.MjData(robot.model)
+    qpos = d.qpos.copy()
+    qpos[robot.qpos_idx] = robot.keyframe_q("home")
+    assert not [p for p in self_contacts(robot.model, d, qpos) if "table" not in p and "cube" not in p]
+    note = next(line for line in out.read_text().splitlines() if "manipulability" in line)
+    values = [float(v) for v in out.read_text().split("6-D)")[1].split("\nkeyframes")[0].replace("#", "").split(",")]
+    assert note and min(values) > 1e-3  # away from singularities
+    result = Runner(load_config(ACROSS, [f"robot={out}"]), str(ACROSS)).run()
+    assert result["success"], result.get("error")
+    assert result["object_error_xy_m"] <= 0.005
+
+
+def test_robot_init_says_why_a_model_gets_no_workspace(tmp_path, capsys):
+    out = tmp_path / "two_arms.yaml"
+    assert main(["robot", "init", str(ROOT / "tests" / "data" / "robots" / "two_arms.xml"), "--out", str(out)]) == 0
+    assert "no table height found" in capsys.readouterr().out
+    assert load_robot(out).workspace is None  # the draft loads without one: world-frame tasks still run on it

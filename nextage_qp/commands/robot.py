@@ -37,7 +37,8 @@ def run_init(args: argparse.Namespace) -> int:
     """Write the draft robot file; print what was found and where it went."""
     from rich.markup import escape
 
-    from nextage_qp.robots.check_report import check_robot
+    from nextage_qp.experiments.table_ready import check_at_table, make_ready
+    from nextage_qp.robots.description import load_robot
     from nextage_qp.robots.draft import draft_text, write_draft
     from nextage_qp.robots.model import Robot
     from nextage_qp.robots.survey import joint_names, survey
@@ -53,6 +54,8 @@ def run_init(args: argparse.Namespace) -> int:
         write_draft("", out)
     text = draft_text(found, out)
     write_draft(text, out, force=args.force)
+    ready = make_ready(load_robot(out))  # composed at a table: tools, push_face, workspace, a ready home
+    write_draft(draft_text(found, out, ready), out, force=True)
     console = out_console()
     console.print(f"wrote {escape(str(out))} (robot {escape(found.name)!r} from {escape(str(model))})")
     for arm in found.arms.arms:
@@ -66,8 +69,14 @@ def run_init(args: argparse.Namespace) -> int:
                   + (f"; excluded pairs in contact there: {len(found.home.contacts)}" if found.home.contacts else ""))
     if found.angle:
         console.print(f"  angle: {found.angle} ({escape(found.angle_why)})")
+    if ready.workspace is not None:
+        ws = ready.workspace
+        console.print(f"  at a table: top {ws.top} m, work region centre {list(ws.centre)} +- {list(ws.size)} "
+                      f"m; tools {escape(', '.join(ready.tools.values()))}; push height {ready.push_height:.4f} m")
+    for note in ready.notes:
+        console.print(f"  {escape(note)}")
     Robot.from_scene("scene", robot=out)  # what was written loads (a ConfigError here: exit 2)
-    problems = check_robot(out).problems
+    problems = check_at_table(out).problems
     console.print(f"it loads; robot check finds {len(problems) or 'no'} problem{'' if len(problems) == 1 else 's'}"
                   + (":" if problems else f"; review it, then: nextage-qp robot check {escape(str(out))}"))
     for f in problems:
@@ -80,9 +89,9 @@ def run_check(args: argparse.Namespace) -> int:
     """Print the diagnosis; exit 1 when it found problems."""
     from rich.markup import escape
 
-    from nextage_qp.robots.check_report import check_robot
+    from nextage_qp.experiments.table_ready import check_at_table
 
-    report = check_robot(args.file)
+    report = check_at_table(args.file)
     if args.json:
         print_json(report.as_dict())
         return 1 if report.problems else 0

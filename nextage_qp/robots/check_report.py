@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -115,58 +115,7 @@ def _as_the_commands_load_it(ref: str | Path) -> list[Finding]:
         check_own_names(robot)
     except ConfigError as exc:
         return [Finding("problem", "load", str(exc), "the commands refuse the robot file so: fix what it names")]
-    return workspace_reach(robot.description)
-
-
-WORKSPACE_HEIGHT = 0.035
-"""Height over the table top [m] at which ``robot check`` asks the tools to reach the work region (a 7 cm cube's
-centre)."""
-WORKSPACE_TOL = 0.005
-"""A tool reaches a point of the work region when the IK brings it this near [m]."""
-
-
-def workspace_reach(desc: RobotDescription) -> list[Finding]:
-    """Whether the workspace the robot file declares is where task configs written in it can work.
-
-    The table of a task scene must stand with its top at ``workspace.top``, and every arm's tool must reach the work
-    region's centre and its four corners, :data:`WORKSPACE_HEIGHT` over the table top (position only, from home).
-    """
-    from nextage_qp.ik import QPIK, FrameTarget
-    from nextage_qp.ik.config import IKConfig
-    from nextage_qp.robots.model import Robot
-    from nextage_qp.scene.files import BodyPose, SceneOverrides
-
-    ws = desc.workspace
-    if ws is None:
-        return [Finding("info", "workspace", "no workspace: task configs written in the workspace frame "
-                                             "(scene.frame: workspace, e.g. configs/push_across.yaml) refuse this "
-                                             "robot", "add workspace: {centre: [x, y], size: [hx, hy], top: z}")]
-    poses = {} if ws.table is None else {"table": BodyPose(pos=ws.table)}
-    robot = Robot.from_scene("push_cube", SceneOverrides(poses=poses), desc)
-    m = robot.model
-    top = float(m.body("table").pos[2] + m.geom("table_top").pos[2] + m.geom("table_top").size[2])
-    found = []
-    if abs(top - ws.top) > 0.002:
-        found.append(Finding("problem", "workspace", f"workspace.top: {ws.top:g} m, but the table's top stands at "
-                                                     f"{top:.3f} m", "set workspace.top to the table's top, or move "
-                                                                     "the table (workspace.table)"))
-    (cx, cy), (hx, hy) = ws.centre, ws.size
-    points = {"centre": (cx, cy), **{f"corner ({sx:+.0f}, {sy:+.0f})": (cx + sx * hx, cy + sy * hy)
-                                     for sx in (-1, 1) for sy in (-1, 1)}}
-    solver = QPIK(robot, IKConfig())
-    home = robot.keyframe_q("home")
-    for arm in desc.arms:
-        short = []
-        for name, (x, y) in points.items():
-            result = solver.solve([FrameTarget(arm.tool, pos=np.array([x, y, ws.top + WORKSPACE_HEIGHT]))], home)
-            if result.pos_err_m > WORKSPACE_TOL:
-                short.append(f"{name} by {result.pos_err_m * 1e3:.0f} mm")
-        if short:
-            level: Literal["problem", "info"] = "problem" if short[0].startswith("centre") else "info"
-            found.append(Finding(level, "workspace",
-                                 f"{arm.name} arm's {arm.tool} falls short of the work region's {', '.join(short)}",
-                                 "move workspace.centre or shrink workspace.size to where the tools reach"))
-    return found
+    return []
 
 
 def check_own_names(robot: Robot) -> None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import re
 import textwrap
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import mujoco
@@ -22,13 +23,32 @@ from nextage_qp.errors import ConfigError
 from nextage_qp.io.yaml_file import load_yaml, validate
 from nextage_qp.robots.modelfile import descendants, model_torque_limit
 from nextage_qp.robots.poses import TORQUE_FACTOR, TORQUE_FLOOR_NM, default_torque_limit, static_torques
-from nextage_qp.robots.robot_file import GainRule, RobotFile
+from nextage_qp.robots.robot_file import FrameFile, GainRule, RobotFile, WorkspaceFile
 from nextage_qp.robots.survey import Survey, home_values, joint_names, lowest_z, model_reference
 
 WIDTH = 118
 """Longest line the draft writes."""
 _PLAIN = re.compile(r"[A-Za-z_][A-Za-z0-9_./\-]*")
 _WORDS = {"true", "false", "yes", "no", "on", "off", "null", "none", "y", "n"}
+
+
+TABLE_GAP = 0.004
+"""Least gap [m] between an arm and the table while its tool pushes at its ``push_face`` height."""
+
+
+@dataclass
+class Ready:
+    """What makes a draft ready for a table (:func:`nextage_qp.experiments.table_ready.make_ready`).
+
+    Frames by name, each arm's tool, the push height, the workspace, a ready home and notes for the file's comments.
+    """
+
+    frames: dict[str, FrameFile] = field(default_factory=dict)
+    tools: dict[str, str] = field(default_factory=dict)
+    push_height: float = 0.0
+    workspace: WorkspaceFile | None = None
+    home: dict[str, float] | None = None
+    notes: list[str] = field(default_factory=list)
 
 
 def collision_groups(s: Survey) -> dict[str, dict[str, list[str]]]:
@@ -103,8 +123,13 @@ def _flow(items: list[str], indent: int) -> str:
     return "\n".join([*lines, line if items else "[]"])
 
 
-def draft_text(s: Survey, out: Path) -> str:
-    """The robot file for survey ``s``, to be written at ``out`` (YAML with comments)."""
+def draft_text(s: Survey, out: Path, ready: Ready | None = None) -> str:
+    """The robot file for survey ``s``, to be written at ``out`` (YAML with comments).
+
+    ``ready``: what makes it ready for a table (:func:`~nextage_qp.robots.ready.make_ready`): tool frames,
+    push_face, workspace and a ready home.
+    """
+    ready = ready or Ready()
     shown = s.path.name
     lines = [f"# Robot file drafted by `nextage-qp robot init` from {shown}.",
              "# Review: the arms (names, joints, wrist frame; tool and pad default to the wrist), home, the excluded",
@@ -123,10 +148,18 @@ def draft_text(s: Survey, out: Path) -> str:
         lines += [f"  - name: {arm.name}",
                   f"    joints: {_flow([_scalar(n) for n in joint_names(s, arm.joints)], 12)}",
                   f"    wrist: {_scalar(arm.wrist)}  # the last frame on the arm's last link"]
+        if arm.name in ready.tools:
+            lines.append(f"    tool: {_scalar(ready.tools[arm.name])}  # the hand's outermost face along its last "
+                         "joint's axis")
     groups = ({"torso": s.arms.torso} if s.arms.torso else {}) | s.arms.groups
     if groups:
         lines.append("joint_groups:")
         lines += [f"  {k}: {_flow([_scalar(n) for n in joint_names(s, v)], len(k) + 4)}" for k, v in groups.items()]
+    if ready.frames:
+        lines.append("frames:  # x: the face's normal, out of the hand; z: as near up as the hand at home allows")
+        for name, f in ready.frames.items():
+            lines.append(f"  {name}: {{body: {_scalar(f.body)}, pos: [{', '.join(map(repr, f.pos))}], "
+                         f"quat: [{', '.join(map(repr, f.quat))}]}}")
     lines.append("collision_groups:")
     for name, group in collision_groups(s).items():
         key, names = next(iter(group.items()))
@@ -135,8 +168,22 @@ def draft_text(s: Survey, out: Path) -> str:
     if s.home.contacts:
         pairs = [f"[{_scalar(a)}, {_scalar(b)}]" for a, b in s.home.contacts]
         lines.append(f"exclude: {_flow(pairs, 9)}  # in contact at home")
+    if ready.workspace is not None:
+        ws = ready.workspace
+        lines += [f"push_face: {{height: {ready.push_height:.4f}}}  # the lowest both tools reach, level, with the "
+                  f"arms {TABLE_GAP * 1e3:g} mm off the table [m]",
+                  "workspace:  # where both tools, level, reach the table (task configs with scene.frame: workspace)",
+                  f"  centre: [{ws.centre[0]!r}, {ws.centre[1]!r}]  # world x-y [m]",
+                  f"  size: [{ws.size[0]!r}, {ws.size[1]!r}]  # half-extent [m]",
+                  f"  top: {ws.top!r}  # the table top [m]",
+                  f"  table: [{', '.join(map(repr, ws.table or ()))}]  # its front edge clear of the body"]
+    for note in ready.notes:
+        lines += _comment(note)
     lines.append("keyframes:")
-    if s.keyframe == "home":
+    if ready.home is not None:
+        items = [f"{_scalar(k)}: {_scalar(v)}" for k, v in ready.home.items() if v != 0.0]
+        lines.append("  home: {" + _flow(items, 9)[1:-1] + "}")
+    elif s.keyframe == "home":
         lines.append("  home: model  # the model's keyframe 'home'")
     else:
         values = home_values(s)

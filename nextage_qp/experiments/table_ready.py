@@ -1,0 +1,376 @@
+"""What makes a drafted robot ready for a table: tool frames, how they push, a workspace and a ready home.
+
+``robot init`` drafts a robot file from a model alone (:mod:`nextage_qp.robots.draft`); this module then composes the
+draft in a task scene and adds what a table task needs, each derived from the model's geometry:
+
+* **tool frames** (``left_tool``, ``right_tool``...): on each hand's outermost collision surface along the axis of
+  the arm's last joint, x along that axis (the face's normal), z as near the world's up as the hand at home allows;
+* **push_face**: the lowest height over a :data:`CUBE` m cube's centre at which both tools, level, reach the work
+  region's centre with their arms :data:`TABLE_GAP` off the table;
+* **workspace**: the table top's height (among a few below the shoulders) over which both tools, level and facing the
+  middle, reach the largest rectangle of a grid in front of the robot; the table stands clear of the robot's body;
+* a **ready home**: both tools :data:`READY_HEIGHT` over the work region, level, facing each other, solved by the IK
+  from the draft's home, kept only when free of self-contact; its manipulability is reported.
+"""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+from typing import Literal
+
+import mujoco
+import numpy as np
+
+from nextage_qp.robots.check_report import CheckReport, check_robot
+from nextage_qp.robots.description import RobotDescription, load_robot
+from nextage_qp.robots.draft import TABLE_GAP, Ready
+from nextage_qp.robots.model_checks import Finding
+from nextage_qp.robots.modelfile import descendants, self_contacts
+from nextage_qp.robots.robot_file import FrameFile, WorkspaceFile
+
+CUBE = 0.07
+"""Edge [m] of the cube the push height is worked out for (the bundled push tasks')."""
+GRID = 0.06
+"""Spacing [m] of the grid of table points the tools are asked to reach."""
+REACH_TOL = 0.005
+"""A tool reaches a point when the IK brings it this near [m] with its axis this near (rad x 0.1 m) level."""
+DROPS = (0.2, 0.3, 0.4)
+"""Table tops tried, this far [m] below the shoulders (the arms' first joints)."""
+BASE_DROP = 0.01
+"""A table top tried this far [m] under the arms' first joints (arms mounted on the table, as an ALOHA's)."""
+EDGE_GAP = 0.02
+"""Gap [m] between the table's front edge and the robot's body (or its arms' first links) in front of it."""
+READY_TABLE_GAP = 0.03
+"""Least distance [m] of the ready home from the table."""
+READY_STARTS = 3
+"""Seeded poses within the limits the ready home is also solved from (besides the draft's home)."""
+MIN_TOP = 0.05
+"""Lowest table top [m] tried (the floor is z = 0)."""
+READY_HEIGHT = 0.20
+"""The ready home holds the tools this far [m] over the table top."""
+TABLE_HALF = (0.7, 1.05, 0.035)
+"""Half-size [m] of the bundled scenes' table top (push_cube, wall, tabletop)."""
+
+
+def _support(m: mujoco.MjModel, d: mujoco.MjData, g: int, u: np.ndarray) -> float:
+    """The farthest any point of geom ``g`` reaches along world direction ``u`` (its support), as ``x . u``."""
+    c, rot, size = d.geom_xpos[g], d.geom_xmat[g].reshape(3, 3), m.geom_size[g]
+    local = rot.T @ u
+    t = int(m.geom_type[g])
+    if t == mujoco.mjtGeom.mjGEOM_SPHERE:
+        return float(c @ u + size[0])
+    if t == mujoco.mjtGeom.mjGEOM_CAPSULE:
+        return float(c @ u + abs(local[2]) * size[1] + size[0])
+    if t == mujoco.mjtGeom.mjGEOM_CYLINDER:
+        return float(c @ u + abs(local[2]) * size[1] + size[0] * np.hypot(local[0], local[1]))
+    if t == mujoco.mjtGeom.mjGEOM_BOX:
+        return float(c @ u + np.abs(local) @ size)
+    if t == mujoco.mjtGeom.mjGEOM_ELLIPSOID:
+        return float(c @ u + np.linalg.norm(local * size))
+    if t == mujoco.mjtGeom.mjGEOM_MESH:
+        mesh = int(m.geom_dataid[g])
+        start, count = int(m.mesh_vertadr[mesh]), int(m.mesh_vertnum[mesh])
+        return float(c @ u + (m.mesh_vert[start:start + count] @ local).max())
+    return float(c @ u + m.geom_rbound[g])
+
+
+def _colliding(m: mujoco.MjModel, bodies: list[int]) -> list[int]:
+    return [g for b in bodies for g in range(int(m.body_geomadr[b]), int(m.body_geomadr[b] + m.body_geomnum[b]))
+            if m.geom_contype[g] or m.geom_conaffinity[g]]
+
+
+def tool_frames(m: mujoco.MjModel, d: mujoco.MjData, desc: RobotDescription) -> Ready:
+    """Each arm's tool frame on its hand's outermost surface along its last joint's axis (see the module doc)."""
+    ready = Ready()
+    for arm in desc.arms:
+        joint = m.joint(arm.joints[-1]).id
+        body = int(m.jnt_bodyid[joint])
+        geoms = _colliding(m, descendants(m, body))
+        if not geoms:  # a hand without geometry (a gripper left out): the link it hangs from carries the face
+            body = int(m.body_parentid[body])
+            geoms = _colliding(m, descendants(m, body))
+        if not geoms:
+            ready.notes.append(f"{arm.name}: no collision geometry below {m.body(body).name}: the wrist is the tool")
+            continue
+        anchor, axis = d.xanchor[joint].copy(), d.xaxis[joint].copy()
+        before = d.xanchor[m.joint(arm.joints[-2]).id] if len(arm.joints) > 1 else d.xpos[int(m.body_parentid[body])]
+        out = anchor - before  # along the arm, out to the hand (a spherical wrist: towards the hand's geometry)
+        if abs(out @ axis) < 0.01:
+            out = np.mean([d.geom_xpos[g] for g in geoms], axis=0) - anchor
+        if out @ axis < 0:
+            axis = -axis
+        reach = max(_support(m, d, g, axis) for g in geoms) - anchor @ axis
+        point = anchor + reach * axis
+        up = np.array([0.0, 0.0, 1.0]) - axis[2] * axis
+        if np.linalg.norm(up) < 0.3:  # the hand points up or down at home: its body's z
+            up = d.xmat[body].reshape(3, 3)[:, 2] - (d.xmat[body].reshape(3, 3)[:, 2] @ axis) * axis
+        z = up / np.linalg.norm(up)
+        rot = np.column_stack([axis, np.cross(z, axis), z])
+        brot = d.xmat[body].reshape(3, 3)
+        local = brot.T @ rot
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, local.ravel())
+        name = f"{arm.name}_tool"
+        x, y, z = (round(float(v), 5) for v in brot.T @ (point - d.xpos[body]))
+        w, qx, qy, qz = (round(float(v), 6) for v in quat)
+        ready.frames[name] = FrameFile(body=m.body(body).name, pos=(x, y, z), quat=(w, qx, qy, qz))
+        ready.tools[arm.name] = name
+    return ready
+
+
+def _largest_rectangle(ok: np.ndarray) -> tuple[int, int, int, int] | None:
+    """The largest all-True axis-aligned block of a boolean grid: (i0, i1, j0, j1), inclusive, or None."""
+    best, found = 0, None
+    n, k = ok.shape
+    for i0, j0 in itertools.product(range(n), range(k)):
+        if not ok[i0, j0]:
+            continue
+        for i1 in range(i0, n):
+            if not ok[i1, j0]:
+                break
+            for j1 in range(j0, k):
+                if not ok[i0:i1 + 1, j0:j1 + 1].all():
+                    break
+                area = (i1 - i0 + 1) * (j1 - j0 + 1)
+                if area > best:
+                    best, found = area, (i0, i1, j0, j1)
+    return found
+
+
+def make_ready(desc: RobotDescription) -> Ready:
+    """Tool frames, push_face, workspace and a ready home for a drafted robot (see the module docstring)."""
+    import dataclasses
+
+    from nextage_qp.ik import QPIK, FrameTarget
+    from nextage_qp.ik.config import CollisionPairConfig, IKConfig
+    from nextage_qp.robots.model import Robot, robot_bodies
+    from nextage_qp.scene.files import BodyPose, SceneOverrides
+
+    bare = Robot.from_scene("push_cube", None, desc)
+    m, d = bare.model, mujoco.MjData(bare.model)
+    bare.set_q(d, bare.keyframe_q("home"))
+    mujoco.mj_kinematics(m, d)
+    ready = tool_frames(m, d, desc)
+    frames = {**desc.frames, **ready.frames}
+    arms = tuple(dataclasses.replace(a, tool=ready.tools.get(a.name, a.tool)) for a in desc.arms)
+    desc = dataclasses.replace(desc, frames=frames, arms=arms)
+    robot = Robot.from_scene("push_cube", None, desc)
+    m, d = robot.model, mujoco.MjData(robot.model)
+    home = robot.keyframe_q("home")
+    robot.set_q(d, home)
+    mujoco.mj_kinematics(m, d)
+    ik = QPIK(robot, IKConfig())
+    faces = {arm.tool: np.array([0.0, -1.0 if k == 0 else 1.0, 0.0]) for k, arm in enumerate(arms)}
+
+    def reaches(points: list[np.ndarray]) -> bool:
+        return all(ik.solve([FrameTarget(tool, pos=p, axis=np.array([1.0, 0.0, 0.0]), direction=faces[tool])],
+                            home, restarts=0).pos_err_m <= REACH_TOL for tool, p in zip(faces, points, strict=False))
+
+    own = robot_bodies(robot)
+    arm_bodies = {b for arm in arms for b in descendants(m, int(m.jnt_bodyid[m.joint(arm.joints[1]).id]))}
+    body_geoms = _colliding(m, sorted(own - arm_bodies))
+    shoulders = float(np.mean([d.xanchor[m.joint(a.joints[0]).id][2] for a in arms]))
+    best = None
+    bases = [float(d.xanchor[m.joint(a.joints[0]).id][2]) for a in arms]
+    tops = [shoulders - drop for drop in DROPS]  # below the shoulders; else at the arms' bases (arms on the table)
+    for top in [*tops, min(bases) - BASE_DROP]:
+        if top < MIN_TOP or (best is not None and top not in tops):
+            continue
+        under = [g for g in body_geoms if -_support(m, d, g, np.array([0.0, 0.0, -1.0])) < top + 0.05]
+        behind = min(float(d.xanchor[m.joint(a.joints[0]).id][0]) for a in arms)
+        edge = (max(_support(m, d, g, np.array([1.0, 0.0, 0.0])) for g in under) if under else behind) + EDGE_GAP
+        xs = edge + GRID * np.arange(1, 13)
+        ys = GRID * np.arange(-7, 8)
+        ok = np.zeros((len(xs), len(ys)), dtype=bool)
+        for i, x in enumerate(xs):
+            for j, y in enumerate(ys):
+                p = np.array([x, y, top + CUBE / 2])
+                ok[i, j] = reaches([p, p])
+        rect = _largest_rectangle(ok)
+        if rect is not None and (best is None or _area(rect) > _area(best[0])):
+            best = (rect, top, edge, xs, ys)
+    if best is None:
+        ready.notes.append("no table height found where both tools reach a point of the table, level")
+        return ready
+    (i0, i1, j0, j1), top, edge, xs, ys = best
+    centre = ((xs[i0] + xs[i1]) / 2, (ys[j0] + ys[j1]) / 2)
+    size = (max(GRID / 2, (xs[i1] - xs[i0]) / 2), max(GRID / 2, (ys[j1] - ys[j0]) / 2))
+    ready.workspace = WorkspaceFile(
+        centre=(round(float(centre[0]), 3), round(float(centre[1]), 3)),
+        size=(round(float(size[0]), 3), round(float(size[1]), 3)), top=round(float(top), 3),
+        table=(round(float(edge + TABLE_HALF[0]), 3), 0.0, round(float(top - TABLE_HALF[2]), 3)))
+    placed = Robot.from_scene("push_cube", SceneOverrides(poses={"table": BodyPose(pos=ready.workspace.table)}),
+                              desc)  # the push height and the ready home are judged at the table where it stands
+    groups = placed.collision_geoms()
+    pairs = tuple(CollisionPairConfig(a=f"{arm.name}_arm", b="table", min_distance=TABLE_GAP)
+                  for arm in arms if f"{arm.name}_arm" in groups)
+    kept = QPIK(placed, IKConfig(collision_pairs=pairs))
+    ready.push_height = _lowest_push(kept, arms, faces, centre, top, home)
+    ready.home, note = _ready_home(placed, QPIK(placed, IKConfig()), arms, faces, centre, size, top, home)
+    ready.notes.append(note)
+    return ready
+
+
+def _lowest_push(ik, arms, faces, centre, top, home) -> float:
+    """The lowest tool height over a :data:`CUBE` cube's centre at which every tool reaches the work region's centre.
+
+    Each tool level and facing the middle, its arm kept :data:`TABLE_GAP` off the table by the IK; at most a quarter
+    of the cube over its centre.
+    """
+    from nextage_qp.ik import FrameTarget
+
+    for height in np.arange(0.0, CUBE / 4 + 1e-9, 0.002):
+        p = np.array([centre[0], centre[1], top + CUBE / 2 + height])
+        if all(ik.solve([FrameTarget(arm.tool, pos=p, axis=np.array([1.0, 0.0, 0.0]), direction=faces[arm.tool])],
+                        home).pos_err_m <= REACH_TOL for arm in arms):
+            return float(height)
+    return CUBE / 4
+
+
+def _area(rect: tuple[int, int, int, int]) -> int:
+    i0, i1, j0, j1 = rect
+    return (i1 - i0 + 1) * (j1 - j0 + 1)
+
+
+def _manipulability(robot, d: mujoco.MjData, q: np.ndarray, frames: list[str]) -> list[float]:
+    """Per frame, sqrt(det(J J^T)) of its 6-D Jacobian over the robot's joints at ``q``."""
+    m = robot.model
+    robot.set_q(d, q)
+    mujoco.mj_forward(m, d)
+    out = []
+    for frame in frames:
+        kind, i = robot.frame(frame)
+        jp, jr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        if kind == "site":
+            mujoco.mj_jacSite(m, d, jp, jr, i)
+        else:
+            mujoco.mj_jacBody(m, d, jp, jr, i)
+        jac = np.vstack([jp, jr])[:, robot.dof_idx]
+        out.append(float(np.sqrt(max(np.linalg.det(jac @ jac.T), 0.0))))
+    return out
+
+
+def _table_gap(robot, d: mujoco.MjData) -> tuple[float, str]:
+    """The least distance [m] between the arms' collision geoms and the table's at ``d``, and the body that nears it.
+
+    ``d``'s kinematics must be done.
+    """
+    m = robot.model
+    table = [g for g in range(m.ngeom) if m.body(int(m.geom_bodyid[g])).name == "table"
+             and (m.geom_contype[g] or m.geom_conaffinity[g])]
+    best, name = np.inf, ""
+    moved = {b for arm in robot.arms for b in descendants(m, int(m.jnt_bodyid[m.joint(arm.joints[0]).id]))}
+    for g in _colliding(m, sorted(moved)):
+        for t in table:
+            dist = mujoco.mj_geomDistance(m, d, g, t, READY_TABLE_GAP + 0.01, None)
+            if dist < best:
+                best, name = dist, m.body(int(m.geom_bodyid[g])).name
+    return float(best), name
+
+
+def _ready_home(robot, ik, arms, faces, centre, size, top, home) -> tuple[dict[str, float] | None, str]:
+    """Both tools over the work region, level and facing each other, free of contact, the least singular found.
+
+    Tried at three heights and three spreads, each from the draft's home and from :data:`READY_STARTS` seeded poses
+    within the limits; None where every solution misses, or touches the robot itself or the table.
+    """
+    from nextage_qp.ik import FrameTarget
+
+    m = robot.model
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(0)
+    starts = [home, *(np.where(np.isfinite(robot.lower), rng.uniform(robot.lower, robot.upper), home)
+                      for _ in range(READY_STARTS))]
+    tools = [arm.tool for arm in arms]
+    why, best = "the IK does not reach it", None
+    for height, spread in itertools.product((READY_HEIGHT, 1.25 * READY_HEIGHT, 0.75 * READY_HEIGHT), (0.5, 0.8, 0.3)):
+        targets = [FrameTarget(arm.tool, pos=np.array([centre[0], centre[1] + (1 if k == 0 else -1) * spread * size[1],
+                                                       top + height]),
+                               axis=np.array([1.0, 0.0, 0.0]), direction=faces[arm.tool])
+                   for k, arm in enumerate(arms)]
+        for start in starts:
+            result = ik.solve(targets, start, restarts=0)
+            if result.pos_err_m > REACH_TOL:
+                continue
+            qpos = d.qpos.copy()
+            qpos[robot.qpos_idx] = result.q
+            touching = self_contacts(m, d, qpos)
+            if touching:
+                why = f"it touches {touching[0][0]} to {touching[0][1]}"
+                continue
+            gap, near = _table_gap(robot, d)
+            if gap < READY_TABLE_GAP:
+                why = f"{near} comes within {gap * 1e3:.0f} mm of the table"
+                continue
+            measure = _manipulability(robot, d, np.asarray(result.q), tools)
+            if best is None or min(measure) > min(best[2]):
+                best = (np.asarray(result.q), height, measure)
+    if best is None:
+        return None, f"no ready home over the work region ({why}); home stays the draft's"
+    q, height, measure = best
+    values = {name: round(float(v), 5) for name, v in zip(robot.joint_names, q, strict=True)}
+    return values, (f"ready home: both tools {height:.2f} m over the work region, level, facing each other; "
+                    "manipulability (sqrt det J J^T, 6-D) " + ", ".join(f"{v:.3g}" for v in measure))
+
+
+WORKSPACE_HEIGHT = 0.035
+"""Height over the table top [m] at which ``robot check`` asks the tools to reach the work region (a 7 cm cube's
+centre)."""
+WORKSPACE_TOL = 0.005
+"""A tool reaches a point of the work region when the IK brings it this near [m]."""
+
+
+def workspace_reach(desc: RobotDescription) -> list[Finding]:
+    """Whether the workspace the robot file declares is where task configs written in it can work.
+
+    The table of a task scene must stand with its top at ``workspace.top``, and every arm's tool must reach the work
+    region's centre and its four corners, :data:`WORKSPACE_HEIGHT` over the table top (position only, from home).
+    """
+    from nextage_qp.ik import QPIK, FrameTarget
+    from nextage_qp.ik.config import IKConfig
+    from nextage_qp.robots.model import Robot
+    from nextage_qp.scene.files import BodyPose, SceneOverrides
+
+    ws = desc.workspace
+    if ws is None:
+        return [Finding("info", "workspace", "no workspace: task configs written in the workspace frame "
+                                             "(scene.frame: workspace, e.g. configs/push_across.yaml) refuse this "
+                                             "robot", "add workspace: {centre: [x, y], size: [hx, hy], top: z}")]
+    poses = {} if ws.table is None else {"table": BodyPose(pos=ws.table)}
+    robot = Robot.from_scene("push_cube", SceneOverrides(poses=poses), desc)
+    m = robot.model
+    top = float(m.body("table").pos[2] + m.geom("table_top").pos[2] + m.geom("table_top").size[2])
+    found = []
+    if abs(top - ws.top) > 0.002:
+        found.append(Finding("problem", "workspace", f"workspace.top: {ws.top:g} m, but the table's top stands at "
+                                                     f"{top:.3f} m", "set workspace.top to the table's top, or move "
+                                                                     "the table (workspace.table)"))
+    (cx, cy), (hx, hy) = ws.centre, ws.size
+    points = {"centre": (cx, cy), **{f"corner ({sx:+.0f}, {sy:+.0f})": (cx + sx * hx, cy + sy * hy)
+                                     for sx in (-1, 1) for sy in (-1, 1)}}
+    solver = QPIK(robot, IKConfig())
+    home = robot.keyframe_q("home")
+    for arm in desc.arms:
+        short = []
+        for name, (x, y) in points.items():
+            result = solver.solve([FrameTarget(arm.tool, pos=np.array([x, y, ws.top + WORKSPACE_HEIGHT]))], home)
+            if result.pos_err_m > WORKSPACE_TOL:
+                short.append(f"{name} by {result.pos_err_m * 1e3:.0f} mm")
+        if short:
+            level: Literal["problem", "info"] = "problem" if short[0].startswith("centre") else "info"
+            found.append(Finding(level, "workspace",
+                                 f"{arm.name} arm's {arm.tool} falls short of the work region's {', '.join(short)}",
+                                 "move workspace.centre or shrink workspace.size to where the tools reach"))
+    return found
+
+
+def check_at_table(ref: str | Path) -> CheckReport:
+    """``robot check``: :func:`~nextage_qp.robots.check_report.check_robot`, then a loading robot file's workspace.
+
+    The workspace is judged at its table (:func:`workspace_reach`).
+    """
+    report = check_robot(ref)
+    if Path(ref).suffix.lower() not in (".xml", ".urdf") and not report.problems:
+        report.findings += workspace_reach(load_robot(ref))
+    return report
