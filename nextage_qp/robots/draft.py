@@ -112,13 +112,12 @@ def _comment(text: str) -> list[str]:
 
 def _flow(items: list[str], indent: int) -> str:
     """``[a, b, ...]`` wrapped at :data:`WIDTH` under the opening bracket."""
-    lines, line = [], "["
+    lines, line, shift = [], "[", indent  # the first line follows a prefix ``indent`` wide; the others are padded
     for k, item in enumerate(items):
         piece = item + (", " if k < len(items) - 1 else "]")
-        if len(line) + len(piece) + indent > WIDTH and line != "[":
+        if len(line) + len(piece) + shift > WIDTH and line.strip() not in ("[", ""):
             lines.append(line.rstrip())
-            line = " " * (indent + 1)
-            indent = 0
+            line, shift = " " * (indent + 1), 0
         line += piece
     return "\n".join([*lines, line if items else "[]"])
 
