@@ -14,7 +14,7 @@ from phase_support import (
     run_until_done,
 )
 
-from nextage_qp.errors import PhaseError
+from nextage_qp.errors import InfeasibleError, PhaseError
 from nextage_qp.geometry import Pose, yaw_of
 
 
@@ -40,7 +40,11 @@ def test_push_fans_out_to_the_nearest_reachable_direction_and_refuses_when_there
     assert phase.info["directions_tried"] == 2
     assert phase.info["direction"] == pytest.approx([np.cos(0.2618), np.sin(0.2618)], abs=1e-4)
     view = push_view(reach=lambda targets: False)
-    with pytest.raises(PhaseError, match=r"no approach to cube \(70 mm tall\) within 60 deg of its line to cube_target"):
+    with pytest.raises(InfeasibleError, match=r"no approach to cube \(70 mm tall\) within 60 deg of its line to "
+                                              r"cube_target"):  # nothing moved yet: a refusal (exit 2)
+        make("push", frame="left_tool", object="cube", target="cube_target").start(view)
+    view.t = 3.0
+    with pytest.raises(PhaseError, match=r"no approach to cube"):  # later in a run: the phase fails
         make("push", frame="left_tool", object="cube", target="cube_target").start(view)
 
 

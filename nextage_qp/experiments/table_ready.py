@@ -25,6 +25,7 @@ import numpy as np
 from nextage_qp.robots.check_report import CheckReport, check_robot
 from nextage_qp.robots.description import RobotDescription, load_robot
 from nextage_qp.robots.draft import TABLE_GAP, Ready
+from nextage_qp.robots.model import robot_bodies
 from nextage_qp.robots.model_checks import Finding
 from nextage_qp.robots.modelfile import descendants, self_contacts
 from nextage_qp.robots.robot_file import FrameFile, WorkspaceFile
@@ -80,6 +81,15 @@ def _colliding(m: mujoco.MjModel, bodies: list[int]) -> list[int]:
             if m.geom_contype[g] or m.geom_conaffinity[g]]
 
 
+def _perpendicular(axis: np.ndarray, *wanted: np.ndarray) -> np.ndarray:
+    """The first of ``wanted`` (else a world axis) made perpendicular to the unit ``axis``, as a unit vector."""
+    for w in (*wanted, np.eye(3)[int(np.argmin(np.abs(axis)))]):
+        v = w - (w @ axis) * axis
+        if np.linalg.norm(v) > 0.3:
+            return v / np.linalg.norm(v)
+    raise AssertionError("unreachable: the world axis least along the axis is never parallel to it")
+
+
 def tool_frames(m: mujoco.MjModel, d: mujoco.MjData, desc: RobotDescription) -> Ready:
     """Each arm's tool frame on its hand's outermost surface along its last joint's axis (see the module doc)."""
     ready = Ready()
@@ -102,19 +112,16 @@ def tool_frames(m: mujoco.MjModel, d: mujoco.MjData, desc: RobotDescription) -> 
             axis = -axis
         reach = max(_support(m, d, g, axis) for g in geoms) - anchor @ axis
         point = anchor + reach * axis
-        up = np.array([0.0, 0.0, 1.0]) - axis[2] * axis
-        if np.linalg.norm(up) < 0.3:  # the hand points up or down at home: its body's z
-            up = d.xmat[body].reshape(3, 3)[:, 2] - (d.xmat[body].reshape(3, 3)[:, 2] @ axis) * axis
-        z = up / np.linalg.norm(up)
-        rot = np.column_stack([axis, np.cross(z, axis), z])
+        up = _perpendicular(axis, np.array([0.0, 0.0, 1.0]), *d.xmat[body].reshape(3, 3).T)
+        rot = np.column_stack([axis, np.cross(up, axis), up])
         brot = d.xmat[body].reshape(3, 3)
         local = brot.T @ rot
         quat = np.zeros(4)
         mujoco.mju_mat2Quat(quat, local.ravel())
         name = f"{arm.name}_tool"
-        x, y, z = (round(float(v), 5) for v in brot.T @ (point - d.xpos[body]))
+        px, py, pz = (round(float(v), 5) for v in brot.T @ (point - d.xpos[body]))
         w, qx, qy, qz = (round(float(v), 6) for v in quat)
-        ready.frames[name] = FrameFile(body=m.body(body).name, pos=(x, y, z), quat=(w, qx, qy, qz))
+        ready.frames[name] = FrameFile(body=m.body(body).name, pos=(px, py, pz), quat=(w, qx, qy, qz))
         ready.tools[arm.name] = name
     return ready
 
@@ -144,7 +151,7 @@ def make_ready(desc: RobotDescription) -> Ready:
 
     from nextage_qp.ik import QPIK, FrameTarget
     from nextage_qp.ik.config import CollisionPairConfig, IKConfig
-    from nextage_qp.robots.model import Robot, robot_bodies
+    from nextage_qp.robots.model import Robot
     from nextage_qp.scene.files import BodyPose, SceneOverrides
 
     bare = Robot.from_scene("push_cube", None, desc)
@@ -283,6 +290,7 @@ def _ready_home(robot, ik, arms, faces, centre, size, top, home) -> tuple[dict[s
     starts = [home, *(np.where(np.isfinite(robot.lower), rng.uniform(robot.lower, robot.upper), home)
                       for _ in range(READY_STARTS))]
     tools = [arm.tool for arm in arms]
+    own = {m.body(b).name for b in robot_bodies(robot)}
     why, best = "the IK does not reach it", None
     for height, spread in itertools.product((READY_HEIGHT, 1.25 * READY_HEIGHT, 0.75 * READY_HEIGHT), (0.5, 0.8, 0.3)):
         targets = [FrameTarget(arm.tool, pos=np.array([centre[0], centre[1] + (1 if k == 0 else -1) * spread * size[1],
@@ -295,7 +303,7 @@ def _ready_home(robot, ik, arms, faces, centre, size, top, home) -> tuple[dict[s
                 continue
             qpos = d.qpos.copy()
             qpos[robot.qpos_idx] = result.q
-            touching = self_contacts(m, d, qpos)
+            touching = [p for p in self_contacts(m, d, qpos) if own.issuperset(p)]  # the robot's own links
             if touching:
                 why = f"it touches {touching[0][0]} to {touching[0][1]}"
                 continue

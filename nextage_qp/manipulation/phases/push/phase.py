@@ -41,7 +41,7 @@ from nextage_qp.errors import NextageQPError
 from nextage_qp.geometry import Pose, angle2, clamp, rot_of, rot_z, rotate2, turn2, unit2, yaw_of
 from nextage_qp.ik import FrameTarget
 from nextage_qp.loop.servo import Command
-from nextage_qp.manipulation.context import Geometry, Poses, RunState, Setpoint, View
+from nextage_qp.manipulation.context import Poses, RunState, Setpoint, View
 from nextage_qp.manipulation.phases.base import Phase
 from nextage_qp.manipulation.phases.push.approach import plan_approach, plan_handover
 from nextage_qp.manipulation.phases.push.contact import PushContact
@@ -433,11 +433,14 @@ class Push(Phase):
         self.looking = True
         return self._start_retreat(final=False, view=view)
 
-    def _no_approach(self, view: Geometry) -> NextageQPError:
-        """The error of a push that finds no reachable approach at its start, with the object's height."""
+    def _no_approach(self, view: View) -> NextageQPError:
+        """The error of a push that finds no reachable approach at its start, with the object's height.
+
+        A refusal (exit 2) when nothing has moved yet: the robot cannot do this push.
+        """
         c = self.spec
         tall = sum(view.extent(c.object, np.array([0.0, 0.0, z])) for z in (1.0, -1.0)) * 1e3
-        return self.failure(f"no approach to {c.object} ({tall:.0f} mm tall) within "
+        return self.refusal(view, f"no approach to {c.object} ({tall:.0f} mm tall) within "
                           f"{np.degrees(max(c.fan)):.0f} deg of its line to {c.target} is reachable by {self.frame}: "
                           "out of the arm's reach at the push height, lower than the hand reaches down, or a tool "
                           "point inside the hand, which then collides with the object (docs/robots.md)"
