@@ -3,7 +3,7 @@
 ``robot init`` drafts a robot file from a model alone (:mod:`nextage_qp.robots.draft`); this module then composes the
 draft in a task scene and adds what a table task needs, each derived from the model's geometry:
 
-* **tool frames** (``left_tool``, ``right_tool``...): on each hand's outermost collision surface along the axis of
+* **tool frames** (``ARM_tool`` for each arm): on each hand's outermost collision surface along the axis of
   the arm's last joint, x along that axis (the face's normal), z as near the world's up as the hand at home allows;
 * **push_face**: the lowest height over a :data:`CUBE` m cube's centre at which both tools, level, reach the work
   region's centre with their arms :data:`TABLE_GAP` off the table;
