@@ -37,7 +37,7 @@ RUNS = {
 }
 """Every shipped config's default run (and the camera push), by name."""
 
-TIMING = ("wall", "time_s", "_ms_", "real_time_factor", "physics_share", "timing", "outputs", "log")
+TIMING = ("wall", "time_s", "_ms_", "check_ms", "real_time_factor", "physics_share", "timing", "outputs", "log")
 """Result keys that measure wall time or name output files: left out of the comparison."""
 
 
@@ -58,6 +58,16 @@ def strip(value: Any) -> Any:
     if isinstance(value, list):
         return [strip(v) for v in value]
     return value
+
+
+def changed(a: Any, b: Any, at: str = "") -> list[str]:
+    """Dotted keys where two records differ."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return [k for key in sorted(set(a) | set(b))
+                for k in changed(a.get(key), b.get(key), f"{at}.{key}".lstrip("."))]
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        return [k for i, (x, y) in enumerate(zip(a, b, strict=True)) for k in changed(x, y, f"{at}[{i}]")]
+    return [] if a == b else [at or "(record)"]
 
 
 def same_arrays(a: Path, b: Path) -> list[str]:
@@ -99,8 +109,9 @@ def main() -> int:
                 differ = same_arrays(logs["ref"][1], logs["now"][1])
                 records = logs["ref"][0] == logs["now"][0]
                 failed += bool(differ) or not records
+                keys = ", ".join(changed(logs["ref"][0], logs["now"][0]))
                 print(f"{name:12s} arrays {'same' if not differ else 'DIFFER: ' + ', '.join(differ)}; "
-                      f"record {'same' if records else 'DIFFERS'}", flush=True)
+                      f"record {'same' if records else 'DIFFERS: ' + keys}", flush=True)
         finally:
             subprocess.run(["git", "worktree", "remove", "--force", str(base)], cwd=ROOT, capture_output=True)
     print("every run the same" if not failed else f"{failed} of {len(names)} runs differ")
