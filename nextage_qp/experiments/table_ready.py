@@ -35,7 +35,7 @@ CUBE = 0.07
 GRID = 0.06
 """Spacing [m] of the grid of table points the tools are asked to reach."""
 REACH_TOL = 0.005
-"""A tool reaches a point when the IK brings it this near [m] with its axis this near (rad x 0.1 m) level."""
+"""A tool reaches a point when the IK brings it this near [m] (its axis is a target of the IK too, not judged)."""
 DROPS = (0.2, 0.3, 0.4)
 """Table tops tried, this far [m] below the shoulders (the arms' first joints)."""
 BASE_DROP = 0.01
