@@ -219,12 +219,10 @@ class CollisionWorld:
             travel = max(travel, float(self.lever() @ dq))
         return max(1, int(np.ceil(travel / RESOLUTION)))
 
-    def first_on_segment(self, qa: np.ndarray, qb: np.ndarray,
-                         step: float = RESOLUTION) -> tuple[float, Collision] | None:
+    def first_on_segment(self, qa: np.ndarray, qb: np.ndarray) -> tuple[float, Collision] | None:
         """The first invalid state on the straight segment ``qa`` -> ``qb``, as (fraction, why), or None.
 
-        Dense: no point of the robot moves more than ``step`` [m] (default :data:`RESOLUTION`) between two checked
-        states, nor farther than the room the last one left.
+        Dense: no point of the robot moves more than :data:`RESOLUTION` between two checked states.
         """
         qa, qb = np.asarray(qa, dtype=float), np.asarray(qb, dtype=float)
         travel = self.steps(qa, qb) * RESOLUTION  # the most any point moves along the segment [m], rounded up
@@ -235,7 +233,7 @@ class CollisionWorld:
                 return s, why
             if s >= 1.0:
                 return None
-            s = min(1.0, s + max(room, step) / travel)
+            s = min(1.0, s + max(room, RESOLUTION) / travel)
 
     def first_on_path(self, path: Sequence[np.ndarray]) -> tuple[int, float, Collision] | None:
         """The first invalid state along a path of joint waypoints: (segment, fraction, why), or None."""
