@@ -21,6 +21,7 @@ from nextage_qp.io.per_joint import PerJoint, descends, per_joint, within_range 
 from nextage_qp.mobile.base import BASE_BODY, MobileBase
 from nextage_qp.robots.actuation import torque_limits, velocity_limits
 from nextage_qp.robots.description import Arm, RobotDescription, load_robot
+from nextage_qp.robots.modelfile import moved_by
 from nextage_qp.scene.clutter import PREFIX as CLUTTER_PREFIX
 from nextage_qp.scene.compile import compile_spec
 from nextage_qp.scene.files import SceneOverrides, add_touch_sensors
@@ -160,15 +161,10 @@ class Robot:
         swings both arms: each may have to move aside and come back).
         """
         m, moving = self.model, {int(j) for j in moving}
-        bodies = [int(m.jnt_bodyid[self.joint_ids[j]]) for j in moving]
+        ids = {int(self.joint_ids[j]) for j in moving}
 
-        def carried(j: int) -> bool:
-            b = int(m.jnt_bodyid[self.joint_ids[j]])
-            while b > 0:
-                b = int(m.body_parentid[b])
-                if b in bodies:
-                    return True
-            return False
+        def carried(j: int) -> bool:  # a moving joint on a body above j's
+            return not ids.isdisjoint(moved_by(m, int(m.body_parentid[m.jnt_bodyid[self.joint_ids[j]]])))
 
         out = set(moving)
         arms = {arm.group for arm in self.arms}
@@ -210,13 +206,8 @@ class Robot:
     def chain_joints(self, frame: str) -> list[int]:
         """Indices into q of the robot joints that move ``frame`` (those above it in the kinematic tree)."""
         kind, i = self.frame(frame)
-        m = self.model
-        b = int(m.site_bodyid[i]) if kind == "site" else i
-        above = set()
-        while b > 0:
-            above.add(b)
-            b = int(m.body_parentid[b])
-        return [k for k, j in enumerate(self.joint_ids) if int(m.jnt_bodyid[j]) in above]
+        chain = set(moved_by(self.model, int(self.model.site_bodyid[i]) if kind == "site" else i))
+        return [k for k, j in enumerate(self.joint_ids) if int(j) in chain]
 
     @functools.cached_property
     def object_names(self) -> tuple[str, ...]:
