@@ -157,11 +157,42 @@ def geom_parts(model: mujoco.MjModel, obj: str) -> list[GeomPart]:
             continue
         rot = np.empty(9)
         mujoco.mju_quat2Mat(rot, model.geom_quat[g])
-        kind = int(model.geom_type[g])
-        if kind == mujoco.mjtGeom.mjGEOM_MESH:
-            mid = model.geom_dataid[g]
-            size = model.mesh_vert[model.mesh_vertadr[mid]:model.mesh_vertadr[mid] + model.mesh_vertnum[mid]].copy()
-        else:
-            size = model.geom_size[g].copy()
-        out.append((kind, model.geom_pos[g].copy(), rot.reshape(3, 3), size))
+        out.append(geom_part(model, g, model.geom_pos[g], rot.reshape(3, 3)))
     return out
+
+
+def geom_part(model: mujoco.MjModel, g: int, centre: np.ndarray, rot: np.ndarray) -> GeomPart:
+    """Geom ``g`` as a :data:`GeomPart` placed at ``centre`` with rotation ``rot``.
+
+    In its body's frame (the model's ``geom_pos``, ``geom_quat``), or in the world's (a data's ``geom_xpos``,
+    ``geom_xmat``).
+    """
+    kind = int(model.geom_type[g])
+    if kind == mujoco.mjtGeom.mjGEOM_MESH:
+        mid = model.geom_dataid[g]
+        size = model.mesh_vert[model.mesh_vertadr[mid]:model.mesh_vertadr[mid] + model.mesh_vertnum[mid]].copy()
+    else:
+        size = model.geom_size[g].copy()
+    return kind, np.array(centre, dtype=float), np.asarray(rot, dtype=float).reshape(3, 3), size
+
+
+def support(part: GeomPart, d: np.ndarray) -> float:
+    """How far a geom reaches along the unit direction ``d`` from the origin of the frame ``part`` is given in [m]."""
+    kind, centre, rot, size = part
+    local = rot.T @ d
+    reach = float(centre @ d)
+    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+        return reach + float(np.abs(local) @ size)
+    if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+        return reach + float(size[0])
+    if kind in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE):
+        radial = float(np.hypot(local[0], local[1]))
+        axial = abs(float(local[2]))
+        if kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
+            return reach + float(size[1]) * axial + float(size[0])
+        return reach + float(size[0]) * radial + float(size[1]) * axial
+    if kind == mujoco.mjtGeom.mjGEOM_MESH:
+        return reach + float(np.max(size @ local))
+    if kind == mujoco.mjtGeom.mjGEOM_ELLIPSOID:
+        return reach + float(np.linalg.norm(local * size))
+    return reach + float(np.linalg.norm(size))  # other primitives: their bounding sphere

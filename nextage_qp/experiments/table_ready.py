@@ -22,6 +22,7 @@ from typing import Literal
 import mujoco
 import numpy as np
 
+from nextage_qp.geometry import geom_part, support
 from nextage_qp.robots.check_report import CheckReport, check_robot
 from nextage_qp.robots.description import RobotDescription, load_robot
 from nextage_qp.robots.draft import TABLE_GAP, Ready
@@ -56,24 +57,7 @@ TABLE_HALF = (0.7, 1.05, 0.035)
 
 def _support(m: mujoco.MjModel, d: mujoco.MjData, g: int, u: np.ndarray) -> float:
     """The farthest any point of geom ``g`` reaches along world direction ``u`` (its support), as ``x . u``."""
-    c, rot, size = d.geom_xpos[g], d.geom_xmat[g].reshape(3, 3), m.geom_size[g]
-    local = rot.T @ u
-    t = int(m.geom_type[g])
-    if t == mujoco.mjtGeom.mjGEOM_SPHERE:
-        return float(c @ u + size[0])
-    if t == mujoco.mjtGeom.mjGEOM_CAPSULE:
-        return float(c @ u + abs(local[2]) * size[1] + size[0])
-    if t == mujoco.mjtGeom.mjGEOM_CYLINDER:
-        return float(c @ u + abs(local[2]) * size[1] + size[0] * np.hypot(local[0], local[1]))
-    if t == mujoco.mjtGeom.mjGEOM_BOX:
-        return float(c @ u + np.abs(local) @ size)
-    if t == mujoco.mjtGeom.mjGEOM_ELLIPSOID:
-        return float(c @ u + np.linalg.norm(local * size))
-    if t == mujoco.mjtGeom.mjGEOM_MESH:
-        mesh = int(m.geom_dataid[g])
-        start, count = int(m.mesh_vertadr[mesh]), int(m.mesh_vertnum[mesh])
-        return float(c @ u + (m.mesh_vert[start:start + count] @ local).max())
-    return float(c @ u + m.geom_rbound[g])
+    return support(geom_part(m, g, d.geom_xpos[g], d.geom_xmat[g]), u)
 
 
 def _colliding(m: mujoco.MjModel, bodies: list[int]) -> list[int]:

@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 
 from nextage_qp.errors import UnknownNameError
-from nextage_qp.geometry import GeomPart, Pose, cross, geom_parts
+from nextage_qp.geometry import GeomPart, Pose, cross, geom_parts, support
 from nextage_qp.ik import QPIK, FrameTarget
 from nextage_qp.kinematics.frames import Kinematics
 from nextage_qp.loop.servo import Servo
@@ -255,41 +255,21 @@ class SimView:
 
     def extent(self, obj: str, direction: np.ndarray) -> float:  # noqa: D102
         local = self.body_pose(obj).rot.T @ direction
-        return max((_support(part, local) for part in self._parts_cached(obj)), default=0.0)
+        return max((support(part, local) for part in self._parts_cached(obj)), default=0.0)
 
     def grip_geometry(self, obj: str, lateral: np.ndarray, height: float | None = None) -> tuple[float, float]:  # noqa: D102
         parts = self._parts_cached(obj)
         z = np.array([0.0, 0.0, 1.0])
         if height is None:  # the middle of the widest part (the highest of several)
             flat = [np.array([np.cos(a), np.sin(a), 0.0]) for a in np.linspace(0.0, 2 * np.pi, 8, endpoint=False)]
-            width = [max(_support(p, d) - float(p[1] @ d) for d in flat) for p in parts]
+            width = [max(support(p, d) - float(p[1] @ d) for d in flat) for p in parts]
             best = max(width)
             height = max(float(p[1][2]) for p, w in zip(parts, width, strict=True) if w >= best - 1e-3)
-        at = [p for p in parts if -_support(p, -z) - 1e-9 <= height <= _support(p, z) + 1e-9]
-        return height, max((_support(p, lateral) for p in at), default=0.0)
+        at = [p for p in parts if -support(p, -z) - 1e-9 <= height <= support(p, z) + 1e-9]
+        return height, max((support(p, lateral) for p in at), default=0.0)
 
     def _parts_cached(self, obj: str) -> list[GeomPart]:
         parts = self._parts.get(obj)
         if parts is None:
             parts = self._parts[obj] = geom_parts(self.robot.model, obj)
         return parts
-
-
-def _support(part: GeomPart, d: np.ndarray) -> float:
-    """How far a geom reaches along the unit direction ``d`` (body frame) from the body's origin [m]."""
-    kind, centre, rot, size = part
-    local = rot.T @ d
-    reach = float(centre @ d)
-    if kind == mujoco.mjtGeom.mjGEOM_BOX:
-        return reach + float(np.abs(local) @ size)
-    if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
-        return reach + float(size[0])
-    if kind in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE):
-        radial = float(np.hypot(local[0], local[1]))
-        axial = abs(float(local[2]))
-        if kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
-            return reach + float(size[1]) * axial + float(size[0])
-        return reach + float(size[0]) * radial + float(size[1]) * axial
-    if kind == mujoco.mjtGeom.mjGEOM_MESH:
-        return reach + float(np.max(size @ local))
-    return reach + float(np.linalg.norm(size))  # other primitives: their bounding sphere
