@@ -11,11 +11,10 @@ import pytest
 
 from nextage_qp.cli import main
 from nextage_qp.errors import ConfigError
-from nextage_qp.geometry import geom_parts
+from nextage_qp.geometry import geom_parts, support
 from nextage_qp.manipulation.config import load_config
 from nextage_qp.manipulation.placement import rest_height
 from nextage_qp.manipulation.runner import Runner, build_robot
-from nextage_qp.manipulation.sim_view import _support
 from nextage_qp.scene.build import _prism_mesh
 from nextage_qp.scene.objects import ObjectDecl, PartDecl, standing_height, volume
 
@@ -38,7 +37,7 @@ def replace_cube(decl: str) -> str:
 
 def lowest(model: mujoco.MjModel, obj: str) -> float:
     """How far the object's colliding geoms reach below its origin (body frame, upright) [m]."""
-    return max(_support(part, DOWN) for part in geom_parts(model, obj))
+    return max(support(part, DOWN) for part in geom_parts(model, obj))
 
 
 def geoms_of(model: mujoco.MjModel, body: str) -> list[int]:
@@ -188,8 +187,8 @@ def test_cylinder_reaches_its_radius_in_every_horizontal_direction():
     parts = geom_parts(robot.model, "cube")
     for angle in np.linspace(0.0, 2 * np.pi, 7):
         d = np.array([np.cos(angle), np.sin(angle), 0.0])
-        assert max(_support(p, d) for p in parts) == pytest.approx(0.03, abs=1e-12)
-    assert max(_support(p, -DOWN) for p in parts) == pytest.approx(0.035, abs=1e-12)
+        assert max(support(p, d) for p in parts) == pytest.approx(0.03, abs=1e-12)
+    assert max(support(p, -DOWN) for p in parts) == pytest.approx(0.035, abs=1e-12)
 
 
 def test_yawed_box_extent_is_its_half_size_along_its_axes():
