@@ -51,8 +51,8 @@ MIN_TOP = 0.05
 """Lowest table top [m] tried (the floor is z = 0)."""
 READY_HEIGHT = 0.20
 """The ready home holds the tools this far [m] over the table top."""
-TABLE_HALF = (0.7, 1.05, 0.035)
-"""Half-size [m] of the bundled scenes' table top (push_cube, wall, tabletop)."""
+TABLE_TOP = "table_top"
+"""The geom of the bundled scenes' table body that is its top."""
 
 
 def _support(m: mujoco.MjModel, d: mujoco.MjData, g: int, u: np.ndarray) -> float:
@@ -163,13 +163,13 @@ def make_ready(desc: RobotDescription) -> Ready:
     body_geoms = _colliding(m, sorted(own - arm_bodies))
     shoulders = float(np.mean([d.xanchor[m.joint(a.joints[0]).id][2] for a in arms]))
     best = None
-    bases = [float(d.xanchor[m.joint(a.joints[0]).id][2]) for a in arms]
+    bases = [d.xanchor[m.joint(a.joints[0]).id] for a in arms]
+    behind = min(float(b[0]) for b in bases)  # the table's edge where nothing but the arms stands low
     tops = [shoulders - drop for drop in DROPS]  # below the shoulders; else at the arms' bases (arms on the table)
-    for top in [*tops, min(bases) - BASE_DROP]:
+    for top in [*tops, min(float(b[2]) for b in bases) - BASE_DROP]:
         if top < MIN_TOP or (best is not None and top not in tops):
             continue
         under = [g for g in body_geoms if -_support(m, d, g, np.array([0.0, 0.0, -1.0])) < top + 0.05]
-        behind = min(float(d.xanchor[m.joint(a.joints[0]).id][0]) for a in arms)
         edge = (max(_support(m, d, g, np.array([1.0, 0.0, 0.0])) for g in under) if under else behind) + EDGE_GAP
         xs = edge + GRID * np.arange(1, 13)
         ys = GRID * np.arange(-7, 8)
@@ -185,12 +185,14 @@ def make_ready(desc: RobotDescription) -> Ready:
         ready.notes.append("no table height found where both tools reach a point of the table, level")
         return ready
     (i0, i1, j0, j1), top, edge, xs, ys = best
+    slab = m.geom(TABLE_TOP)  # the scene's table top, in its body's frame: its front edge and top placed
     centre = ((xs[i0] + xs[i1]) / 2, (ys[j0] + ys[j1]) / 2)
     size = (max(GRID / 2, (xs[i1] - xs[i0]) / 2), max(GRID / 2, (ys[j1] - ys[j0]) / 2))
     ready.workspace = WorkspaceFile(
         centre=(round(float(centre[0]), 3), round(float(centre[1]), 3)),
         size=(round(float(size[0]), 3), round(float(size[1]), 3)), top=round(float(top), 3),
-        table=(round(float(edge + TABLE_HALF[0]), 3), 0.0, round(float(top - TABLE_HALF[2]), 3)))
+        table=(round(float(edge + slab.size[0] - slab.pos[0]), 3), 0.0,
+               round(float(top - slab.size[2] - slab.pos[2]), 3)))
     placed = Robot.from_scene("push_cube", SceneOverrides(poses={"table": BodyPose(pos=ready.workspace.table)}),
                               desc)  # the push height and the ready home are judged at the table where it stands
     groups = placed.collision_geoms()
@@ -224,22 +226,12 @@ def _area(rect: tuple[int, int, int, int]) -> int:
     return (i1 - i0 + 1) * (j1 - j0 + 1)
 
 
-def _manipulability(robot, d: mujoco.MjData, q: np.ndarray, frames: list[str]) -> list[float]:
+def _manipulability(robot, q: np.ndarray, frames: list[str]) -> list[float]:
     """Per frame, sqrt(det(J J^T)) of its 6-D Jacobian over the robot's joints at ``q``."""
-    m = robot.model
-    robot.set_q(d, q)
-    mujoco.mj_forward(m, d)
-    out = []
-    for frame in frames:
-        kind, i = robot.frame(frame)
-        jp, jr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
-        if kind == "site":
-            mujoco.mj_jacSite(m, d, jp, jr, i)
-        else:
-            mujoco.mj_jacBody(m, d, jp, jr, i)
-        jac = np.vstack([jp, jr])[:, robot.dof_idx]
-        out.append(float(np.sqrt(max(np.linalg.det(jac @ jac.T), 0.0))))
-    return out
+    from nextage_qp.kinematics.frames import Kinematics
+
+    kin = Kinematics(robot)
+    return [float(np.sqrt(max(np.linalg.det(jac @ jac.T), 0.0))) for jac in (kin.jacobian(f, q) for f in frames)]
 
 
 def _table_gap(robot, d: mujoco.MjData) -> tuple[float, str]:
@@ -248,8 +240,7 @@ def _table_gap(robot, d: mujoco.MjData) -> tuple[float, str]:
     ``d``'s kinematics must be done.
     """
     m = robot.model
-    table = [g for g in range(m.ngeom) if m.body(int(m.geom_bodyid[g])).name == "table"
-             and (m.geom_contype[g] or m.geom_conaffinity[g])]
+    table = robot.collision_geoms().get("table", ())
     best, name = np.inf, ""
     moved = {b for arm in robot.arms for b in descendants(m, int(m.jnt_bodyid[m.joint(arm.joints[0]).id]))}
     for g in _colliding(m, sorted(moved)):
@@ -295,7 +286,7 @@ def _ready_home(robot, ik, arms, faces, centre, size, top, home) -> tuple[dict[s
             if gap < READY_TABLE_GAP:
                 why = f"{near} comes within {gap * 1e3:.0f} mm of the table"
                 continue
-            measure = _manipulability(robot, d, np.asarray(result.q), tools)
+            measure = _manipulability(robot, np.asarray(result.q), tools)
             if best is None or min(measure) > min(best[2]):
                 best = (np.asarray(result.q), height, measure)
     if best is None:
