@@ -12,7 +12,10 @@ The object's setpoint :math:`(p, \psi)` goes
    reach or blocked (clutter beside or under it, a shelf's top board; or always, ``plan: always``), the shortest
    free one of lower routes and routes through a via point aside, checked alike (``plan: never``: the route over
    the obstacles, unchecked, the posture sliding from the default to the hover's joints);
-3. down to ``hover`` above its resting height, where it waits for the sway to settle and corrects its planar
+3. down to ``hover`` above its resting height (where that descent passes within ``clearance`` of an obstacle, a
+   target beside a wall, the object's footprint is first aligned over the target at the top of the descent, as at
+   the hover below, so that an object the carry left off-centre in the clamp does not land on the wall's edge),
+   where it waits for the sway to settle and corrects its planar
    position and yaw from the live pose (the average over ``settle`` seconds, so the correction does not chase
    the swing), up to ``corrections`` times;
 4. slowly down until the object stands on the table (its height within 1 mm of its resting height), the setpoint
@@ -120,6 +123,7 @@ class Place(Phase):
         self.yaws = [self.yaw, self.goal_yaw, self.goal_yaw]
         self.postures: list[np.ndarray | None] = [None, None, None]  # per leg, the joints the IK heads for
         self.leg, self.stage, self.frac = 0, "transit", 0.0
+        self.descent, self.align = len(self.legs) - 1, False  # the descent's first leg; align over it first
         self.samples: list[tuple[np.ndarray, float]] = []
         self.corrections = 0
         self.bottom_from: float | None = None
@@ -157,6 +161,8 @@ class Place(Phase):
                              carry_check_ms=round((time.perf_counter() - t0) * 1e3, 1))
             points, point_yaws, qs = checked
             self.legs, self.yaws, self.postures = points, point_yaws, list(qs)
+            self.descent = len(points) - max(1, int(np.ceil(np.linalg.norm(legs[-1] - legs[-2]) / ROUTE_STEP)))
+            self.align = at_goal + ROUTE_SLACK < c.clearance  # the descent passes near something: align first
             self.start_pos, self.start_yaw = self.sp.pos.copy(), self.yaw
             self.start_q = view.joint_positions(view.joint_names())
             self.posture = qs[-1]
@@ -259,6 +265,10 @@ class Place(Phase):
                 self.leg += 1
                 if self.leg == len(self.legs):
                     self.stage, self.wait_from, self.samples = "hover", view.t, []
+                elif self.leg == self.descent and self.align:
+                    self.stage, self.align, self.samples = "align", False, []
+        elif self.stage == "align":
+            self._align(view)
         elif self.stage == "hover":
             self._hover(view)
         elif self.stage == "descend":
@@ -274,7 +284,8 @@ class Place(Phase):
         self.info["stage"] = self.stage  # a timeout names the stage it ended in
         targets, relative = self.clamp.targets(view, self.sp.pos, self.yaw)
         blend = clamp((view.t - self.t0) / BLEND, 0.0, 1.0)
-        planned = self.postures[min(self.leg, len(self.postures) - 1)] if self.stage == "transit" else None
+        moving = self.stage in ("transit", "align")
+        planned = self.postures[min(self.leg, len(self.postures) - 1)] if moving else None
         if planned is not None:  # along a checked route: its joints, as far as the setpoint has come (no jumps)
             posture = self._along(planned)
         elif self.postures[-1] is not None:  # after a checked route: its last joints, the hover's
@@ -340,6 +351,34 @@ class Place(Phase):
         down = -rot[:, 2]
         foot = obj + down * view.extent(self.spec.object, down)
         return np.asarray(foot[:2] - view.body_pose(self.spec.target).pos[:2])
+
+    def _align(self, view: View) -> None:
+        """At the top of a descent beside an obstacle: correct the rest of the route by the footprint's planar error.
+
+        As at the hover (:meth:`_hover`): the error averaged over ``settle`` seconds once the arms are still, up to
+        ``corrections`` times.
+        """
+        c = self.spec
+        if not view.settled():
+            self.samples = []
+            return
+        self.samples.append((self._footprint_error(view), 0.0))
+        if len(self.samples) * view.dt < c.settle:
+            return
+        err = np.mean([s[0] for s in self.samples], axis=0)
+        self.samples = []
+        self.info.update(align_error_xy_m=round(float(np.linalg.norm(err)), 5))
+        aligns = self.info.get("aligns", 0)
+        if np.linalg.norm(err) <= c.tolerance or aligns >= c.corrections:
+            self.stage = "transit"
+            return
+        self.info["aligns"] = aligns + 1
+        shift = np.array([*err, 0.0])
+        for k in range(self.leg - 1, len(self.legs)):  # the point it is at, and the rest of the route
+            self.legs[k] = self.legs[k] - shift
+        self.goal = self.goal - shift
+        self.sp.jump(self.sp.pos - shift)
+        self.stage = "align"
 
     def _hover(self, view: View) -> None:
         """Wait for the sway to settle, then correct the setpoint by the averaged planar and yaw error."""
