@@ -110,6 +110,9 @@ class ScriptedView:
     def room_at(self, q, near=(), allow=()):
         return 1.0
 
+    def clearance_at(self, obj, pos, yaw):
+        return 0.1
+
     def plan(self, targets, start=None, allow=frozenset(), pos_tol=None, restarts=True):
         if self.reach is not None and not self.reach(tuple(targets)):
             return None

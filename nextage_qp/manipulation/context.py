@@ -201,6 +201,12 @@ class Reach(Protocol):
     def obstacle_groups(self) -> tuple[str, ...]:
         """The collision groups of the scene's obstacles: the obstacle, the clutter, the fixed objects it has."""
 
+    def clearance_at(self, obj: str, pos: np.ndarray, yaw: float) -> float:
+        """Smallest distance [m] from ``obj`` upright at ``pos`` (its origin) and ``yaw`` to the scene's obstacles.
+
+        Capped at 0.1 m; the obstacles are :meth:`obstacle_groups`'.
+        """
+
     def room_at(self, q: np.ndarray, near: Sequence[str] = (), allow: Sequence[str] = ()) -> float:
         """How near [m] robot joints ``q`` [rad] (and a held object) come to anything (negative: how deep in it).
 

@@ -10,6 +10,7 @@ distance is the target's clearance, reported with the result.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import mujoco
@@ -169,6 +170,19 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
                               f"{np.degrees(tyaw):.1f} deg) overlaps {_name(m, geom)} by {-clearance * 1e3:.1f} mm; "
                               "no placement there is possible")
     return Placement(rest, clearance)
+
+
+def clearance_at(robot: Robot, data: mujoco.MjData, obj: str, pos: np.ndarray, yaw: float,
+                 groups: Sequence[str]) -> float:
+    """Smallest distance [m] from ``obj`` upright at ``pos`` and ``yaw`` to the geoms of ``groups`` (capped at 0.1 m).
+
+    ``data`` holds the rest of the scene and is changed: the object's pose is set in it.
+    """
+    m, geoms = robot.model, robot.collision_geoms()
+    data.qpos[robot.object_qpos_slice(obj)] = [*pos, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
+    mujoco.mj_kinematics(m, data)
+    others = [g for group in groups for g in geoms.get(group, ())]
+    return _closest(robot, data, list(geoms.get(obj, ())), others)[0]
 
 
 def _within_reach(robot: Robot, q: np.ndarray, obj_geoms: list[int], rest: np.ndarray, source: str, obj: str) -> None:

@@ -15,7 +15,7 @@ from nextage_qp.kinematics.frames import Kinematics
 from nextage_qp.loop.servo import Servo
 from nextage_qp.loop.simulation import Simulation
 from nextage_qp.manipulation.context import Grip
-from nextage_qp.manipulation.placement import obstacle_top, rest_height, table_top
+from nextage_qp.manipulation.placement import clearance_at, obstacle_top, rest_height, table_top
 from nextage_qp.mobile.base import MobileBase
 from nextage_qp.mobile.drive_models import Pose2
 from nextage_qp.mobile.odometry import to_odometry
@@ -150,6 +150,11 @@ class SimView:
     def obstacle_groups(self) -> tuple[str, ...]:  # noqa: D102
         groups = self.robot.collision_geoms()
         return tuple(g for g in ("obstacle", CLUTTER_GROUP, *self.robot.fixed_objects) if groups.get(g))
+
+    def clearance_at(self, obj: str, pos: np.ndarray, yaw: float) -> float:  # noqa: D102
+        data = mujoco.MjData(self.robot.model)
+        data.qpos[:] = self._sim.data.qpos
+        return clearance_at(self.robot, data, obj, np.asarray(pos, dtype=float), yaw, self.obstacle_groups())
 
     def room_at(self, q: np.ndarray, near: Sequence[str] = (), allow: Sequence[str] = ()) -> float:  # noqa: D102
         touch = self._worlds_at(np.asarray(q, dtype=float), near, 0.0, allow)[0]

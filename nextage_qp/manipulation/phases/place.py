@@ -12,8 +12,8 @@ The object's setpoint :math:`(p, \psi)` goes
    reach or blocked (clutter beside or under it, a shelf's top board; or always, ``plan: always``), the shortest
    free one of lower routes and routes through a via point aside, checked alike (``plan: never``: the route over
    the obstacles, unchecked, the posture sliding from the default to the hover's joints);
-3. down to ``hover`` above its resting height (where that descent passes within ``clearance`` of an obstacle, a
-   target beside a wall, the object's footprint is first aligned over the target at the top of the descent, as at
+3. down to ``hover`` above its resting height (where the object at rest on the target comes within ``ALIGN_ROOM``
+   of an obstacle, a target beside a wall, the object's footprint is first aligned over the target at the top of the descent, as at
    the hover below, so that an object the carry left off-centre in the clamp does not land on the wall's edge),
    where it waits for the sway to settle and corrects its planar
    position and yaw from the live pose (the average over ``settle`` seconds, so the correction does not chase
@@ -68,6 +68,9 @@ ROUTE_HEIGHTS = 4
 """Heights tried for a route lower than over the obstacles: evenly from the lowest to that one [count]."""
 ROUTE_ASIDE = (0.0, 0.1, -0.1, 0.2, -0.2)
 """Sideways offsets [m] of a route's via point from the middle of the straight line to the target."""
+ALIGN_ROOM = 0.01
+"""A checked route to a target whose object at rest there comes this near an obstacle [m] (a target beside a wall)
+aligns the object over the target at the top of its descent."""
 BLEND = 2.0
 """Time [s] over which the IK's posture target slides from its default to the hover joints: a posture that jumped
 would swing the arms through the null space at once, and their lag would open the clamp."""
@@ -162,7 +165,8 @@ class Place(Phase):
             points, point_yaws, qs = checked
             self.legs, self.yaws, self.postures = points, point_yaws, list(qs)
             self.descent = len(points) - max(1, int(np.ceil(np.linalg.norm(legs[-1] - legs[-2]) / ROUTE_STEP)))
-            self.align = at_goal + ROUTE_SLACK < c.clearance  # the descent passes near something: align first
+            rest = np.array([*self.goal[:2], self.rest])  # the object resting on the target near a wall: align first
+            self.align = view.clearance_at(c.object, rest, self.goal_yaw) < ALIGN_ROOM
             self.start_pos, self.start_yaw = self.sp.pos.copy(), self.yaw
             self.start_q = view.joint_positions(view.joint_names())
             self.posture = qs[-1]
