@@ -111,7 +111,7 @@ class ScriptedView:
         return 1.0
 
     def clearance_at(self, obj, pos, yaw):
-        return 0.1
+        return 0.1, np.zeros(3)
 
     def plan(self, targets, start=None, allow=frozenset(), pos_tol=None, restarts=True):
         if self.reach is not None and not self.reach(tuple(targets)):

@@ -201,10 +201,11 @@ class Reach(Protocol):
     def obstacle_groups(self) -> tuple[str, ...]:
         """The collision groups of the scene's obstacles: the obstacle, the clutter, the fixed objects it has."""
 
-    def clearance_at(self, obj: str, pos: np.ndarray, yaw: float) -> float:
-        """Smallest distance [m] from ``obj`` upright at ``pos`` (its origin) and ``yaw`` to the scene's obstacles.
+    def clearance_at(self, obj: str, pos: np.ndarray, yaw: float) -> tuple[float, np.ndarray]:
+        """Smallest distance [m] from ``obj`` upright at ``pos`` (its origin) and ``yaw`` to the scene's obstacles,
+        and the unit direction away from the nearest.
 
-        Capped at 0.1 m; the obstacles are :meth:`obstacle_groups`'.
+        Capped at 0.1 m (the direction zero there); the obstacles are :meth:`obstacle_groups`'.
         """
 
     def room_at(self, q: np.ndarray, near: Sequence[str] = (), allow: Sequence[str] = ()) -> float:

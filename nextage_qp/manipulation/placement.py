@@ -173,16 +173,24 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
 
 
 def clearance_at(robot: Robot, data: mujoco.MjData, obj: str, pos: np.ndarray, yaw: float,
-                 groups: Sequence[str]) -> float:
-    """Smallest distance [m] from ``obj`` upright at ``pos`` and ``yaw`` to the geoms of ``groups`` (capped at 0.1 m).
+                 groups: Sequence[str]) -> tuple[float, np.ndarray]:
+    """Smallest distance [m] from ``obj`` upright at ``pos`` and ``yaw`` to the geoms of ``groups`` (capped at 0.1 m),
+    and the unit direction away from the nearest one (zero beyond the cap).
 
     ``data`` holds the rest of the scene and is changed: the object's pose is set in it.
     """
     m, geoms = robot.model, robot.collision_geoms()
     data.qpos[robot.object_qpos_slice(obj)] = [*pos, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
     mujoco.mj_kinematics(m, data)
-    others = [g for group in groups for g in geoms.get(group, ())]
-    return _closest(robot, data, list(geoms.get(obj, ())), others)[0]
+    best, away, fromto = 0.1, np.zeros(3), np.zeros(6)
+    for a in geoms.get(obj, ()):
+        for b in (g for group in groups for g in geoms.get(group, ())):
+            dist = float(mujoco.mj_geomDistance(m, data, a, b, 0.1, fromto))
+            if dist < best:
+                gap = fromto[:3] - fromto[3:]  # from the obstacle's point to the object's (reversed when inside)
+                norm = float(np.linalg.norm(gap))
+                best, away = dist, (gap / norm * (1.0 if dist >= 0 else -1.0) if norm > 1e-12 else np.zeros(3))
+    return best, away
 
 
 def _within_reach(robot: Robot, q: np.ndarray, obj_geoms: list[int], rest: np.ndarray, source: str, obj: str) -> None:

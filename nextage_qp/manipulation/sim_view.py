@@ -151,7 +151,7 @@ class SimView:
         groups = self.robot.collision_geoms()
         return tuple(g for g in ("obstacle", CLUTTER_GROUP, *self.robot.fixed_objects) if groups.get(g))
 
-    def clearance_at(self, obj: str, pos: np.ndarray, yaw: float) -> float:  # noqa: D102
+    def clearance_at(self, obj: str, pos: np.ndarray, yaw: float) -> tuple[float, np.ndarray]:  # noqa: D102
         data = mujoco.MjData(self.robot.model)
         data.qpos[:] = self._sim.data.qpos
         return clearance_at(self.robot, data, obj, np.asarray(pos, dtype=float), yaw, self.obstacle_groups())

@@ -21,6 +21,9 @@ The object's setpoint :math:`(p, \psi)` goes
 4. slowly down until the object stands on the table (its height within 1 mm of its resting height), the setpoint
    drifting against the live planar error at ``descend_gain`` until the object touches.
 
+A target whose object at rest there comes within ``AIM_OFF`` of an obstacle is aimed that far off it (along the
+obstacle's normal), so that the set-down's own error does not put the object on the obstacle's edge.
+
 The planar error is that of the object's *footprint*, the centre of its lowest face: a held object tilted by
 :math:`\theta` lands on an edge and drops flat when the pads open, which moves its origin by about
 :math:`h \sin\theta` (``h`` its origin's height over that face) but leaves the footprint where it touched.
@@ -68,6 +71,9 @@ ROUTE_HEIGHTS = 4
 """Heights tried for a route lower than over the obstacles: evenly from the lowest to that one [count]."""
 ROUTE_ASIDE = (0.0, 0.1, -0.1, 0.2, -0.2)
 """Sideways offsets [m] of a route's via point from the middle of the straight line to the target."""
+AIM_OFF = 0.003
+"""A target whose object at rest comes nearer an obstacle than this [m] is aimed this far from it: the set-down's own
+error (``tolerance``) would put it on the obstacle's edge half the time."""
 ALIGN_ROOM = 0.01
 """A checked route to a target whose object at rest there comes this near an obstacle [m] (a target beside a wall)
 aligns the object over the target at the top of its descent."""
@@ -118,7 +124,10 @@ class Place(Phase):
         depth = view.rest_height(c.object) - view.table_top()
         carry = max(obj[2] + c.lift, view.obstacle_top() + c.clearance + depth, self.rest + c.clearance)
         self.sp, self.yaw = Setpoint(obj.copy()), yaw_of(rot)
-        self.goal = np.array([tgt[0], tgt[1], self.rest + c.hover])
+        beside, away = view.clearance_at(c.object, np.array([tgt[0], tgt[1], self.rest]), yaw_of(trot))
+        self.aim = away[:2] * max(0.0, AIM_OFF - beside)  # a target (all but) touching a wall: aimed off it
+        self.goal = np.array([tgt[0] + self.aim[0], tgt[1] + self.aim[1], self.rest + c.hover])
+        self.info.update(target_room_m=round(beside, 5), aim_off_m=round(float(np.linalg.norm(self.aim)), 5))
         self.goal_yaw, self.posture = self._reachable_yaw(view, yaw_of(trot))
         self.posture_from, self.t0 = view.default_posture(), view.t
         self._blended: np.ndarray | None = None  # the posture target once the blend is over
@@ -149,7 +158,10 @@ class Place(Phase):
         mid = 0.5 * (obj[:2] + self.goal[:2])
         candidates = [(float(h), mid + d * side if d else None) for h in heights for d in ROUTE_ASIDE]
         candidates = candidates[:1] + sorted(candidates[1:], key=lambda hv: self._length(obj, *hv))
-        at_goal = max(-TOUCHING, view.room_at(self.posture, near=(c.target,)) - ROUTE_SLACK)  # the hover's own room
+        rest = np.array([*self.goal[:2], self.rest])
+        beside = view.clearance_at(c.object, rest, self.goal_yaw)[0]  # the object at rest where aimed, to obstacles
+        room = min(view.room_at(self.posture, near=(c.target,)), beside)  # the hover's own room (the object's at rest)
+        at_goal = max(-TOUCHING, room - ROUTE_SLACK)
         first_why = None
         for k, (height, via) in enumerate(candidates):
             if k == 0 and c.plan == "always":
@@ -165,8 +177,7 @@ class Place(Phase):
             points, point_yaws, qs = checked
             self.legs, self.yaws, self.postures = points, point_yaws, list(qs)
             self.descent = len(points) - max(1, int(np.ceil(np.linalg.norm(legs[-1] - legs[-2]) / ROUTE_STEP)))
-            rest = np.array([*self.goal[:2], self.rest])  # the object resting on the target near a wall: align first
-            self.align = view.clearance_at(c.object, rest, self.goal_yaw) < ALIGN_ROOM
+            self.align = beside < ALIGN_ROOM  # the object resting on the target near a wall: align first
             self.start_pos, self.start_yaw = self.sp.pos.copy(), self.yaw
             self.start_q = view.joint_positions(view.joint_names())
             self.posture = qs[-1]
@@ -350,11 +361,11 @@ class Place(Phase):
                              f"{lag * 1e3:.0f} mm above its target)")
 
     def _footprint_error(self, view: View) -> np.ndarray:
-        """Planar offset [m] of the object's footprint (the centre of its lowest face) from the target."""
+        """Planar offset [m] of the object's footprint (the centre of its lowest face) from where it is aimed."""
         obj, rot = view.body_pose(self.spec.object)
         down = -rot[:, 2]
         foot = obj + down * view.extent(self.spec.object, down)
-        return np.asarray(foot[:2] - view.body_pose(self.spec.target).pos[:2])
+        return np.asarray(foot[:2] - view.body_pose(self.spec.target).pos[:2] - self.aim)
 
     def _align(self, view: View) -> None:
         """At the top of a descent beside an obstacle: correct the rest of the route by the footprint's planar error.
@@ -392,7 +403,8 @@ class Place(Phase):
             return
         obj, rot = view.body_pose(c.object)
         tgt, trot = view.body_pose(c.target)
-        self.samples.append((obj[:2] - tgt[:2], wrap(yaw_of(rot) - yaw_of(trot), view.yaw_symmetry(c.object))))
+        yaw_err = wrap(yaw_of(rot) - yaw_of(trot), view.yaw_symmetry(c.object))
+        self.samples.append((obj[:2] - tgt[:2] - self.aim, yaw_err))
         if len(self.samples) * view.dt < c.settle:
             return
         err = np.mean([s[0] for s in self.samples], axis=0)
