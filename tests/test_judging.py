@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import mujoco
+import numpy as np
 import pytest
 
 from nextage_qp.errors import ConfigError
 from nextage_qp.manipulation.config import load_config
-from nextage_qp.manipulation.runner import Runner
+from nextage_qp.manipulation.placement import clearance_at
+from nextage_qp.manipulation.runner import Runner, build_robot
 
 PUSH = "configs/push_cube.yaml"
 
@@ -57,3 +60,25 @@ def test_a_fixed_object_is_a_static_obstacle_the_planner_and_the_ik_keep_clear_o
 def test_a_fixed_object_cannot_take_a_free_objects_name():
     with pytest.raises(ConfigError, match=r"scene.objects.cube: 'cube' is a free object of the scene"):
         Runner(load_config(PUSH, ["scene.objects.cube={shape: box, size: [0.02, 0.02, 0.02], fixed: true}"]), PUSH)
+
+
+def test_clearance_at_measures_an_object_against_the_wall_and_points_away_from_it():
+    path = "configs/dock_dumbbell.yaml"
+    robot = build_robot(load_config(path), path)
+    data = mujoco.MjData(robot.model)
+    mujoco.mj_forward(robot.model, data)
+    normal = np.array([-1.0, 1.0, 0.0]) / np.sqrt(2.0)  # the wall runs along (1, 1) through (0.43, 0.275)
+    far, away = clearance_at(robot, data, "dumbbell", np.array([0.35, 0.40, 1.015]), 0.785398, ["obstacle"])
+    near, away = clearance_at(robot, data, "dumbbell", np.array([0.40, 0.40, 1.015]), 0.785398, ["obstacle"])
+    assert 0.0 < near < far and away @ normal > 0.9  # nearer as it moves towards the wall, which it is off
+    inside, into = clearance_at(robot, data, "dumbbell", np.array([0.43, 0.29, 1.015]), 0.785398, ["obstacle"])
+    assert inside < 0.0 and np.linalg.norm(into) == pytest.approx(1.0)
+
+
+def test_a_dock_target_touching_the_wall_is_aimed_off_it_and_set_down_within_the_tolerance():
+    # The wall's face is 0.3 mm from the plate at this target: aimed 2.7 mm off it, along the wall's normal.
+    record = run("configs/dock_dumbbell.yaml", "scene.poses.dumbbell_target.pos=[0.3526,0.3646,1.0]",
+                 "scene.poses.dumbbell_target.yaw=1.0468")
+    place = record["phases"][1]
+    assert place["target_room_m"] < 0.003 and 0.0 < place["aim_off_m"] <= 0.003
+    assert record["success"] and record["object_error_xy_m"] < 0.005 and record["obstacle_contacts"] == 0

@@ -202,10 +202,10 @@ class Reach(Protocol):
         """The collision groups of the scene's obstacles: the obstacle, the clutter, the fixed objects it has."""
 
     def clearance_at(self, obj: str, pos: np.ndarray, yaw: float) -> tuple[float, np.ndarray]:
-        """Smallest distance [m] from ``obj`` upright at ``pos`` (its origin) and ``yaw`` to the scene's obstacles,
-        and the unit direction away from the nearest.
+        """Smallest distance [m] from ``obj`` upright at ``pos`` (its origin) and ``yaw`` to the scene's obstacles.
 
-        Capped at 0.1 m (the direction zero there); the obstacles are :meth:`obstacle_groups`'.
+        With it, the unit direction away from the nearest. Capped at 0.1 m (the direction zero there); the obstacles
+        are :meth:`obstacle_groups`'.
         """
 
     def room_at(self, q: np.ndarray, near: Sequence[str] = (), allow: Sequence[str] = ()) -> float:

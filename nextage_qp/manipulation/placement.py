@@ -174,10 +174,10 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
 
 def clearance_at(robot: Robot, data: mujoco.MjData, obj: str, pos: np.ndarray, yaw: float,
                  groups: Sequence[str]) -> tuple[float, np.ndarray]:
-    """Smallest distance [m] from ``obj`` upright at ``pos`` and ``yaw`` to the geoms of ``groups`` (capped at 0.1 m),
-    and the unit direction away from the nearest one (zero beyond the cap).
+    """Smallest distance [m] from ``obj`` upright at ``pos`` and ``yaw`` to the geoms of ``groups`` (capped at 0.1 m).
 
-    ``data`` holds the rest of the scene and is changed: the object's pose is set in it.
+    With it, the unit direction away from the nearest one (zero beyond the cap). ``data`` holds the rest of the
+    scene and is changed: the object's pose is set in it.
     """
     m, geoms = robot.model, robot.collision_geoms()
     data.qpos[robot.object_qpos_slice(obj)] = [*pos, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]

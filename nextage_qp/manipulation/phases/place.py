@@ -12,10 +12,10 @@ The object's setpoint :math:`(p, \psi)` goes
    reach or blocked (clutter beside or under it, a shelf's top board; or always, ``plan: always``), the shortest
    free one of lower routes and routes through a via point aside, checked alike (``plan: never``: the route over
    the obstacles, unchecked, the posture sliding from the default to the hover's joints);
-3. down to ``hover`` above its resting height (where the object at rest on the target comes within ``ALIGN_ROOM``
-   of an obstacle, a target beside a wall, the object's footprint is first aligned over the target at the top of the descent, as at
-   the hover below, so that an object the carry left off-centre in the clamp does not land on the wall's edge),
-   where it waits for the sway to settle and corrects its planar
+3. down to ``hover`` above its resting height (where the object at rest on the target comes within
+   ``ALIGN_ROOM`` of an obstacle, a target beside a wall, the object's footprint is first aligned over the target
+   at the top of the descent, as at the hover below, so that an object the carry left off-centre in the clamp does
+   not land on the wall's edge), where it waits for the sway to settle and corrects its planar
    position and yaw from the live pose (the average over ``settle`` seconds, so the correction does not chase
    the swing), up to ``corrections`` times;
 4. slowly down until the object stands on the table (its height within 1 mm of its resting height), the setpoint
