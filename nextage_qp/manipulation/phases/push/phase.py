@@ -50,7 +50,6 @@ from nextage_qp.manipulation.phases.push.spec import (
     BLIND_S,
     GAP_TIME,
     HEIGHT_GAIN,
-    HELD_BACK_M,
     HIDDEN_S,
     LOOK_AGAIN,
     LOOK_S,
@@ -148,8 +147,6 @@ class Push(Phase):
     nudges: int  # nudges on this approach
     full: bool  # the next approach may use the whole fan, not only spec.correction_fan
     plan_failed: bool  # the last approach found no reachable direction
-    loose: bool = False  # this approach holds only the face's normal: no route kept the tool's whole rotation
-    held_back: bool = False  # the last push stuck with its tool off its setpoint: the arm, not the object, stopped
     blocked: str | None  # why the last route the arm reached had no collision-free leg, when no approach was found
     planned_at: np.ndarray  # the object's planar position the approach was planned for [m]
     raised: float  # the first approach's raise over the push height, which later ones keep [m]
@@ -188,7 +185,7 @@ class Push(Phase):
         self.tool_yaw = yaw_of(rot)
         self.approaches, self.recoveries, self.full, self.contact = 0, 0, False, PushContact(self.frame)
         self.info.update(attempts=0, nudges=0, contact_onsets=0, contact_losses=0)
-        self.raised, self.looking, self.pressed, self.loose, self.held_back = 0.0, False, False, False, False
+        self.raised, self.looking, self.pressed = 0.0, False, False
         obj, tgt, _ = self._planar(view)
         self._approach(view, unit2((tgt - obj)[:2]))
         if self.plan_failed:
@@ -231,29 +228,15 @@ class Push(Phase):
         fan = c.fan if self.approaches == 1 or full else tuple(a for a in c.fan if a <= c.correction_fan)
         higher: bool | float = True if self.approaches == 1 else self.raised  # later ones at the first one's height
         blocked: list[str] = []
-        # Held rotation first; where no route keeps it (the hand's roll sweeps it into clutter beside the object),
-        # only the face's normal, its roll free (the push needs no more: see orient). After a push that held the arm
-        # back short of the object, another tool first: this one would be held back on the same line again.
-        tries = [(False, False), (True, False)] if c.orient == "full" else [(False, False)]
-        if self.held_back:
-            tries = [(False, True), *tries]
-        self.held_back = False
-        for loose, skip in tries:
-            self.loose = loose
-            plan = None if skip else plan_approach(view, c, self.sp.pos, d_goal, fan, self._target, higher=higher,
-                                                  blocked=blocked)
-            if self.approaches > 1 and c.other_frames:  # a correction: the tool that reaches nearest the error pushes
-                handover = plan_handover(view, c, self.frame, d_goal, fan, self._target, higher, plan)
-                if handover is not None:
-                    self.frame, plan = handover
-                    self.contact.retarget(self.frame)
-                    self._on_tool(view)
-                    self.info["handovers"] = self.info.get("handovers", 0) + 1
-            if plan is not None:
-                break
+        plan = plan_approach(view, c, self.sp.pos, d_goal, fan, self._target, higher=higher, blocked=blocked)
         self.blocked = blocked[-1] if blocked and plan is None else None
-        if plan is not None and self.loose:
-            self.info["loose_approaches"] = self.info.get("loose_approaches", 0) + 1
+        if self.approaches > 1 and c.other_frames:  # a correction: the tool that reaches nearest the error pushes
+            handover = plan_handover(view, c, self.frame, d_goal, fan, self._target, higher, plan)
+            if handover is not None:
+                self.frame, plan = handover
+                self.contact.retarget(self.frame)
+                self._on_tool(view)
+                self.info["handovers"] = self.info.get("handovers", 0) + 1
         self.planned_at = view.body_pose(c.object).pos[:2].copy()
         tried = plan.tried if plan else sum(1 + (a != 0) for a in fan)
         self.info.update(attempts=self.approaches, directions_tried=tried)
@@ -273,7 +256,7 @@ class Push(Phase):
     def _target(self, pos: np.ndarray, yaw: float, frame: str | None = None) -> FrameTarget:
         """A tool (default: the one pushing) at ``pos`` pushing at ``yaw``: its rotation or face normal (``orient``)."""
         rot, frame = rot_z(yaw) @ self._pitch, frame or self.frame
-        if self.spec.orient == "normal" or self.loose:  # only the face's normal (its x axis) is held; roll free
+        if self.spec.orient == "normal":  # only the face's normal (the frame's x axis) is held; roll about it free
             return FrameTarget(frame, pos=pos, axis=_X, direction=rot[:, 0].copy())
         return FrameTarget(frame, pos=pos, rot=rot)
 
@@ -397,9 +380,6 @@ class Push(Phase):
             self.nearest, self.nearest_at = min(dist, self.nearest), view.t
         elif view.t - self.nearest_at > STUCK_S:  # in contact and going nowhere: back off and approach again
             self.info["stuck"] = self.info.get("stuck", 0) + 1
-            lag = float(np.linalg.norm(self.sp.pos[:2] - view.frame_pose(self.frame).pos[:2])) - c.preload
-            self.held_back = lag > HELD_BACK_M  # the tool kept off its setpoint: its arm was stopped, not the object
-            self.info["held_back"] = self.info.get("held_back", 0) + int(self.held_back)
             self.next_d, self.full = unit2((tgt - obj)[:2]), True
             if self.approaches < c.attempts:
                 return self._start_retreat(final=False)

@@ -55,9 +55,6 @@ STUCK_S = 10.0
 an obstacle it must keep clear of, say): the tool backs off and approaches again."""
 STUCK_M = 0.002
 """Progress [m] towards the target that counts as the push moving."""
-HELD_BACK_M = 0.005
-"""A stuck push whose tool lags its setpoint by this much more than the preload [m] was its arm's (held back by an
-obstacle it keeps clear of), not the object's: the next approach goes to another tool first (``other_frames``)."""
 TIPPING_SHARE = 0.25
 """A push that times out having paused this share of its ``timeout`` for a tipping object says so."""
 LOST_GAP = 0.03
@@ -104,8 +101,7 @@ class PushSpec(Spec):
     orient: Literal["auto", "full", "normal"] = Field(
         default="auto", description="Hold the tool's whole rotation (x: the push, z: up), or only its face normal "
                                     "(x) along the push, a roll left free; auto: the whole rotation where at least "
-                                    f"{FULL_ORIENT_JOINTS} joints move every pushing tool, else the normal. An "
-                                    "approach no route reaches with the whole rotation holds the normal only.")
+                                    f"{FULL_ORIENT_JOINTS} joints move every pushing tool, else the normal.")
     pitch: float | None = Field(default=None, ge=-0.8, le=0.8,
                                 description="Tool pitch [rad]; > 0 tilts the push face's normal down (unset: the "
                                             "robot file's push_face, else 0).")
