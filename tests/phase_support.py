@@ -110,7 +110,7 @@ class ScriptedView:
     def room_at(self, q, near=(), allow=()):
         return 1.0
 
-    def clearance_at(self, obj, pos, yaw):
+    def clearance_at(self, obj, pos, yaw, beside=False):
         return 0.1, np.zeros(3)
 
     def plan(self, targets, start=None, allow=frozenset(), pos_tol=None, restarts=True):

@@ -201,11 +201,11 @@ class Reach(Protocol):
     def obstacle_groups(self) -> tuple[str, ...]:
         """The collision groups of the scene's obstacles: the obstacle, the clutter, the fixed objects it has."""
 
-    def clearance_at(self, obj: str, pos: np.ndarray, yaw: float) -> tuple[float, np.ndarray]:
+    def clearance_at(self, obj: str, pos: np.ndarray, yaw: float, beside: bool = False) -> tuple[float, np.ndarray]:
         """Smallest distance [m] from ``obj`` upright at ``pos`` (its origin) and ``yaw`` to the scene's obstacles.
 
         With it, the unit direction away from the nearest. Capped at 0.1 m (the direction zero there); the obstacles
-        are :meth:`obstacle_groups`'.
+        are :meth:`obstacle_groups`'. ``beside``: only those beside it, not one it stands on or under.
         """
 
     def room_at(self, q: np.ndarray, near: Sequence[str] = (), allow: Sequence[str] = ()) -> float:

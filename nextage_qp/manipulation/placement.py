@@ -173,11 +173,12 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
 
 
 def clearance_at(robot: Robot, data: mujoco.MjData, obj: str, pos: np.ndarray, yaw: float,
-                 groups: Sequence[str]) -> tuple[float, np.ndarray]:
+                 groups: Sequence[str], beside: bool = False) -> tuple[float, np.ndarray]:
     """Smallest distance [m] from ``obj`` upright at ``pos`` and ``yaw`` to the geoms of ``groups`` (capped at 0.1 m).
 
     With it, the unit direction away from the nearest one (zero beyond the cap). ``data`` holds the rest of the
-    scene and is changed: the object's pose is set in it.
+    scene and is changed: the object's pose is set in it. ``beside``: only obstacles beside the object count (the
+    direction away from them within 45 deg of level), not one it stands on or under.
     """
     m, geoms = robot.model, robot.collision_geoms()
     data.qpos[robot.object_qpos_slice(obj)] = [*pos, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
@@ -189,6 +190,8 @@ def clearance_at(robot: Robot, data: mujoco.MjData, obj: str, pos: np.ndarray, y
             if dist < best:
                 gap = fromto[:3] - fromto[3:]  # from the obstacle's point to the object's (reversed when inside)
                 norm = float(np.linalg.norm(gap))
+                if beside and norm > 1e-12 and abs(gap[2]) > np.sqrt(0.5) * norm:
+                    continue
                 best, away = dist, (gap / norm * (1.0 if dist >= 0 else -1.0) if norm > 1e-12 else np.zeros(3))
     return best, away
 

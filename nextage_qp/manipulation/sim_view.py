@@ -151,10 +151,11 @@ class SimView:
         groups = self.robot.collision_geoms()
         return tuple(g for g in ("obstacle", CLUTTER_GROUP, *self.robot.fixed_objects) if groups.get(g))
 
-    def clearance_at(self, obj: str, pos: np.ndarray, yaw: float) -> tuple[float, np.ndarray]:  # noqa: D102
+    def clearance_at(self, obj: str, pos: np.ndarray, yaw: float,  # noqa: D102
+                     beside: bool = False) -> tuple[float, np.ndarray]:
         data = mujoco.MjData(self.robot.model)
         data.qpos[:] = self._sim.data.qpos
-        return clearance_at(self.robot, data, obj, np.asarray(pos, dtype=float), yaw, self.obstacle_groups())
+        return clearance_at(self.robot, data, obj, np.asarray(pos, dtype=float), yaw, self.obstacle_groups(), beside)
 
     def room_at(self, q: np.ndarray, near: Sequence[str] = (), allow: Sequence[str] = ()) -> float:  # noqa: D102
         touch = self._worlds_at(np.asarray(q, dtype=float), near, 0.0, allow)[0]

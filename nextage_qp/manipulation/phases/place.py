@@ -73,7 +73,10 @@ ROUTE_ASIDE = (0.0, 0.1, -0.1, 0.2, -0.2)
 """Sideways offsets [m] of a route's via point from the middle of the straight line to the target."""
 AIM_OFF = 0.003
 """A target whose object at rest comes nearer an obstacle than this [m] is aimed this far from it: the set-down's own
-error (``tolerance``) would put it on the obstacle's edge half the time."""
+error (``tolerance``) would put it on the obstacle's edge half the time. Only obstacles beside it count, not what it
+stands on."""
+PROBE_LIFT = 0.002
+"""The object is measured this far over its rest [m]: what it stands on is then below it, not touching."""
 ALIGN_ROOM = 0.01
 """A checked route to a target whose object at rest there comes this near an obstacle [m] (a target beside a wall)
 aligns the object over the target at the top of its descent."""
@@ -124,7 +127,9 @@ class Place(Phase):
         depth = view.rest_height(c.object) - view.table_top()
         carry = max(obj[2] + c.lift, view.obstacle_top() + c.clearance + depth, self.rest + c.clearance)
         self.sp, self.yaw = Setpoint(obj.copy()), yaw_of(rot)
-        beside, away = view.clearance_at(c.object, np.array([tgt[0], tgt[1], self.rest]), yaw_of(trot))
+        # beside: not the board it stands on, nor one over it (a shelf's boards are obstacles too)
+        probe = np.array([tgt[0], tgt[1], self.rest + PROBE_LIFT])
+        beside, away = view.clearance_at(c.object, probe, yaw_of(trot), beside=True)
         self.aim = away[:2] * max(0.0, AIM_OFF - beside)  # a target (all but) touching a wall: aimed off it
         self.goal = np.array([tgt[0] + self.aim[0], tgt[1] + self.aim[1], self.rest + c.hover])
         self.info.update(target_room_m=round(beside, 5), aim_off_m=round(float(np.linalg.norm(self.aim)), 5))
@@ -158,8 +163,8 @@ class Place(Phase):
         mid = 0.5 * (obj[:2] + self.goal[:2])
         candidates = [(float(h), mid + d * side if d else None) for h in heights for d in ROUTE_ASIDE]
         candidates = candidates[:1] + sorted(candidates[1:], key=lambda hv: self._length(obj, *hv))
-        rest = np.array([*self.goal[:2], self.rest])
-        beside = view.clearance_at(c.object, rest, self.goal_yaw)[0]  # the object at rest where aimed, to obstacles
+        probe = np.array([*self.goal[:2], self.rest + PROBE_LIFT])  # where aimed, to what is beside it (see start)
+        beside = view.clearance_at(c.object, probe, self.goal_yaw, beside=True)[0]
         room = min(view.room_at(self.posture, near=(c.target,)), beside)  # the hover's own room (the object's at rest)
         at_goal = max(-TOUCHING, room - ROUTE_SLACK)
         first_why = None
