@@ -5,6 +5,10 @@ routes to the point ``approach`` behind the object's face: lift, then down besid
 tool is on) and in behind it; or over it and straight down behind it. The first route whose every waypoint the
 planner reaches (each solved from the previous, see :class:`~nextage_qp.manipulation.route.PlannedRoute`) wins.
 
+Where the scene has obstacles (clutter, a fixed object), an approach counts only when the arm also reaches along its
+push line, as far as the object has to go along it, without the obstacles' collision rows holding it back
+(:func:`line_clear`); when none does, the first reachable one is taken.
+
 The fan is searched twice: first for a route whose waypoints the joints reach by descending from the previous
 one (no random restarts: the arm moves continuously from where it is), then, only if none does, with the
 planner's restarts (a route that may need the arm to reconfigure). A route found only by a restart is a far
@@ -27,6 +31,8 @@ from nextage_qp.manipulation.route import PlannedRoute
 
 RAISE_STEP = 0.005
 """Step [m] by which a push whose approach is out of reach at its height is tried higher."""
+LINE_STEP = 0.03
+"""Spacing [m] of the points at which a push's line is checked (:func:`line_clear`)."""
 FACE_MARGIN = 0.0
 """Least distance [m] from the tool point to the pushed object's top (0: the tool may rise to the top, the face below
 it still meets the object)."""
@@ -86,6 +92,8 @@ def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: S
     """
     tried = 0
     heights = raises(view, spec) if higher is True else [float(higher)]  # a number: that raise only
+    check_line = bool(view.obstacle_groups())  # obstacles beside the push: its line must keep the arm clear of them
+    first: Approach | None = None  # the first reachable approach, whose line the arm may not keep clear along
     for raise_by in heights:
         for restarts in (False, True):  # continuous routes first (see the module doc)
             for deviation in (s * a for a in fan for s in ((1.0,) if a == 0 else (1.0, -1.0))):
@@ -96,10 +104,33 @@ def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: S
                     planned = PlannedRoute([(target(p, yaw), *(extra[min(k, len(extra) - 1)] if extra else ()))
                                             for k, p in enumerate(route[1:])], plan=spec.plan, near=(spec.object,))
                     if planned.plan(view, restarts=restarts):
-                        return Approach(d, route[0], yaw, planned, float(route[-1][2]), tried, raise_by)
+                        found = Approach(d, route[0], yaw, planned, float(route[-1][2]), tried, raise_by)
+                        if not check_line or line_clear(view, spec, found, route[-1], target):
+                            return found
+                        first = first or found
                     if planned.blocked is not None and blocked is not None:
                         blocked.append(planned.blocked)
-    return None
+    return first._replace(tried=tried) if first is not None else None
+
+
+def line_clear(view: View, spec, found: Approach, start: np.ndarray,
+               target: Callable[[np.ndarray, float], FrameTarget]) -> bool:
+    """Whether the arm reaches along ``found``'s push line keeping clear of the obstacles, as the IK drives it.
+
+    The tool from ``start`` (behind the face) on along the push direction, as far as the object has to go along it,
+    every ``LINE_STEP``: each point solved from the previous one (no restarts, the object itself not avoided). An arm
+    the obstacles' collision rows hold off a point stalls there, and so would the push.
+    """
+    obj, tgt = view.body_pose(spec.object).pos, view.body_pose(spec.target).pos
+    d = np.array([*found.direction, 0.0])
+    travel = max(0.0, float((tgt - obj)[:2] @ found.direction)) + spec.approach
+    q: np.ndarray | None = found.route.joints[-1]
+    for k in range(1, int(np.ceil(travel / LINE_STEP)) + 1):
+        point = start + d * min(k * LINE_STEP, travel)
+        q = view.plan([target(point, found.yaw)], start=q, allow=frozenset({spec.object}), restarts=False)
+        if q is None:
+            return False
+    return True
 
 
 def raises(view: Geometry, spec) -> list[float]:
