@@ -447,3 +447,37 @@ def test_a_push_in_contact_that_goes_nowhere_backs_off_and_approaches_again_then
         run_until_done(phase, view, each=watch)
     assert phase.info["stuck"] == 2 and phase.info["attempts"] == 2
     assert stuck_at[0] < 60.0  # long before any timeout
+
+
+def test_in_clutter_an_approach_counts_only_where_the_arm_reaches_along_its_push_line():
+    """Seven pieces of clutter beside the corridor: the approach straight at the target is reachable, but along its
+    line the clutter's collision rows hold the arm back (the push stuck there for 10 s, again and again); the
+    approach chosen is one whose line the arm follows."""
+    from pathlib import Path
+    from unittest import mock
+
+    from nextage_qp.manipulation.config import load_config
+    from nextage_qp.manipulation.phases.push.approach import line_clear, plan_approach, routes
+    from nextage_qp.manipulation.phases.push.phase import Push
+    from nextage_qp.manipulation.runner import Runner
+
+    config = Path(__file__).resolve().parents[1] / "configs" / "push_clutter.yaml"
+    runner = Runner(load_config(config, ["scene.poses.cube.pos=[0.3744,0.0364,0.91]", "scene.poses.cube.yaw=0.4006",
+                                         "scene.poses.cube_target.pos=[0.6879,-0.0343,0.91]", "scene.clutter.count=7",
+                                         "seed=48432756"]))
+    view, spec = runner.view, runner.cfg.phases[0]
+    push = Push(spec, "push")
+    push.frame = spec.frame
+    tool = view.commanded_pose(spec.frame).pos
+    obj, tgt = view.body_pose("cube").pos, view.body_pose("cube_target").pos
+    wanted = (tgt - obj)[:2] / np.linalg.norm((tgt - obj)[:2])
+    with mock.patch.object(type(view), "obstacle_groups", return_value=()):  # as without the line check
+        unchecked = plan_approach(view, spec, tool, wanted, spec.fan, push._target, higher=True)
+    assert unchecked is not None
+    start = routes(view, spec, tool, unchecked.direction, unchecked.raised)[0][-1]
+    assert not line_clear(view, spec, unchecked, start, push._target)
+    checked = plan_approach(view, spec, tool, wanted, spec.fan, push._target, higher=True)
+    assert checked is not None and not np.allclose(checked.direction, unchecked.direction)
+    start = next(r[-1] for r in routes(view, spec, tool, checked.direction, checked.raised)
+                 if np.allclose(r[-1], checked.route.planned[-1][0], atol=0.01))
+    assert line_clear(view, spec, checked, start, push._target)
