@@ -112,15 +112,25 @@ def _over_table(robot: Robot, data: mujoco.MjData, geoms: list[int], xy: np.ndar
     return False
 
 
-def _closest(robot: Robot, data: mujoco.MjData, obj_geoms: list[int], others: list[int]) -> tuple[float, int]:
-    """Smallest signed distance [m] between two geom sets (capped at 0.1 m) and the other geom involved."""
-    best, which = 0.1, -1
+def _closest(robot: Robot, data: mujoco.MjData, obj_geoms: Sequence[int], others: Sequence[int],
+             beside: bool = False) -> tuple[float, int, np.ndarray]:
+    """Smallest signed distance [m] between two geom sets (capped at 0.1 m), the other geom and the way out.
+
+    The other geom is -1 and the unit direction away from it zero beyond the cap. ``beside``: only pairs whose
+    direction is within 45 deg of level count (not a geom the object stands on or under).
+    """
+    best, which, away, fromto = 0.1, -1, np.zeros(3), np.zeros(6)
     for a in obj_geoms:
         for b in others:
-            dist = float(mujoco.mj_geomDistance(robot.model, data, a, b, 0.1, None))
+            dist = float(mujoco.mj_geomDistance(robot.model, data, a, b, 0.1, fromto))
             if dist < best:
+                gap = fromto[:3] - fromto[3:]  # from the other's point to the object's (reversed when inside)
+                norm = float(np.linalg.norm(gap))
+                if beside and norm > 1e-12 and abs(gap[2]) > np.sqrt(0.5) * norm:
+                    continue
                 best, which = dist, b
-    return best, which
+                away = gap / norm * (1.0 if dist >= 0 else -1.0) if norm > 1e-12 else np.zeros(3)
+    return best, which, away
 
 
 def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, source: str) -> Placement:
@@ -141,7 +151,7 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
     obstacles = list(groups.get("obstacle", ()))
     top, table = table_top(robot, data)
     others = [g for g in range(m.ngeom) if (m.geom_contype[g] or m.geom_conaffinity[g]) and g not in obj_geoms]
-    dist, geom = _closest(robot, data, obj_geoms, others)
+    dist, geom, _ = _closest(robot, data, obj_geoms, others)
     if dist < -1e-3:  # resting contact allows a little penetration
         raise InfeasibleError(f"{source}: scene.poses.{obj}: the start pose of {obj} overlaps "
                           f"{_name(m, geom)} by {-dist * 1e3:.1f} mm")
@@ -164,7 +174,7 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
     mujoco.mj_forward(m, data)
     clearance = None
     if obstacles:
-        clearance, geom = _closest(robot, data, obj_geoms, obstacles)
+        clearance, geom, _ = _closest(robot, data, obj_geoms, obstacles)
         if clearance < -OVERLAP_TOLERANCE:
             raise InfeasibleError(f"{source}: target: {obj} resting at the target ({rest[0]:.3f}, {rest[1]:.3f}, yaw "
                               f"{np.degrees(tyaw):.1f} deg) overlaps {_name(m, geom)} by {-clearance * 1e3:.1f} mm; "
@@ -180,20 +190,12 @@ def clearance_at(robot: Robot, data: mujoco.MjData, obj: str, pos: np.ndarray, y
     scene and is changed: the object's pose is set in it. ``beside``: only obstacles beside the object count (the
     direction away from them within 45 deg of level), not one it stands on or under.
     """
-    m, geoms = robot.model, robot.collision_geoms()
+    geoms = robot.collision_geoms()
     data.qpos[robot.object_qpos_slice(obj)] = [*pos, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
-    mujoco.mj_kinematics(m, data)
-    best, away, fromto = 0.1, np.zeros(3), np.zeros(6)
-    for a in geoms.get(obj, ()):
-        for b in (g for group in groups for g in geoms.get(group, ())):
-            dist = float(mujoco.mj_geomDistance(m, data, a, b, 0.1, fromto))
-            if dist < best:
-                gap = fromto[:3] - fromto[3:]  # from the obstacle's point to the object's (reversed when inside)
-                norm = float(np.linalg.norm(gap))
-                if beside and norm > 1e-12 and abs(gap[2]) > np.sqrt(0.5) * norm:
-                    continue
-                best, away = dist, (gap / norm * (1.0 if dist >= 0 else -1.0) if norm > 1e-12 else np.zeros(3))
-    return best, away
+    mujoco.mj_kinematics(robot.model, data)
+    others = [g for group in groups for g in geoms.get(group, ())]
+    dist, _, away = _closest(robot, data, geoms.get(obj, ()), others, beside)
+    return dist, away
 
 
 def _within_reach(robot: Robot, q: np.ndarray, obj_geoms: list[int], rest: np.ndarray, source: str, obj: str) -> None:
