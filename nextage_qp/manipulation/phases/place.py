@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import itertools
 import time
+from collections.abc import Callable
 from typing import Literal
 
 import numpy as np
@@ -372,6 +373,23 @@ class Place(Phase):
         foot = obj + down * view.extent(self.spec.object, down)
         return np.asarray(foot[:2] - view.body_pose(self.spec.target).pos[:2] - self.aim)
 
+    def _averaged(self, view: View,
+                  sample: Callable[[], tuple[np.ndarray, float]]) -> tuple[np.ndarray, float] | None:
+        """``sample()``'s planar and yaw errors averaged over ``settle`` seconds once the arms are still, else None.
+
+        Averaged so that a correction does not chase the swing; the samples restart whenever the arms move.
+        """
+        if not view.settled():
+            self.samples = []
+            return None
+        self.samples.append(sample())
+        if len(self.samples) * view.dt < self.spec.settle:
+            return None
+        err = np.mean([s[0] for s in self.samples], axis=0)
+        yaw_err = float(np.mean([s[1] for s in self.samples]))
+        self.samples = []
+        return err, yaw_err
+
     def _align(self, view: View) -> None:
         """At the top of a descent beside an obstacle: correct the rest of the route by the footprint's planar error.
 
@@ -379,14 +397,10 @@ class Place(Phase):
         ``corrections`` times.
         """
         c = self.spec
-        if not view.settled():
-            self.samples = []
+        averaged = self._averaged(view, lambda: (self._footprint_error(view), 0.0))  # no yaw corrected up there
+        if averaged is None:
             return
-        self.samples.append((self._footprint_error(view), 0.0))
-        if len(self.samples) * view.dt < c.settle:
-            return
-        err = np.mean([s[0] for s in self.samples], axis=0)
-        self.samples = []
+        err = averaged[0]
         self.info.update(align_error_xy_m=round(float(np.linalg.norm(err)), 5))
         aligns = self.info.get("aligns", 0)
         if np.linalg.norm(err) <= c.tolerance or aligns >= c.corrections:
@@ -403,18 +417,16 @@ class Place(Phase):
     def _hover(self, view: View) -> None:
         """Wait for the sway to settle, then correct the setpoint by the averaged planar and yaw error."""
         c = self.spec
-        if not view.settled():
-            self.samples = []
+
+        def sample() -> tuple[np.ndarray, float]:
+            obj, rot = view.body_pose(c.object)
+            tgt, trot = view.body_pose(c.target)
+            return obj[:2] - tgt[:2] - self.aim, wrap(yaw_of(rot) - yaw_of(trot), view.yaw_symmetry(c.object))
+
+        averaged = self._averaged(view, sample)
+        if averaged is None:
             return
-        obj, rot = view.body_pose(c.object)
-        tgt, trot = view.body_pose(c.target)
-        yaw_err = wrap(yaw_of(rot) - yaw_of(trot), view.yaw_symmetry(c.object))
-        self.samples.append((obj[:2] - tgt[:2] - self.aim, yaw_err))
-        if len(self.samples) * view.dt < c.settle:
-            return
-        err = np.mean([s[0] for s in self.samples], axis=0)
-        yaw_err = float(np.mean([s[1] for s in self.samples]))
-        self.samples = []
+        err, yaw_err = averaged
         self.info.update(hover_error_xy_m=round(float(np.linalg.norm(err)), 5), hover_yaw_error_rad=round(yaw_err, 4))
         within = np.linalg.norm(err) <= c.tolerance and abs(yaw_err) <= c.yaw_tolerance
         if within or self.corrections >= c.corrections:
