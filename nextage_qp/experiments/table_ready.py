@@ -36,7 +36,8 @@ CUBE = 0.07
 GRID = 0.06
 """Spacing [m] of the grid of table points the tools are asked to reach."""
 REACH_TOL = 0.005
-"""A tool reaches a point when the IK brings it this near [m] (its axis is a target of the IK too, not judged)."""
+"""A tool reaches a point when the IK brings it this near [m] (where its axis is a target of the IK too, that is not
+judged): for the draft's table and home, and for ``robot check``'s work region."""
 DROPS = (0.2, 0.3, 0.4)
 """Table tops tried, this far [m] below the shoulders (the arms' first joints)."""
 BASE_DROP = 0.01
@@ -300,8 +301,6 @@ def _ready_home(robot, ik, arms, faces, centre, size, top, home) -> tuple[dict[s
 WORKSPACE_HEIGHT = 0.035
 """Height over the table top [m] at which ``robot check`` asks the tools to reach the work region (a 7 cm cube's
 centre)."""
-WORKSPACE_TOL = 0.005
-"""A tool reaches a point of the work region when the IK brings it this near [m]."""
 
 
 def workspace_reach(desc: RobotDescription) -> list[Finding]:
@@ -338,7 +337,7 @@ def workspace_reach(desc: RobotDescription) -> list[Finding]:
         short = []
         for name, (x, y) in points.items():
             result = solver.solve([FrameTarget(arm.tool, pos=np.array([x, y, ws.top + WORKSPACE_HEIGHT]))], home)
-            if result.pos_err_m > WORKSPACE_TOL:
+            if result.pos_err_m > REACH_TOL:
                 short.append(f"{name} by {result.pos_err_m * 1e3:.0f} mm")
         if short:
             level: Literal["problem", "info"] = "problem" if short[0].startswith("centre") else "info"
