@@ -125,7 +125,7 @@ def _flow(items: list[str], indent: int) -> str:
 def draft_text(s: Survey, out: Path, ready: Ready | None = None) -> str:
     """The robot file for survey ``s``, to be written at ``out`` (YAML with comments).
 
-    ``ready``: what makes it ready for a table (:func:`~nextage_qp.robots.ready.make_ready`): tool frames,
+    ``ready``: what makes it ready for a table (:func:`~nextage_qp.experiments.table_ready.make_ready`): tool frames,
     push_face, workspace and a ready home.
     """
     ready = ready or Ready()
