@@ -61,6 +61,7 @@ from nextage_qp.manipulation.phases.push.spec import (
     PUSH_ACCEL,
     SEEN_S,
     STEER_GAIN,
+    STEER_SHARE,
     STUCK_M,
     STUCK_S,
     TIPPING_SHARE,
@@ -339,7 +340,8 @@ class Push(Phase):
         if dist > c.freeze and self.touched:  # turn only once in contact: the approach side was chosen to reach
             bearing = unit2((tgt - obj)[:2])
             speed = float(np.linalg.norm(self.obj_v))
-            if speed > MIN_STEER_SPEED:  # integral steering: aim the push so the object moves at the target
+            if speed > max(MIN_STEER_SPEED, STEER_SHARE * self.v):  # integral steering: aim the push so the object
+                # moves at the target, from motion the tool drives (see STEER_SHARE)
                 moving = self.obj_v / speed
                 error = angle2(moving, bearing)
                 self.bias = clamp(self.bias + STEER_GAIN * error * view.dt, -MAX_BIAS, MAX_BIAS)

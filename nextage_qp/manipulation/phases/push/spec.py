@@ -18,6 +18,10 @@ MAX_BIAS = 0.35
 """Largest heading bias between the push and the object's bearing to the target [rad]."""
 MIN_STEER_SPEED = 0.005
 """Object speed above which its motion direction is trusted for steering [m/s]."""
+STEER_SHARE = 0.5
+"""Share of the tool's speed along the push that the object must keep for its motion direction to steer the push: an
+object lagging the tool (the arm held by an obstacle's collision rows, the hand pivoting about it) moves in no
+direction the push chose, and steering from it winds the heading bias up (anti-windup)."""
 VELOCITY_WINDOW = 0.2
 """Time constant of the object's velocity estimate [s]."""
 HEIGHT_GAIN = 5.0
