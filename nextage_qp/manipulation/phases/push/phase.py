@@ -50,9 +50,11 @@ from nextage_qp.manipulation.phases.push.spec import (
     BLIND_S,
     GAP_TIME,
     HEIGHT_GAIN,
+    HELD_SHARE,
     HIDDEN_S,
     LOOK_AGAIN,
     LOOK_S,
+    LOOKAHEAD,
     LOST_GAP,
     MAX_BIAS,
     MAX_HEIGHT_BIAS,
@@ -170,6 +172,7 @@ class Push(Phase):
     hold_from: float  # when the hold began [s]
     nearest: float  # the object's least distance to the target in this push [m]
     nearest_at: float | None  # when it last came STUCK_M nearer [s]
+    line: tuple[np.ndarray, np.ndarray]  # the object's planar start [m] and the unit direction to its target
     # retreat
     route: list[np.ndarray]  # the retreat's waypoints [m]
     leg: int  # the next waypoint's index
@@ -188,6 +191,7 @@ class Push(Phase):
         self.info.update(attempts=0, nudges=0, contact_onsets=0, contact_losses=0)
         self.raised, self.looking, self.pressed = 0.0, False, False
         obj, tgt, _ = self._planar(view)
+        self.line = (obj[:2].copy(), unit2((tgt - obj)[:2]))  # the straight line the object is pushed along
         self._approach(view, unit2((tgt - obj)[:2]))
         if self.plan_failed:
             raise self._no_approach(view)
@@ -338,10 +342,11 @@ class Push(Phase):
         self.blind_m = self.blind_m + moved if unseen > HIDDEN_S else 0.0  # pushed unseen [m]
         self._track(view, obj[:2])
         if dist > c.freeze and self.touched:  # turn only once in contact: the approach side was chosen to reach
-            bearing = unit2((tgt - obj)[:2])
+            bearing = self._heading(obj, tgt)
             speed = float(np.linalg.norm(self.obj_v))
-            if speed > max(MIN_STEER_SPEED, STEER_SHARE * self.v):  # integral steering: aim the push so the object
-                # moves at the target, from motion the tool drives (see STEER_SHARE)
+            lag = float(np.linalg.norm(self.sp.pos[:2] - view.frame_pose(self.frame).pos[:2]))
+            held = speed < STEER_SHARE * self.v and lag > HELD_SHARE * c.preload  # (see STEER_SHARE)
+            if speed > MIN_STEER_SPEED and not held:  # integral steering: the object moving at the target
                 moving = self.obj_v / speed
                 error = angle2(moving, bearing)
                 self.bias = clamp(self.bias + STEER_GAIN * error * view.dt, -MAX_BIAS, MAX_BIAS)
@@ -398,6 +403,14 @@ class Push(Phase):
         self.z_bias = clamp(self.z_bias - HEIGHT_GAIN * rise * view.dt, -MAX_HEIGHT_BIAS, MAX_HEIGHT_BIAS)
         self.sp.pos = np.array([*(obj[:2] + along * d + lateral * n), self.push_z + self.z_bias])
         return self._command(allow=True)
+
+    def _heading(self, obj: np.ndarray, tgt: np.ndarray) -> np.ndarray:
+        """Where the object should head: the point ``LOOKAHEAD`` ahead of it along its line, the target once nearer."""
+        start, u = self.line
+        along = float((obj[:2] - start) @ u) + LOOKAHEAD
+        if along >= float((tgt[:2] - start) @ u):
+            return unit2((tgt - obj)[:2])
+        return unit2(start + along * u - obj[:2])
 
     def _hold(self, view: View) -> Command:
         """Let the object come to rest against the tool, then judge the push (see the module doc)."""
