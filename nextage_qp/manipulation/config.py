@@ -9,6 +9,7 @@ runner once the scene is loaded, with the same kind of message.
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
@@ -36,6 +37,32 @@ from nextage_qp.sensing.perception_config import PerceptionConfig
 Vec3 = tuple[float, float, float]
 
 
+class FreeSpot(YamlModel):
+    """A target placed where its object fits: the spot nearest ``near`` in ``region`` clear of every obstacle."""
+
+    region: tuple[tuple[float, float], tuple[float, float]] = Field(
+        description="Rectangle [m], [[x0, y0], [x1, y1]], in which the object's origin may be placed.")
+    near: tuple[float, float] | None = Field(
+        default=None, description="Point [m] the spot is chosen nearest to (unset: the region's centre).")
+    clearance: float = Field(default=0.03, ge=0, le=0.09, allow_inf_nan=False,
+                             description="Least distance [m] from the object, upright at the spot, to every obstacle "
+                                         "beside it (the clutter, fixed objects, the scene's obstacle).")
+
+    @model_validator(mode="after")
+    def _finite(self) -> FreeSpot:
+        (x0, y0), (x1, y1) = self.region
+        if not all(math.isfinite(v) for v in (x0, y0, x1, y1)) or not (x0 < x1 and y0 < y1):
+            raise ValueError(f"region: [[{x0}, {y0}], [{x1}, {y1}]] must be finite with x0 < x1 and y0 < y1")
+        if self.near is not None and not all(math.isfinite(v) for v in self.near):
+            raise ValueError(f"near: {list(self.near)} must be finite")
+        return self
+
+    def centre(self) -> tuple[float, float]:
+        """``near``, or the region's centre."""
+        (x0, y0), (x1, y1) = self.region
+        return self.near if self.near is not None else (0.5 * (x0 + x1), 0.5 * (y0 + y1))
+
+
 class PoseOverride(YamlModel):
     """A body's pose in the world: position [m] and yaw about world z [rad] (either may be left out)."""
 
@@ -45,6 +72,15 @@ class PoseOverride(YamlModel):
     yaw: float | None = Field(
         default=None, description="Yaw about world z [rad] (unset: the scene's orientation; wins over a declared "
                                   "object's yaw).")
+    free_spot: FreeSpot | None = Field(
+        default=None, description="A target's place chosen before the run where its object fits among the obstacles "
+                                  "(instead of pos): the spot nearest near in region keeping clearance from them.")
+
+    @model_validator(mode="after")
+    def _one_place(self) -> PoseOverride:
+        if self.free_spot is not None and self.pos is not None:
+            raise ValueError("give pos or free_spot, not both")
+        return self
 
 
 class SceneConfig(YamlModel):
@@ -84,6 +120,10 @@ class SuccessCriteria(YamlModel):
     clutter_contacts: int | None = Field(
         default=None, ge=0, description="Most physics steps [count] in which the robot or what it holds may touch "
                                         "the clutter (scene.clutter), or unjudged.")
+    obstacle_clearance: float | None = Field(
+        default=None, ge=0, le=0.2, allow_inf_nan=False,
+        description="Least distance [m] from the task's object at the end to every obstacle beside it (the clutter, "
+                    "fixed objects, the scene's obstacle), or unjudged: a place chosen by free_spot kept.")
     objects: dict[str, str] = Field(
         default_factory=dict, description="Further objects judged against their targets, object -> target body, "
                                           "with the same limits as the task's object (e.g. a two-cube push).")

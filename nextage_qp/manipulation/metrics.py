@@ -17,6 +17,7 @@ from nextage_qp.loop.diagnosis import limit_violation
 from nextage_qp.loop.simulation import Simulation
 from nextage_qp.manipulation.config import SuccessCriteria
 from nextage_qp.manipulation.context import Grip
+from nextage_qp.manipulation.placement import obstacle_clearance, obstacle_groups
 from nextage_qp.native import kernels
 from nextage_qp.robots.model import CLUTTER_GROUP, Robot
 from nextage_qp.scene.files import touch_sensor
@@ -236,11 +237,12 @@ def object_state(robot: Robot, sim: Simulation, obj: str, target: str) -> Object
 def judge(criteria: SuccessCriteria, state: ObjectState, *, completed: bool, dropped: bool, limit_violations: int,
           obstacle_contacts: int, limit_detail: str | None = None, clutter_contacts: int = 0,
           others: Mapping[str, ObjectState] | None = None,
-          knocked: Mapping[str, float] | None = None) -> dict[str, dict[str, Any]]:
+          knocked: Mapping[str, float] | None = None, clearance: float | None = None) -> dict[str, dict[str, Any]]:
     """Every success criterion with its value, limit and verdict (``ok``); a violated joint limit's ``detail``.
 
     ``others``: the states of ``criteria.objects``, judged as the task's object is (criteria ``NAME:object_error``
-    and so on); ``knocked``: how far [m] each bystander ended from its start.
+    and so on); ``knocked``: how far [m] each bystander ended from its start; ``clearance``: the object's distance
+    [m] to the obstacles beside it at the end.
     """
     out: dict[str, dict[str, Any]] = {
         "completed": {"ok": completed},
@@ -261,6 +263,10 @@ def judge(criteria: SuccessCriteria, state: ObjectState, *, completed: bool, dro
     if criteria.clutter_contacts is not None:
         out["clutter_contacts"] = {"value": clutter_contacts, "limit": criteria.clutter_contacts,
                                    "ok": clutter_contacts <= criteria.clutter_contacts}
+    if criteria.obstacle_clearance is not None:
+        value = 0.0 if clearance is None else clearance
+        out["obstacle_clearance"] = {"value": value, "limit": criteria.obstacle_clearance,
+                                     "ok": value >= criteria.obstacle_clearance}
     if criteria.obstacle_contacts is not None:
         out["obstacle_contacts"] = {"value": obstacle_contacts, "limit": criteria.obstacle_contacts,
                                     "ok": obstacle_contacts <= criteria.obstacle_contacts}
@@ -315,9 +321,10 @@ def summarize(
               if viol else None)
     tau = np.abs(rec["tau"]).max() if len(q) else 0.0
     contacts = monitor.obstacle_contacts if monitor.obstacle is not None else 0
+    clearance = obstacle_clearance(robot, sim.data, obj) if obj in robot.object_names else None
     verdict = judge(criteria, state, completed=error is None, dropped=monitor.dropped, limit_violations=viol,
                     obstacle_contacts=contacts, limit_detail=detail, clutter_contacts=monitor.clutter_contacts,
-                    others=others, knocked=knocked)
+                    others=others, knocked=knocked, clearance=clearance)
     sim_t = sim.time
     return {
         "task": task,
@@ -336,6 +343,7 @@ def summarize(
         "physics_share": sim.physics_s / wall_s if wall_s > 0 else None,
         "min_obstacle_clearance_m": monitor.min_clearance,
         "obstacle_contacts": contacts,
+        **({"object_obstacle_clearance_m": clearance} if clearance is not None and obstacle_groups(robot) else {}),
         **({"clutter_contacts": monitor.clutter_contacts} if monitor.has_clutter else {}),
         **({"objects": {n: {"error_xy_m": o.error_xy_m, "yaw_error_rad": o.yaw_error_rad, "tilt_rad": o.tilt_rad,
                             "resting": o.resting} for n, o in others.items()}} if others else {}),

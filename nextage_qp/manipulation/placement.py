@@ -6,11 +6,15 @@ standing on the table top (its lowest point on the top face). The object is plac
 scene and its distance to every obstacle geom is measured: an overlap is an
 :class:`~nextage_qp.errors.InfeasibleError` (exit 2) naming the obstacle and the depth; otherwise the smallest
 distance is the target's clearance, reported with the result.
+
+A target may instead be placed where its object fits (``scene.poses.NAME.free_spot``): :func:`free_spots` searches
+its region, nearest first, for a spot where the object standing upright keeps the asked clearance from every obstacle
+beside it (:func:`obstacle_groups`), measured on the obstacles' own geometry.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import NamedTuple
 
 import mujoco
@@ -180,6 +184,67 @@ def check_placement(robot: Robot, obj: str, target: str, start_q: np.ndarray, so
                               f"{np.degrees(tyaw):.1f} deg) overlaps {_name(m, geom)} by {-clearance * 1e3:.1f} mm; "
                               "no placement there is possible")
     return Placement(rest, clearance)
+
+
+FREE_SPOT_STEP = 0.005
+"""Spacing [m] of the grid a free spot is searched on."""
+FREE_SPOT_MARGIN = 0.005
+"""Room [m] a free spot keeps beyond the asked clearance: an object set down a few millimetres off (and a degree or
+two turned) still keeps the clearance asked for."""
+FREE_SPOT_APART = 0.05
+"""Least distance [m] between the free spots offered in turn (the next one for a spot the robot cannot use)."""
+
+
+def obstacle_groups(robot: Robot) -> tuple[str, ...]:
+    """The collision groups of the scene's obstacles it has: the obstacle, the clutter, the fixed objects."""
+    groups = robot.collision_geoms()
+    return tuple(g for g in ("obstacle", CLUTTER_GROUP, *robot.fixed_objects) if groups.get(g))
+
+
+def free_spots(robot: Robot, obj: str, yaw: float, region: tuple[tuple[float, float], tuple[float, float]],
+               near: tuple[float, float], clearance: float, where: str) -> Iterator[tuple[np.ndarray, float]]:
+    """Spots [x, y] in ``region``, nearest ``near`` first and ``FREE_SPOT_APART`` apart, where ``obj`` standing on the
+    table at ``yaw`` keeps ``clearance`` [m] and ``FREE_SPOT_MARGIN`` from every obstacle beside it, each with its
+    clearance (capped at 0.1 m).
+
+    Searched on a ``FREE_SPOT_STEP`` grid; the next spot is there for a first one the robot cannot use.
+
+    Raises:
+        InfeasibleError: No spot of the region keeps the clearance (``where`` names the config key); the message
+            gives the roomiest spot found. Raised by the first ``next``.
+    """  # noqa: D205
+    (x0, y0), (x1, y1) = region
+    xs = np.arange(x0, x1 + 1e-9, FREE_SPOT_STEP)
+    ys = np.arange(y0, y1 + 1e-9, FREE_SPOT_STEP)
+    grid = np.stack(np.meshgrid(xs, ys, indexing="ij"), axis=-1).reshape(-1, 2)
+    grid = grid[np.argsort(np.linalg.norm(grid - np.asarray(near), axis=1), kind="stable")]
+    data = mujoco.MjData(robot.model)
+    mujoco.mj_forward(robot.model, data)
+    z = rest_height(robot, data, obj)
+    groups = obstacle_groups(robot)
+    best, roomiest = -np.inf, grid[0]
+    found: list[np.ndarray] = []
+    for p in grid:
+        if any(float(np.linalg.norm(p - f)) < FREE_SPOT_APART for f in found):
+            continue
+        dist = clearance_at(robot, data, obj, np.array([p[0], p[1], z]), yaw, groups, beside=True)[0]
+        if dist >= clearance + FREE_SPOT_MARGIN:
+            found.append(p)
+            yield p.copy(), dist
+        elif dist > best:
+            best, roomiest = dist, p
+    if not found:
+        raise InfeasibleError(f"{where}: no spot of the region {[list(region[0]), list(region[1])]} keeps {obj} "
+                              f"{clearance * 1e3:.0f} mm from the obstacles (the roomiest, ({roomiest[0]:.3f}, "
+                              f"{roomiest[1]:.3f}), keeps {best * 1e3:.0f} mm); enlarge the region or lower the "
+                              "clearance")
+
+
+def obstacle_clearance(robot: Robot, data: mujoco.MjData, obj: str) -> float:
+    """Smallest distance [m] from ``obj`` as it is in ``data`` to the obstacles beside it (capped at 0.1 m)."""
+    geoms = robot.collision_geoms()
+    others = [g for group in obstacle_groups(robot) for g in geoms.get(group, ())]
+    return _closest(robot, data, geoms.get(obj, ()), others, beside=True)[0]
 
 
 def clearance_at(robot: Robot, data: mujoco.MjData, obj: str, pos: np.ndarray, yaw: float,

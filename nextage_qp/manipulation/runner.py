@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from functools import partial
 from typing import Any
 
@@ -30,7 +30,7 @@ from nextage_qp.manipulation.joint_checks import check_angles
 from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, RunResult, summarize
 from nextage_qp.manipulation.phases import Phase, build, names_in
 from nextage_qp.manipulation.phases.push.spec import FULL_ORIENT_JOINTS, PushSpec
-from nextage_qp.manipulation.placement import Placement, check_placement
+from nextage_qp.manipulation.placement import Placement, check_placement, free_spots
 from nextage_qp.manipulation.sim_view import SimView
 from nextage_qp.manipulation.workspace import to_world
 from nextage_qp.mobile.build import BASE_BODY
@@ -102,6 +102,71 @@ def for_robot(cfg: ManipulationConfig, robot: Robot) -> ManipulationConfig:
     return cfg.model_copy(update={"phases": phases})
 
 
+FREE_SPOT_TRIES = 6
+"""Free spots a target takes in turn while the first phase refuses the one it has (out of the clamp's reach, say)."""
+
+
+@dataclasses.dataclass
+class PlacedSpot:
+    """A target placed by ``free_spot``: the spots offered in turn, the one it has, and the refusals of earlier ones."""
+
+    body: int
+    spots: Iterator[tuple[np.ndarray, float]]
+    pos: np.ndarray
+    clearance: float
+    refused: list[str] = dataclasses.field(default_factory=list)
+
+    def take_next(self, model: mujoco.MjModel, why: str) -> bool:
+        """Move the target to the next spot (the robot refused this one: ``why``); False when none is left."""
+        if len(self.refused) + 1 >= FREE_SPOT_TRIES:
+            return False
+        nxt = next(self.spots, None)
+        if nxt is None:
+            return False
+        self.refused.append(why)
+        self.pos, self.clearance = nxt
+        model.body_pos[self.body][:2] = self.pos
+        return True
+
+    def report(self) -> dict[str, Any]:
+        """Where the target went, the object's clearance there [m], and the spots refused before it."""
+        return {"pos": [round(float(v), 4) for v in self.pos], "clearance_m": round(self.clearance, 4),
+                "spots_refused": len(self.refused)}
+
+
+def place_free_spots(cfg: ManipulationConfig, robot: Robot, source: str) -> dict[str, PlacedSpot]:
+    """Move each target the scene places by ``free_spot`` to where its object fits, in the compiled model.
+
+    A target's object is the task's object for the task's target, else the object ``NAME`` of a marker
+    ``NAME_target``.
+
+    Raises:
+        ConfigError: A free spot is given for a body that is no object's target.
+        InfeasibleError: No spot of a region keeps the clearance (exit 2, before anything moves).
+    """
+    scene = to_world(cfg.scene, robot.description.workspace, cfg.robot, source)
+    placed: dict[str, PlacedSpot] = {}
+    m = robot.model
+    for name, pose in scene.poses.items():
+        spot = pose.free_spot
+        if spot is None:
+            continue
+        obj = cfg.object if name == cfg.target else name.removesuffix("_target")
+        if obj not in robot.object_names or obj == name:
+            raise ConfigError(f"{source}: scene.poses.{name}.free_spot: {name!r} is no object's target; give it for "
+                              f"{cfg.target!r} or a marker NAME_target of an object ({', '.join(robot.object_names)})",
+                              key=f"scene.poses.{name}.free_spot")
+        bid = m.body(name).id
+        quat = m.body_quat[bid]
+        yaw = float(2.0 * np.arctan2(quat[3], quat[0]))
+        spots = free_spots(robot, obj, yaw, spot.region, spot.centre(), spot.clearance,
+                           f"{source}: scene.poses.{name}.free_spot")
+        xy, room = next(spots)
+        m.body_pos[bid][:2] = xy
+        placed[name] = PlacedSpot(bid, spots, xy, room)
+    return placed
+
+
 def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
     """Compile the config's scene with its overrides, and check every name the config uses.
 
@@ -119,8 +184,9 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
     clutter = scene.clutter
     if clutter is not None and clutter.seed is None:  # drawn from the run's seed
         clutter = clutter.model_copy(update={"seed": cfg.seed})
+    later = tuple(name for name, p in scene.poses.items() if p.free_spot is not None)  # placed once compiled
     overrides = SceneOverrides(poses=poses, masses=dict(scene.masses), friction_scale=dict(scene.friction_scale),
-                               objects=dict(scene.objects), speckle=stereo, clutter=clutter)
+                               objects=dict(scene.objects), speckle=stereo, clutter=clutter, placed_later=later)
     if cfg.mount is not None:
         description = dataclasses.replace(description, mount=cfg.mount)
     try:
@@ -173,6 +239,7 @@ class Runner:
         self.robot = robot or build_robot(cfg, source)
         self.cfg, self.source = for_robot(cfg, self.robot), source
         cfg = self.cfg
+        self.free_spots = place_free_spots(cfg, self.robot, source)
         try:
             gains = robot_gains(self.robot) if cfg.gains is None else config_gains(cfg.gains, self.robot)
         except ConfigError as exc:
@@ -191,6 +258,7 @@ class Runner:
             self.placement = Placement(np.zeros(3), None)
         else:
             self.placement = check_placement(self.robot, cfg.object, cfg.target, q0, source)
+        self.q0 = q0
         self.sim.reset(q0)
         mask = np.zeros(self.robot.model.nbody, dtype=bool)
         mask[list(robot_bodies(self.robot))] = True
@@ -233,6 +301,18 @@ class Runner:
         if self.view.grip is not None:
             self.monitor.check_hold(self.sim, self.view.grip)
 
+    def _start(self, phase: Phase, first: bool) -> None:
+        """Start a phase; the first one that refuses a target placed by ``free_spot`` gets the next spot instead."""
+        while True:
+            try:
+                phase.start(self.view)
+                return
+            except InfeasibleError as exc:
+                if not first or not any(p.take_next(self.robot.model, str(exc)) for p in self.free_spots.values()):
+                    raise
+                mujoco.mj_kinematics(self.robot.model, self.sim.data)  # the target's new place, nothing else moved
+                self.placement = check_placement(self.robot, self.cfg.object, self.cfg.target, self.q0, self.source)
+
     def run(self, on_tick: TickCallback | None = None) -> RunResult:
         """Run every phase, then settle; returns the result (also on failure, with ``error``)."""
         wall0 = time.perf_counter()
@@ -247,7 +327,7 @@ class Runner:
                 phase.t0 = self.sim.time
                 self._phase = (rec.name, spec.kind, self.sim.time)
                 clamped0, steps0 = self.sim.pd.saturated_ticks.copy(), self.sim.pd.ticks  # the phase's own, below
-                phase.start(view)
+                self._start(phase, first=i == 0)
                 view.grip = phase.grip(view.grip)
                 while True:
                     command = phase.update(view)
@@ -344,6 +424,8 @@ class Runner:
                          obj=c.object, target=c.target, criteria=c.success, error=self.error, wall_s=self.wall_s,
                          handled=self.handled,
                          extra={"target_clearance_m": self.placement.target_clearance_m,
+                                **({"free_spots": {n: p.report() for n, p in self.free_spots.items()}}
+                                   if self.free_spots else {}),
                                 "estimation": None if self.sensors is None else self.sensors.report(
                                     self.shoves.windows(SHOVE_SETTLE_S) if self.shoves is not None else ()),
                                 "shoves": self.shoves.applied if self.shoves is not None else [],

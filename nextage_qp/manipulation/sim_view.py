@@ -15,13 +15,13 @@ from nextage_qp.kinematics.frames import Kinematics
 from nextage_qp.loop.servo import Servo
 from nextage_qp.loop.simulation import Simulation
 from nextage_qp.manipulation.context import Grip
-from nextage_qp.manipulation.placement import clearance_at, obstacle_top, rest_height, table_top
+from nextage_qp.manipulation.placement import clearance_at, obstacle_groups, obstacle_top, rest_height, table_top
 from nextage_qp.mobile.base import MobileBase
 from nextage_qp.mobile.drive_models import Pose2
 from nextage_qp.mobile.odometry import to_odometry
 from nextage_qp.planning.rrt import PathPlan, PlanningConfig, plan_path
 from nextage_qp.planning.world import CHAIN_SLOP, SELF_SLOP, CollisionWorld, Held
-from nextage_qp.robots.model import CLUTTER_GROUP, Robot
+from nextage_qp.robots.model import Robot
 from nextage_qp.sensing.sensors import Wrench
 
 REACH_POS_TOL = 0.003
@@ -148,8 +148,7 @@ class SimView:
         return None if hit is None else str(hit[2])
 
     def obstacle_groups(self) -> tuple[str, ...]:  # noqa: D102
-        groups = self.robot.collision_geoms()
-        return tuple(g for g in ("obstacle", CLUTTER_GROUP, *self.robot.fixed_objects) if groups.get(g))
+        return obstacle_groups(self.robot)
 
     def clearance_at(self, obj: str, pos: np.ndarray, yaw: float,  # noqa: D102
                      beside: bool = False) -> tuple[float, np.ndarray]:

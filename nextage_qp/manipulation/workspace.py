@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from nextage_qp.errors import ConfigError
-from nextage_qp.manipulation.config import PoseOverride, SceneConfig
+from nextage_qp.manipulation.config import FreeSpot, PoseOverride, SceneConfig
 from nextage_qp.robots.robot_file import WorkspaceFile
 
 TABLE = "table"
@@ -36,7 +36,15 @@ def to_world(scene: SceneConfig, workspace: WorkspaceFile | None, robot: str, so
     def point(p: tuple[float, ...]) -> tuple[float, ...]:
         return tuple(float(v) for v in np.asarray(p, dtype=float) + origin[: len(p)])
 
-    poses = {name: pose.model_copy(update={"pos": None if pose.pos is None else point(pose.pos)})
+    def spot(s: FreeSpot | None) -> FreeSpot | None:
+        if s is None:
+            return None
+        (x0, y0), (x1, y1) = s.region
+        near = None if s.near is None else (s.near[0] + cx, s.near[1] + cy)
+        return s.model_copy(update={"region": ((x0 + cx, y0 + cy), (x1 + cx, y1 + cy)), "near": near})
+
+    poses = {name: pose.model_copy(update={"pos": None if pose.pos is None else point(pose.pos),
+                                           "free_spot": spot(pose.free_spot)})
              for name, pose in scene.poses.items()}
     if workspace.table is not None and (TABLE not in poses or poses[TABLE].pos is None):
         poses[TABLE] = PoseOverride(pos=workspace.table, yaw=poses[TABLE].yaw if TABLE in poses else None)

@@ -144,7 +144,8 @@ def compose(desc: RobotDescription, scene: str | Path, overrides: SceneOverrides
         if top is None:
             raise ConfigError(f"{scene}: scene.clutter needs a table (a body named 'table' with a box on top)")
         fixed = [n for n, decl in overrides.objects.items() if decl.fixed]  # kept clear of, like the objects
-        add_clutter(parent, overrides.clutter, top, str(scene), avoid=overrides.clutter_avoid, keep_clear=fixed)
+        add_clutter(parent, overrides.clutter, top, str(scene), avoid=overrides.clutter_avoid, keep_clear=fixed,
+                    placed_later=overrides.placed_later)
     if overrides.speckle:
         from nextage_qp.scene.texture import speckle
 

@@ -61,9 +61,12 @@ class ClutterDecl(YamlModel):
         return self
 
 
-def _footprints(spec: mujoco.MjSpec, keep_clear: Sequence[str] = ()
+def _footprints(spec: mujoco.MjSpec, keep_clear: Sequence[str] = (), placed_later: Sequence[str] = ()
                 ) -> tuple[list[tuple[np.ndarray, float]], list[tuple[np.ndarray, np.ndarray]]]:
-    """Free objects, markers and the ``keep_clear`` bodies as (centre, radius), and the (object, target) corridors."""
+    """Free objects, markers and the ``keep_clear`` bodies as (centre, radius), and the (object, target) corridors.
+
+    Markers in ``placed_later`` (a free spot, chosen among the clutter) count for neither.
+    """
     free = mujoco.mjtJoint.mjJNT_FREE
     circles: list[tuple[np.ndarray, float]] = []
     centres: dict[str, tuple[np.ndarray, float]] = {}
@@ -72,6 +75,8 @@ def _footprints(spec: mujoco.MjSpec, keep_clear: Sequence[str] = ()
             continue
         is_free = any(j.type == free for j in body.joints)
         if not is_free and not body.name.endswith("_target") and body.name not in keep_clear:
+            continue
+        if body.name in placed_later:
             continue
         radius = 0.0
         for g in [g for g in body.geoms if not (g.type == mujoco.mjtGeom.mjGEOM_BOX and g.size[2] < 0.005)]:  # pads
@@ -94,11 +99,13 @@ def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
 
 
 def add_clutter(spec: mujoco.MjSpec, clutter: ClutterDecl, table_top: float, source: str = "scene",
-                avoid: Sequence[tuple[float, float, float]] = (), keep_clear: Sequence[str] = ()) -> list[str]:
+                avoid: Sequence[tuple[float, float, float]] = (), keep_clear: Sequence[str] = (),
+                placed_later: Sequence[str] = ()) -> list[str]:
     """Stand the clutter on the table of a composed scene spec, in place; returns the bodies' names.
 
     ``avoid``: further circles (x, y, radius [m]) to keep ``keep_out`` from (the robot's start posture);
-    ``keep_clear``: static bodies kept clear of like the objects (declared fixed objects).
+    ``keep_clear``: static bodies kept clear of like the objects (declared fixed objects); ``placed_later``: targets
+    placed after the clutter, where their objects fit among it (a free spot): not kept clear of.
 
     Raises:
         ConfigError: The region cannot hold ``count`` pieces clear of the objects, targets and corridors.
@@ -106,7 +113,7 @@ def add_clutter(spec: mujoco.MjSpec, clutter: ClutterDecl, table_top: float, sou
     if clutter.count == 0:
         return []
     rng = np.random.default_rng(clutter.seed or 0)
-    circles, corridors = _footprints(spec, keep_clear)
+    circles, corridors = _footprints(spec, keep_clear, placed_later)
     circles += [(np.array([x, y]), r) for x, y, r in avoid]
     (x0, y0), (x1, y1) = clutter.region
     placed: list[tuple[np.ndarray, float]] = []

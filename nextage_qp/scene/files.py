@@ -73,6 +73,8 @@ class SceneOverrides:
         objects: Object name -> declaration (:class:`~nextage_qp.scene.objects.ObjectDecl`): added or reshaped.
         clutter: Random obstacles on the table (:class:`~nextage_qp.scene.clutter.ClutterDecl`), or None.
         clutter_avoid: Circles (x, y, radius [m]) the clutter keeps ``keep_out`` from: the robot's start posture.
+        placed_later: Targets placed once the scene is compiled, where their objects fit among the clutter (a free
+            spot): the clutter does not keep clear of them.
         speckle: Every surface that is not the robot's gets a random-dot texture (what stereo block matching needs:
             :func:`nextage_qp.scene.texture.speckle`); the physics is unchanged.
     """
@@ -84,6 +86,7 @@ class SceneOverrides:
     speckle: bool = False
     clutter: Any = None
     clutter_avoid: tuple[tuple[float, float, float], ...] = ()
+    placed_later: tuple[str, ...] = ()
 
 
 def _yaw_quat(yaw: float) -> np.ndarray:
