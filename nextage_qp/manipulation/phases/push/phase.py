@@ -50,11 +50,9 @@ from nextage_qp.manipulation.phases.push.spec import (
     BLIND_S,
     GAP_TIME,
     HEIGHT_GAIN,
-    HELD_SHARE,
     HIDDEN_S,
     LOOK_AGAIN,
     LOOK_S,
-    LOOKAHEAD,
     LOST_GAP,
     MAX_BIAS,
     MAX_HEIGHT_BIAS,
@@ -63,7 +61,6 @@ from nextage_qp.manipulation.phases.push.spec import (
     PUSH_ACCEL,
     SEEN_S,
     STEER_GAIN,
-    STEER_SHARE,
     STUCK_M,
     STUCK_S,
     TIPPING_SHARE,
@@ -172,7 +169,6 @@ class Push(Phase):
     hold_from: float  # when the hold began [s]
     nearest: float  # the object's least distance to the target in this push [m]
     nearest_at: float | None  # when it last came STUCK_M nearer [s]
-    line: tuple[np.ndarray, np.ndarray]  # the object's planar start [m] and the unit direction to its target
     # retreat
     route: list[np.ndarray]  # the retreat's waypoints [m]
     leg: int  # the next waypoint's index
@@ -191,7 +187,6 @@ class Push(Phase):
         self.info.update(attempts=0, nudges=0, contact_onsets=0, contact_losses=0)
         self.raised, self.looking, self.pressed = 0.0, False, False
         obj, tgt, _ = self._planar(view)
-        self.line = (obj[:2].copy(), unit2((tgt - obj)[:2]))  # the straight line the object is pushed along
         self._approach(view, unit2((tgt - obj)[:2]))
         if self.plan_failed:
             raise self._no_approach(view)
@@ -342,11 +337,9 @@ class Push(Phase):
         self.blind_m = self.blind_m + moved if unseen > HIDDEN_S else 0.0  # pushed unseen [m]
         self._track(view, obj[:2])
         if dist > c.freeze and self.touched:  # turn only once in contact: the approach side was chosen to reach
-            bearing = self._heading(obj, tgt)
+            bearing = unit2((tgt - obj)[:2])
             speed = float(np.linalg.norm(self.obj_v))
-            lag = float(np.linalg.norm(self.sp.pos[:2] - view.frame_pose(self.frame).pos[:2]))
-            held = speed < STEER_SHARE * self.v and lag > HELD_SHARE * c.preload  # (see STEER_SHARE)
-            if speed > MIN_STEER_SPEED and not held:  # integral steering: the object moving at the target
+            if speed > MIN_STEER_SPEED:  # integral steering: aim the push so the object moves at the target
                 moving = self.obj_v / speed
                 error = angle2(moving, bearing)
                 self.bias = clamp(self.bias + STEER_GAIN * error * view.dt, -MAX_BIAS, MAX_BIAS)
@@ -403,14 +396,6 @@ class Push(Phase):
         self.z_bias = clamp(self.z_bias - HEIGHT_GAIN * rise * view.dt, -MAX_HEIGHT_BIAS, MAX_HEIGHT_BIAS)
         self.sp.pos = np.array([*(obj[:2] + along * d + lateral * n), self.push_z + self.z_bias])
         return self._command(allow=True)
-
-    def _heading(self, obj: np.ndarray, tgt: np.ndarray) -> np.ndarray:
-        """Where the object should head: the point ``LOOKAHEAD`` ahead of it along its line, the target once nearer."""
-        start, u = self.line
-        along = float((obj[:2] - start) @ u) + LOOKAHEAD
-        if along >= float((tgt[:2] - start) @ u):
-            return unit2((tgt - obj)[:2])
-        return unit2(start + along * u - obj[:2])
 
     def _hold(self, view: View) -> Command:
         """Let the object come to rest against the tool, then judge the push (see the module doc)."""

@@ -18,19 +18,8 @@ MAX_BIAS = 0.35
 """Largest heading bias between the push and the object's bearing to the target [rad]."""
 MIN_STEER_SPEED = 0.005
 """Object speed above which its motion direction is trusted for steering [m/s]."""
-STEER_SHARE = 0.5
-"""An object slower than this share of the tool's commanded speed along the push, while the tool stays ``HELD_SHARE``
-of the preload behind its setpoint, does not steer the push: the arm is held (by an obstacle's collision rows, say)
-and the hand pivots about the object, which creeps in no direction the push chose; steering from that motion winds
-the heading bias up, and the arm, once free, sends the object past its target (anti-windup)."""
-HELD_SHARE = 0.5
-"""Share of the preload by which a tool lagging its setpoint counts as held (see ``STEER_SHARE``)."""
 VELOCITY_WINDOW = 0.2
 """Time constant of the object's velocity estimate [s]."""
-LOOKAHEAD = 0.1
-"""The push steers the object onto its line, from where it started to the target, towards the point this far [m]
-ahead of it along the line (pure pursuit; the target itself once nearer): an approach that had to start beside the
-line (an obstacle behind the object) brings the object back to it, so it reaches the target along the line."""
 HEIGHT_GAIN = 5.0
 """Integral gain of the tool-height hold while pushing [1/s]."""
 MAX_HEIGHT_BIAS = 0.01
