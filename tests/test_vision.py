@@ -184,6 +184,40 @@ def test_a_depth_camera_draws_infinite_planes_finite_and_sees_the_same_depth() -
     assert seen.mean() > 0.3
     np.testing.assert_allclose(images[1][seen], images[0][seen], rtol=1e-6, atol=1e-6)  # float32 rounding
 
+@needs_gl
+def test_a_tracked_object_is_rendered_in_a_window_with_the_whole_images_depth() -> None:
+    """Rendered depth (and the expected background) in a window around a tracked object: the whole frame's pixels."""
+    from nextage_qp.sensing.camera.source import CameraMeasurer
+
+    cfg, robot, data, q = aimed_scene("box", 0.6, -0.4, ("perception.source=camera",))
+    camera = CameraMeasurer(cfg.perception, robot, data, lambda t: q, seed=0)
+    camera.camera.noisy = lambda z: z  # the same pixels, noise aside
+    try:
+        first = camera(0.0, {"cube": None})["cube"]  # not tracked yet: the whole image
+        assert first is not None
+        whole, expected = camera.last[1], camera.camera.expected()
+        second = camera(1 / 15, {"cube": first})["cube"]  # tracked: a window around it
+        part = camera.last[1]
+        pos, rot = camera.camera.pose(q)
+        win = camera.window({"cube": first}, pos, rot)
+        part_expected = camera.camera.expected(win)
+        report = camera.report()
+    finally:
+        camera.close()
+    assert report["windowed_frames"] == 1 and win is not None
+    r0, r1, c0, c1 = win
+    assert (r1 - r0) * (c1 - c0) < 0.3 * whole.size
+    inside = np.zeros(whole.shape, dtype=bool)
+    inside[r0:r1, c0:c1] = True
+    for full, cut in ((whole, part), (expected, part_expected)):
+        assert np.isnan(cut[~inside]).all()
+        assert np.array_equal(np.isfinite(full[inside]), np.isfinite(cut[inside]))
+        both = inside & np.isfinite(full)
+        assert np.abs(full[both] - cut[both]).max() < 1e-5  # float32 rounding
+    truth = data.xpos[robot.model.body("cube").id]
+    assert second is not None and np.linalg.norm(second[:3] - truth) < 0.005
+
+
 
 def test_estimator_never_reads_simulator_state() -> None:
     tree = ast.parse(Path(estimate_module.__file__).read_text())

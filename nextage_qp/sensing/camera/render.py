@@ -88,18 +88,24 @@ def _scene(renderer: mujoco.Renderer, data: mujoco.MjData, cam_id: int, option: 
 
 def render_window(renderer: mujoco.Renderer, data: mujoco.MjData, cam_id: int, option: mujoco.MjvOption,
                   cut: tuple[int, int, int, int], K: np.ndarray) -> np.ndarray:
-    """Rows ``r0:r1`` and columns ``c0:c1`` (``cut``) of the RGB image :func:`render_camera` gives, rendered alone.
+    """Rows ``r0:r1`` and columns ``c0:c1`` (``cut``) of the image :func:`render_camera` gives, rendered alone.
 
     The camera's frustum is narrowed to the window and drawn into a viewport of its size, so a software renderer
-    fills only its pixels (a window of a sixth of a 640 x 480 head image: 2.4 ms against 10.3 ms for the whole);
-    the pixels are those of the whole image's window (within rasterisation rounding: at most 10 of 255, on 2-7 % of
-    them). A renderer without its own GL context (a build whose internals differ) renders the whole image and cuts it.
+    fills and reads back only its pixels (a window of a sixth of a 640 x 480 head image: 2.4 ms against 10.3 ms for
+    the whole RGB image); the pixels are those of the whole image's window (RGB within rasterisation rounding: at most
+    10 of 255, on 2-7 % of them; depth to float32 rounding). The renderer's mode is kept: RGB, or depth [m] as
+    :meth:`mujoco.Renderer.render` gives it. A renderer without its own GL context (a build whose internals differ)
+    renders the whole image and cuts it.
     """
     r0, r1, c0, c1 = cut
     ctx, gl = getattr(renderer, "_mjr_context", None), getattr(renderer, "_gl_context", None)
+    depth = bool(getattr(renderer, "_depth_rendering", False))
     if ctx is None or gl is None:
         return render_camera(renderer, data, cam_id, option)[r0:r1, c0:c1]
     _scene(renderer, data, cam_id, option)
+    if depth:  # as Renderer.render draws depth: segment colours (exact far depth), no lighting
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = 1
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = 1
     for cam in renderer.scene.camera:  # both eyes of MuJoCo's stereo pair: the window on the near plane
         n = cam.frustum_near
         left, right = (c0 - K[0, 2]) / K[0, 0] * n, (c1 - K[0, 2]) / K[0, 0] * n
@@ -109,9 +115,24 @@ def render_window(renderer: mujoco.Renderer, data: mujoco.MjData, cam_id: int, o
     gl.make_current()
     mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, ctx)
     mujoco.mjr_render(rect, renderer.scene, ctx)
-    out = np.empty((r1 - r0, c1 - c0, 3), dtype=np.uint8)
-    mujoco.mjr_readPixels(out, None, rect, ctx)
-    return np.flipud(out)  # OpenGL's rows run bottom up
+    if not depth:
+        out = np.empty((r1 - r0, c1 - c0, 3), dtype=np.uint8)
+        mujoco.mjr_readPixels(out, None, rect, ctx)
+        return np.flipud(out)  # OpenGL's rows run bottom up
+    buf = np.empty((r1 - r0, c1 - c0), dtype=np.float32)
+    mujoco.mjr_readPixels(None, buf, rect, ctx)
+    return np.flipud(_metric_depth(buf, renderer.model))
+
+
+def _metric_depth(buf: np.ndarray, model: mujoco.MjModel) -> np.ndarray:
+    """Depth [m] from a perspective camera's reversed-Z depth buffer, as :meth:`mujoco.Renderer.render` converts it."""
+    extent = model.stat.extent
+    znear, zfar = np.float32(model.vis.map.znear * extent), np.float32(model.vis.map.zfar * extent)
+    c_coef = -(zfar + znear) / (zfar - znear)
+    d_coef = -(np.float32(2) * zfar * znear) / (zfar - znear)
+    c_coef = np.float32(-0.5) * c_coef - np.float32(0.5)
+    d_coef = np.float32(-0.5) * d_coef
+    return (d_coef / (buf.astype(np.float64) + c_coef)).astype(np.float32)
 
 
 class RobotCamera:
@@ -140,10 +161,16 @@ class RobotCamera:
             s = robot.object_qpos_slice(obj)
             self.kin.qpos[s.start + 2] = AWAY
 
-    def _render(self, data: mujoco.MjData, depth: bool) -> np.ndarray:
+    def _render(self, data: mujoco.MjData, depth: bool, cut: tuple[int, int, int, int] | None = None) -> np.ndarray:
         if depth:
-            out = render_camera(self.renderer, data, self.cam_id, self.option)
-            return np.where(out < MAX_RANGE, out, np.nan).astype(np.float32)
+            if cut is None:
+                out = render_camera(self.renderer, data, self.cam_id, self.option)
+                return np.where(out < MAX_RANGE, out, np.nan).astype(np.float32)
+            r0, r1, c0, c1 = cut
+            part = render_window(self.renderer, data, self.cam_id, self.option, cut, self.K)
+            full = np.full((self.spec.height, self.spec.width), np.nan, dtype=np.float32)
+            full[r0:r1, c0:c1] = np.where(part < MAX_RANGE, part, np.nan)
+            return full
         return render_camera(self._rgb_renderer(), data, self.cam_id, self.option)
 
     def _rgb_renderer(self) -> mujoco.Renderer:
@@ -159,13 +186,19 @@ class RobotCamera:
         mujoco.mj_camlight(self.model, self.kin)
         return self.kin.cam_xpos[self.cam_id].copy(), self.kin.cam_xmat[self.cam_id].reshape(3, 3).copy()
 
-    def expected(self) -> np.ndarray:
-        """Depth [m] the model expects at the pose of the last :meth:`pose`: the robot and the static scene only."""
-        return self._render(self.kin, depth=True)
+    def expected(self, cut: tuple[int, int, int, int] | None = None) -> np.ndarray:
+        """Depth [m] the model expects at the pose of the last :meth:`pose`: the robot and the static scene only.
 
-    def depth(self, data: mujoco.MjData) -> np.ndarray:
-        """The sensor's depth image [m] of the world ``data`` (NaN: no return), with its noise model."""
-        return self.noisy(self._render(data, depth=True))
+        With ``cut``: rendered in rows ``r0:r1`` and columns ``c0:c1`` alone, NaN elsewhere (:func:`render_window`).
+        """
+        return self._render(self.kin, depth=True, cut=cut)
+
+    def depth(self, data: mujoco.MjData, cut: tuple[int, int, int, int] | None = None) -> np.ndarray:
+        """The sensor's depth image [m] of the world ``data`` (NaN: no return), with its noise model.
+
+        With ``cut``: rendered in rows ``r0:r1`` and columns ``c0:c1`` alone, NaN elsewhere (:func:`render_window`).
+        """
+        return self.noisy(self._render(data, depth=True, cut=cut))
 
     def noisy(self, z: np.ndarray) -> np.ndarray:
         """``z`` with axial noise growing with the distance squared and missing pixels at depth edges."""

@@ -80,7 +80,7 @@ class CameraMeasurer:
         self.estimator = Estimator(shapes, seed, SELF_PAD if stereo else 0)  # stereo cannot measure the plain links
         self.reach = {n: max(s.search_radius, float(np.linalg.norm(s.samples, axis=1).max())) + MARGIN
                       for n, s in shapes.items()}  # the radius of each object's stereo window [m]
-        self.windowed = 0  # stereo frames matched in a window around the tracked objects
+        self.windowed = 0  # frames rendered (or matched) in a window around the tracked objects
         self.lost = True  # an object was out of view or missing in the last frame
         kinds = (*STATUSES, "partly_occluded", "part_fitted", "unoccluded", "unoccluded_ok")
         self.counts = {n: dict.fromkeys(kinds, 0) for n in robot.object_names}
@@ -120,15 +120,15 @@ class CameraMeasurer:
         """
         t0 = time.perf_counter()
         pos, rot = self.camera.pose(self.joints(t))
+        win = self.window(priors, pos, rot)
+        self.windowed += win is not None
         if self.matcher is not None and self.right is not None:
-            win = self.window(priors, pos, rot)
-            self.windowed += win is not None
             cut = self.matcher.cut(win) if win is not None else None
             depth = self.matcher.depth(self.camera.rgb(self.data, cut), self.right.rgb(self.data, cut), win,
                                        (self.spec.height, self.spec.width))
         else:
-            depth = self.camera.depth(self.data)
-        expected = self.camera.expected()
+            depth = self.camera.depth(self.data, win)
+        expected = self.camera.expected(win)
         t1 = time.perf_counter()
         frame = Frame(depth, expected, self.camera.K, pos, rot)
         self.last = (t, depth)  # the latest depth image [m] and its time [s] (for recordings)
@@ -167,7 +167,9 @@ class CameraMeasurer:
 
     def window(self, priors: Mapping[str, np.ndarray | None], pos: np.ndarray,
                rot: np.ndarray) -> tuple[int, int, int, int] | None:
-        """The stereo window: the region the estimator searches around each tracked object, grown by ``MARGIN``.
+        """The window rendered (and matched): around each tracked object, the region the estimator searches.
+
+        Grown by ``MARGIN``; the rest of the frame is no return.
 
         The whole image (None) every ``WHOLE_EVERY`` frames, while an object is not tracked, and after a frame that
         lost one (re-acquisition searches the whole view).
@@ -216,7 +218,7 @@ class CameraMeasurer:
                                f"{last}; nothing written to {self.cfg.dump} (set a time within the run)")
         med = {f"{k}_ms_median": float(np.median(v)) if v else None for k, v in self.ms.items()}
         return {"camera": self.camera.name, "depth": self.cfg.depth, "frames": len(self.ms["render"]), **med,
-                **({"windowed_frames": self.windowed} if self.cfg.depth == "stereo" else {}),
+                "windowed_frames": self.windowed,
                 "objects": objects, **({"dump_error": self.dump_error} if self.dump_error else {})}
 
     def close(self) -> None:
