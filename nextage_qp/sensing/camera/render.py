@@ -24,6 +24,8 @@ MAX_RANGE = 3.0
 """Depth beyond this is no return [m]."""
 PLANE_HALF = 1000.0
 """Half-size [m] of the finite plane a robot camera renders for an infinite one (:func:`finite_planes`)."""
+HIDDEN_GROUP = 5
+"""Geom group no robot camera shows (:data:`SHOWN_GROUPS`): where :meth:`RobotCamera.own` puts all but the robot."""
 AWAY = -50.0
 """Height [m] the free objects are moved to in the expected-background model (out of every view)."""
 
@@ -154,6 +156,7 @@ class RobotCamera:
         self.renderer = mujoco.Renderer(self.finite, spec.height, spec.width)
         self.renderer.enable_depth_rendering()
         self._rgb: mujoco.Renderer | None = None  # made on the first RGB image
+        self._own: mujoco.Renderer | None = None  # the robot alone, made on the first :meth:`own`
         self.option = shown_option()
         self.rng = np.random.default_rng(seed)
         self.kin = mujoco.MjData(model)  # the robot's own model at its measured joints, objects away
@@ -185,6 +188,24 @@ class RobotCamera:
         mujoco.mj_kinematics(self.model, self.kin)
         mujoco.mj_camlight(self.model, self.kin)
         return self.kin.cam_xpos[self.cam_id].copy(), self.kin.cam_xmat[self.cam_id].reshape(3, 3).copy()
+
+    def own(self) -> np.ndarray:
+        """Depth [m] of the robot's own model alone at the pose of the last :meth:`pose` (NaN: no robot there).
+
+        What a self-filter compares the measured depth with (:func:`nextage_qp.sensing.occupancy.self_filter`); its
+        renderer is made on the first call.
+        """
+        if self._own is None:
+            from nextage_qp.robots.model import robot_bodies
+
+            model = copy.copy(self.finite)
+            mine = np.isin(model.geom_bodyid, list(robot_bodies(self.robot)))
+            model.geom_group[~mine] = HIDDEN_GROUP  # everything but the robot out of every view
+            renderer = mujoco.Renderer(model, self.spec.height, self.spec.width)
+            renderer.enable_depth_rendering()
+            self._own = renderer
+        out = render_camera(self._own, self.kin, self.cam_id, self.option)
+        return np.where(out < MAX_RANGE, out, np.nan).astype(np.float32)
 
     def expected(self, cut: tuple[int, int, int, int] | None = None) -> np.ndarray:
         """Depth [m] the model expects at the pose of the last :meth:`pose`: the robot and the static scene only.
@@ -229,5 +250,6 @@ class RobotCamera:
     def close(self) -> None:
         """Free the renderers' GL contexts."""
         self.renderer.close()
-        if self._rgb is not None:
-            self._rgb.close()
+        for extra in (self._rgb, self._own):
+            if extra is not None:
+                extra.close()

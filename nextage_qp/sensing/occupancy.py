@@ -1,0 +1,149 @@
+"""An occupancy map of the space over the table from depth frames: free, occupied and never-seen voxels.
+
+:class:`VoxelMap` takes depth frames (the depth along the optical axis, NaN for no return) with the camera's
+intrinsics and pose, and a mask of the pixels that may show an obstacle (the caller removes the robot's own pixels,
+:func:`self_filter`, the tracked objects' and the table's). A voxel that holds ``MIN_POINTS`` masked pixels' points
+gains evidence of being occupied; a voxel whose centre projects into the image in front of what the pixel sees (by
+more than a cell) was seen through and gains evidence of being free; a voxel behind what the camera sees, or outside its view, is not
+touched: an obstacle hidden behind another stays unknown until a view shows it. The evidence is a clamped log-odds
+sum, so a voxel seen free often enough after it was occupied (an obstacle moved away) is free again.
+
+:meth:`VoxelMap.boxes` turns the occupied voxels' connected clusters (and, for planning, the never-seen ones inside a
+region) into axis-aligned boxes padded by a margin: what a planner's validity check and collision rows take as
+obstacles. :meth:`VoxelMap.seen_share` is how much of a region the map has observed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from nextage_qp.sensing.camera.pixels import backproject, project
+
+HIT = 0.85
+"""Log-odds a voxel gains per frame in which a masked pixel's point falls in it."""
+MISS = 0.4
+"""Log-odds a voxel loses per frame in which the camera sees through it."""
+CLAMP = 3.5
+"""Log-odds bound either way (an occupied voxel seen free about 9 times is free again)."""
+OCCUPIED = 0.5
+"""Log-odds above which a voxel is occupied."""
+MIN_POINTS = 3
+"""Points a voxel must hold in one frame to gain evidence of being occupied (one or two are a speck of noise)."""
+NEAR = 0.05
+"""Voxels nearer the camera than this [m] along its axis are not updated."""
+
+UNKNOWN, FREE, OCCUPIED_STATE = -1, 0, 1
+"""Voxel states of :meth:`VoxelMap.state`."""
+
+
+class VoxelMap:
+    """Voxels of ``cell`` [m] filling the box ``lo``-``hi`` [m] (world frame), all unknown at first."""
+
+    def __init__(self, lo: np.ndarray, hi: np.ndarray, cell: float = 0.015) -> None:
+        if not cell > 0:
+            raise ValueError(f"cell {cell} must be > 0")
+        self.lo, self.cell = np.asarray(lo, dtype=float), float(cell)
+        self.shape = tuple(int(n) for n in np.maximum(np.ceil((np.asarray(hi, dtype=float) - self.lo) / cell), 1))
+        self.logodds = np.zeros(self.shape, dtype=np.float32)
+        self.seen = np.zeros(self.shape, dtype=bool)
+        idx = np.stack(np.meshgrid(*(np.arange(n) for n in self.shape), indexing="ij"), axis=-1).reshape(-1, 3)
+        self.centres = self.lo + (idx + 0.5) * self.cell  # (N, 3), in the arrays' C order
+        self.frames = 0
+
+    def index(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Voxel indices (n, 3) of world points (n, 3), and which of them lie inside the map."""
+        ijk = np.floor((np.asarray(points, dtype=float) - self.lo) / self.cell).astype(int)
+        inside = np.all((ijk >= 0) & (ijk < np.array(self.shape)), axis=1)
+        return ijk, inside
+
+    def integrate(self, depth: np.ndarray, K: np.ndarray, pos: np.ndarray, rot: np.ndarray,
+                  mask: np.ndarray | None = None) -> None:
+        """Add one depth frame [m] (H, W; NaN: no return) from a camera with intrinsics ``K`` at ``pos``, ``rot``.
+
+        ``mask`` (H, W): the pixels whose points may be obstacles (default: every pixel with depth). Every pixel
+        with depth counts for seeing through the voxels in front of it.
+        """
+        h, w = depth.shape
+        rows, cols, z = project(self.centres, K, pos, rot)
+        view = (z > NEAR) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        at = np.full(len(z), np.nan)
+        at[view] = depth[rows[view], cols[view]]
+        with np.errstate(invalid="ignore"):
+            free = view & (z < at - self.cell)  # in front of what the pixel sees, by more than a cell
+        flat = self.logodds.reshape(-1)
+        flat[free] -= MISS
+        hits = np.isfinite(depth) if mask is None else (np.asarray(mask, dtype=bool) & np.isfinite(depth))
+        r, c = np.nonzero(hits)
+        occupied = np.zeros(0, dtype=int)
+        if len(r):
+            ijk, inside = self.index(backproject(depth, K, pos, rot, r, c))
+            cells, counts = np.unique(np.ravel_multi_index(ijk[inside].T, self.shape), return_counts=True)
+            occupied = cells[counts >= MIN_POINTS]
+            flat[occupied] += HIT + MISS * free[occupied]  # a voxel holding a surface is no free space
+        np.clip(self.logodds, -CLAMP, CLAMP, out=self.logodds)
+        seen = self.seen.reshape(-1)
+        seen[free] = True
+        seen[occupied] = True
+        self.frames += 1
+
+    def state(self) -> np.ndarray:
+        """Per voxel: :data:`UNKNOWN` (never observed), :data:`FREE` or :data:`OCCUPIED_STATE`."""
+        out = np.where(self.logodds > OCCUPIED, OCCUPIED_STATE, FREE).astype(np.int8)
+        out[~self.seen] = UNKNOWN
+        return out
+
+    def occupied_points(self) -> np.ndarray:
+        """Centres (n, 3) of the occupied voxels [m]."""
+        return self.centres[(self.state() == OCCUPIED_STATE).reshape(-1)]
+
+    def _region(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """Voxels whose centre lies in the box ``lo``-``hi`` [m]."""
+        inside = np.all((self.centres >= np.asarray(lo)) & (self.centres <= np.asarray(hi)), axis=1)
+        return inside.reshape(self.shape)
+
+    def seen_share(self, lo: np.ndarray, hi: np.ndarray) -> float:
+        """Share of the voxels in the box ``lo``-``hi`` [m] the map has observed (1 for an empty box)."""
+        region = self._region(lo, hi)
+        n = int(region.sum())
+        return float(self.seen[region].sum()) / n if n else 1.0
+
+    def boxes(self, pad: float = 0.01, unknown_in: tuple[np.ndarray, np.ndarray] | None = None,
+              min_voxels: int = 1) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Obstacles as axis-aligned boxes (centre [m], half-sizes [m]), one per connected cluster of voxels.
+
+        The occupied voxels (26-connected) and, with ``unknown_in`` (lo, hi) [m], the never-seen voxels inside that
+        box too (unseen space counts as occupied for planning); each cluster's voxel bounds grown by ``pad``.
+        Clusters of fewer than ``min_voxels`` are dropped (a speck of depth noise).
+        """
+        solid = self.state() == OCCUPIED_STATE
+        if unknown_in is not None:
+            solid |= ~self.seen & self._region(*unknown_in)
+        labels, _ = ndimage.label(solid, structure=np.ones((3, 3, 3), dtype=bool))
+        out = []
+        for k, sl in enumerate(ndimage.find_objects(labels), start=1):
+            if sl is None or int((labels[sl] == k).sum()) < min_voxels:
+                continue
+            lo = self.lo + np.array([s.start for s in sl]) * self.cell - pad
+            hi = self.lo + np.array([s.stop for s in sl]) * self.cell + pad
+            out.append(((lo + hi) / 2, (hi - lo) / 2))
+        return out
+
+
+SELF_PAD = 3
+"""Pixels by which the robot's silhouette is grown for the self-filter: its rendered edges lag the measured image by a
+pixel or two (the joints' latency and noise, rasterisation)."""
+
+
+def self_filter(depth: np.ndarray, robot_depth: np.ndarray, tolerance: float = 0.02, pad: int = SELF_PAD) -> np.ndarray:
+    """Pixels (H, W) that do not show the robot, from the depth of its own model alone at the measured joints.
+
+    ``robot_depth`` (NaN where the model is not in view) is grown by ``pad`` pixels, each taking the nearest depth
+    around it; a pixel is the robot's where the measured depth is within ``tolerance`` [m] of, or beyond, that depth.
+    A point in front of the robot's model by more than the tolerance is something else; so is one with no model near.
+    """
+    grown = ndimage.minimum_filter(np.where(np.isfinite(robot_depth), robot_depth, np.inf), 2 * pad + 1,
+                                   mode="constant", cval=np.inf) if pad > 0 else np.nan_to_num(robot_depth, nan=np.inf)
+    with np.errstate(invalid="ignore"):
+        robot = np.isfinite(grown) & ~(depth < grown - tolerance)
+    return np.isfinite(depth) & ~robot

@@ -1,0 +1,172 @@
+"""The occupancy map from depth frames: seen-through space is free, hidden space unknown, the robot filtered out."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from nextage_qp.sensing.occupancy import FREE, OCCUPIED_STATE, UNKNOWN, VoxelMap, self_filter
+
+SCENE = """
+<mujoco>
+  <worldbody>
+    <geom name="table" type="plane" size="10 10 0.1"/>
+    {boxes}
+  </worldbody>
+</mujoco>
+"""
+FRONT = '<geom name="front" type="box" pos="0.5 0 0.05" size="0.03 0.06 0.05"/>'
+HIDDEN = '<geom name="hidden" type="box" pos="0.62 0 0.04" size="0.02 0.02 0.04"/>'
+K = np.array([[60.0, 0.0, 40.0], [0.0, 60.0, 30.0], [0.0, 0.0, 1.0]])  # 80 x 60 pixels
+LO, HI = np.array([0.3, -0.2, 0.0]), np.array([0.8, 0.2, 0.2])
+
+
+def _looking(direction: np.ndarray) -> np.ndarray:
+    """A camera rotation (MuJoCo's: x right, y up, looking along -z) looking level along ``direction``."""
+    z = -direction / np.linalg.norm(direction)
+    y = np.array([0.0, 0.0, 1.0])
+    return np.stack([np.cross(y, z), y, z], axis=1)
+
+
+def _depth(xml: str, pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """A depth image (60 x 80, along the optical axis; NaN: no return) of a scene, ray by ray."""
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    out = np.full((60, 80), np.nan)
+    geom = np.zeros(1, dtype=np.int32)
+    for r in range(60):
+        for c in range(80):
+            v = rot @ np.array([(c + 0.5 - K[0, 2]) / K[0, 0], -(r + 0.5 - K[1, 2]) / K[1, 1], -1.0])
+            dist = mujoco.mj_ray(m, d, pos, v / np.linalg.norm(v), None, 1, -1, geom)
+            if dist >= 0:
+                out[r, c] = dist / np.linalg.norm(v)
+    return out
+
+
+def _above_table(depth: np.ndarray, pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """Pixels whose points stand over the table (z = 0) by more than 5 mm: what may be an obstacle."""
+    from nextage_qp.sensing.camera.pixels import plane_height
+
+    with np.errstate(invalid="ignore"):
+        return plane_height(depth, K, pos, rot, np.array([0.0, 0.0, 1.0]), 0.0) > 0.005
+
+
+def _state_at(vmap: VoxelMap, point) -> int:
+    ijk, inside = vmap.index(np.array([point]))
+    assert inside[0]
+    return int(vmap.state()[tuple(ijk[0])])
+
+
+@pytest.fixture(scope="module")
+def side_view():
+    xml = SCENE.format(boxes=FRONT + HIDDEN)
+    pos, rot = np.array([0.2, 0.0, 0.06]), _looking(np.array([1.0, 0.0, 0.0]))
+    return xml, pos, rot, _depth(xml, pos, rot)
+
+
+def test_space_seen_through_is_free_a_surface_occupied_and_what_hides_behind_it_unknown(side_view):
+    _, pos, rot, depth = side_view
+    vmap = VoxelMap(LO, HI, cell=0.015)
+    vmap.integrate(depth, K, pos, rot, _above_table(depth, pos, rot))
+    assert _state_at(vmap, (0.40, 0.0, 0.05)) == FREE  # between the camera and the front box
+    assert _state_at(vmap, (0.471, 0.0, 0.05)) == OCCUPIED_STATE  # the front box's face
+    assert _state_at(vmap, (0.62, 0.0, 0.04)) == UNKNOWN  # the box behind it: not seen, so not free
+    assert _state_at(vmap, (0.62, 0.15, 0.025)) == FREE  # beside the front box the view reaches the table beyond
+    assert vmap.seen_share(np.array([0.6, -0.02, 0.0]), np.array([0.64, 0.02, 0.08])) == 0.0
+
+
+def test_a_second_view_shows_the_hidden_box_and_the_boxes_cover_both(side_view):
+    xml, pos, rot, depth = side_view
+    vmap = VoxelMap(LO, HI, cell=0.015)
+    vmap.integrate(depth, K, pos, rot, _above_table(depth, pos, rot))
+    pos2, rot2 = np.array([0.62, -0.45, 0.06]), _looking(np.array([0.0, 1.0, 0.0]))  # from the side
+    depth2 = _depth(xml, pos2, rot2)
+    vmap.integrate(depth2, K, pos2, rot2, _above_table(depth2, pos2, rot2))
+    assert _state_at(vmap, (0.62, -0.019, 0.04)) == OCCUPIED_STATE
+    boxes = vmap.boxes(pad=0.01)
+    for point in ((0.471, 0.0, 0.05), (0.62, -0.019, 0.04)):
+        assert any(np.all(np.abs(np.array(point) - c) <= h) for c, h in boxes), point
+    # unseen space counts when asked: what both boxes hide, from both views, comes back as boxes too
+    shadow = (0.62, 0.05, 0.03)
+    assert _state_at(vmap, shadow) == UNKNOWN
+    behind = (np.array([0.57, 0.025, 0.0]), np.array([0.67, 0.09, 0.06]))
+    unseen = vmap.boxes(pad=0.0, unknown_in=behind)
+    assert any(np.all(np.abs(np.array(shadow) - c) <= h) for c, h in unseen)
+    assert not any(np.all(np.abs(np.array(shadow) - c) <= h) for c, h in boxes)
+
+
+def test_an_obstacle_taken_away_is_free_again_after_a_few_views(side_view):
+    _, pos, rot, depth = side_view
+    vmap = VoxelMap(LO, HI, cell=0.015)
+    vmap.integrate(depth, K, pos, rot, _above_table(depth, pos, rot))
+    face = (0.471, 0.0, 0.05)
+    assert _state_at(vmap, face) == OCCUPIED_STATE
+    gone = _depth(SCENE.format(boxes=""), pos, rot)
+    mask = _above_table(gone, pos, rot)
+    for _ in range(12):
+        vmap.integrate(gone, K, pos, rot, mask)
+    assert _state_at(vmap, face) == FREE
+
+
+def test_the_self_filter_drops_the_robots_pixels_and_keeps_what_stands_in_front_of_it():
+    depth = np.array([[0.5, 0.8, 0.8, np.nan]])
+    robot = np.array([[np.nan, 0.81, 1.2, 0.5]])
+    keep = self_filter(depth, robot, tolerance=0.02, pad=0)
+    assert keep.tolist() == [[True, False, True, False]]  # no robot; the robot itself; in front of it; no depth
+
+
+def test_over_a_run_the_self_filter_leaves_no_robot_voxel_in_the_map():
+    """The default push seen by the head camera every 0.5 s: after the self-filter (the robot's own model rendered at
+    its joints) and the table's removal, every point left is the cube's, and every occupied voxel lies at the cube."""
+    from pathlib import Path
+
+    from nextage_qp.manipulation.config import load_config
+    from nextage_qp.manipulation.placement import table_top
+    from nextage_qp.manipulation.runner import Runner
+    from nextage_qp.sensing.camera.pixels import backproject, plane_height
+    from nextage_qp.sensing.camera.render import RobotCamera, render_problem
+
+    if render_problem() is not None:
+        pytest.skip(render_problem())
+    push = Path(__file__).resolve().parents[1] / "configs" / "push_cube.yaml"
+    runner = Runner(load_config(push, ["perception.source=camera"]), str(push))  # the head follows the cube
+    robot = runner.robot
+    camera = RobotCamera(robot.model, "head_rgbd", robot.description.cameras["head_rgbd"], robot, seed=0)
+    top = table_top(robot, runner.sim.data)[0]
+    vmap = VoxelMap(np.array([0.1, -0.5, top - 0.02]), np.array([0.9, 0.5, top + 0.4]), cell=0.015)
+    cube = robot.model.body("cube").id
+    seen_at: list[np.ndarray] = []
+    stray: list[float] = []
+    robot_pixels = []
+
+    def look(run, phase):
+        if round(run.sim.time / 0.02) % 25:
+            return
+        pos, rot = camera.pose(robot.get_q(run.sim.data))
+        depth, own = camera.depth(run.sim.data), camera.own()
+        with np.errstate(invalid="ignore"):
+            keep = self_filter(depth, own) & (plane_height(depth, camera.K, pos, rot, np.array([0.0, 0, 1]), top) > 0.01)
+        robot_pixels.append(int((np.isfinite(own) & np.isfinite(depth)).sum()))
+        centre = run.sim.data.xpos[cube].copy()
+        seen_at.append(centre)
+        r, c = np.nonzero(keep)
+        points = backproject(depth, camera.K, pos, rot, r, c)
+        if len(points):
+            far = np.linalg.norm(points - centre, axis=1)
+            stray.append(float(np.sort(far)[-3:].min()) if len(far) >= 3 else 0.0)  # a speck of one or two aside
+        vmap.integrate(depth, camera.K, pos, rot, keep)
+
+    try:
+        result = runner.run(on_tick=look)
+    finally:
+        camera.close()
+    assert result.success and len(seen_at) > 20
+    assert max(robot_pixels) > 1000  # the arms were in view
+    half = float(np.linalg.norm(robot.model.geom_size[robot.model.geom("cube").id]))  # 61 mm
+    assert max(stray) < half + 0.02  # every point kept is the cube's (its half-diagonal, and the depth's noise)
+    occupied = vmap.occupied_points()
+    assert len(occupied) > 0
+    nearest = np.min(np.linalg.norm(occupied[:, None, :] - np.array(seen_at)[None], axis=2), axis=1)
+    assert nearest.max() < half + 2 * vmap.cell  # no voxel of the robot: all of them where the cube was
