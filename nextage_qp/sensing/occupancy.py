@@ -4,9 +4,9 @@
 intrinsics and pose, and a mask of the pixels that may show an obstacle (the caller removes the robot's own pixels,
 :func:`self_filter`, the tracked objects' and the table's). A voxel that holds ``MIN_POINTS`` masked pixels' points
 gains evidence of being occupied; a voxel whose centre projects into the image in front of what the pixel sees (by
-more than a cell) was seen through and gains evidence of being free; a voxel behind what the camera sees, or outside its view, is not
-touched: an obstacle hidden behind another stays unknown until a view shows it. The evidence is a clamped log-odds
-sum, so a voxel seen free often enough after it was occupied (an obstacle moved away) is free again.
+more than a cell) was seen through and gains evidence of being free; a voxel behind what the camera sees, or outside
+its view, is not touched: an obstacle hidden behind another stays unknown until a view shows it. The evidence is a
+clamped log-odds sum, so a voxel seen free often enough after it was occupied (an obstacle moved away) is free again.
 
 :meth:`VoxelMap.boxes` turns the occupied voxels' connected clusters (and, for planning, the never-seen ones inside a
 region) into axis-aligned boxes padded by a margin: what a planner's validity check and collision rows take as
