@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from nextage_qp.sensing.occupancy import FREE, OCCUPIED_STATE, UNKNOWN, VoxelMap, self_filter
+from nextage_qp.sensing.camera.occupancy import FREE, OCCUPIED_STATE, UNKNOWN, VoxelMap, self_filter
 
 SCENE = """
 <mujoco>

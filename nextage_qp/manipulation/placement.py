@@ -196,9 +196,8 @@ FREE_SPOT_APART = 0.05
 
 
 def obstacle_groups(robot: Robot) -> tuple[str, ...]:
-    """The collision groups of the scene's obstacles it has: the obstacle, the clutter, the fixed objects."""
-    groups = robot.collision_geoms()
-    return tuple(g for g in ("obstacle", CLUTTER_GROUP, *robot.fixed_objects) if groups.get(g))
+    """The collision groups of the scene's obstacles it has (:meth:`Robot.obstacle_groups`)."""
+    return robot.obstacle_groups()
 
 
 def free_spots(robot: Robot, obj: str, yaw: float, region: tuple[tuple[float, float], tuple[float, float]],

@@ -222,6 +222,11 @@ class Robot:
         return tuple(n for n, decl in self.overrides.objects.items()
                      if decl.fixed and mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, n) >= 0)
 
+    def obstacle_groups(self) -> tuple[str, ...]:
+        """The collision groups of the scene's obstacles it has: the obstacle, the clutter, the fixed objects."""
+        groups = self.collision_geoms()
+        return tuple(g for g in ("obstacle", CLUTTER_GROUP, *self.fixed_objects) if groups.get(g))
+
     def yaw_symmetry(self, name: str) -> float:
         """The yaw [rad] after which an object looks the same (custom numeric ``NAME_yaw_symmetry``; 2 pi if none)."""
         nid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_NUMERIC, f"{name}_yaw_symmetry")

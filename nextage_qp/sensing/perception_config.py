@@ -42,5 +42,8 @@ class PerceptionConfig(YamlModel):
         "fit grows by 1 + cover_spread * the share of the object it does not see (the robot covers it, the frame lacks "
         "it). Default: 8 with stereo depth (block matching smears depth across the robot's edges), 0 with rendered "
         "depth.")
+    map: bool = Field(default=False, description="Build an occupancy map of the obstacles from the camera's whole "
+                      "frames (source: camera) and report it, scored against the scene "
+                      "(nextage_qp.sensing.camera.seen); the phases plan with the declared obstacles.")
     dump: str | None = Field(default=None, description="Folder for one frame's RGB, depth, clusters and fit (PNGs).")
     dump_at_s: float = Field(default=1.0, ge=0, description="Time of the dumped frame [s].")

@@ -192,7 +192,7 @@ class RobotCamera:
     def own(self) -> np.ndarray:
         """Depth [m] of the robot's own model alone at the pose of the last :meth:`pose` (NaN: no robot there).
 
-        What a self-filter compares the measured depth with (:func:`nextage_qp.sensing.occupancy.self_filter`); its
+        What a self-filter compares the measured depth with (:func:`.occupancy.self_filter`); its
         renderer is made on the first call.
         """
         if self._own is None:

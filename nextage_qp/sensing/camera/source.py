@@ -28,6 +28,7 @@ from nextage_qp.errors import ConfigError
 from nextage_qp.geometry import Pose, pose_vector
 from nextage_qp.sensing.camera.estimate import MIN_SUPPORT, PARTLY, SELF_PAD, Estimator, Frame
 from nextage_qp.sensing.camera.render import RobotCamera, render_problem
+from nextage_qp.sensing.camera.seen import ObstacleMapper
 from nextage_qp.sensing.camera.shapes import ShapeModel
 from nextage_qp.sensing.camera.stereo import MARGIN, WHOLE_EVERY, StereoMatcher, check_pair, window
 from nextage_qp.sensing.camera.visible import occlusion
@@ -99,6 +100,9 @@ class CameraMeasurer:
         self.spread: dict[str, float] = {}
         """The latest frame's fits' noise relative to a clear view's (``perception.cover_spread``)."""
         self.cover_spread = COVER_SPREAD[cfg.depth] if cfg.cover_spread is None else cfg.cover_spread
+        radii = {n: float(np.linalg.norm(s.samples, axis=1).max()) for n, s in shapes.items()}
+        self.mapper = ObstacleMapper(robot, radii) if cfg.map else None
+        self.world = (model, data)  # for the map's score alone, after the run
 
     @property
     def rate_hz(self) -> float:
@@ -162,6 +166,8 @@ class CameraMeasurer:
             except OSError as exc:  # a lost frame dump is not a failed run: reported with the camera's figures
                 self.dump_error = f"perception.dump {self.cfg.dump}: cannot write: {exc.strerror or exc}"
         self.poses = {name: det.pose for name, det in detections.items()}
+        if self.mapper is not None and win is None and self.matcher is None:  # a whole frame: the map takes it
+            self.mapper.update(frame, self.camera.own(), self.estimator.plane, self.poses)
         self.lost = any(det.status in ("out_of_view", "missing") for det in detections.values())
         return dict(self.poses)
 
@@ -219,6 +225,7 @@ class CameraMeasurer:
         med = {f"{k}_ms_median": float(np.median(v)) if v else None for k, v in self.ms.items()}
         return {"camera": self.camera.name, "depth": self.cfg.depth, "frames": len(self.ms["render"]), **med,
                 "windowed_frames": self.windowed,
+                **({"map": self.mapper.report(*self.world)} if self.mapper is not None else {}),
                 "objects": objects, **({"dump_error": self.dump_error} if self.dump_error else {})}
 
     def close(self) -> None:

@@ -1,0 +1,137 @@
+"""``perception.map``: the obstacles the head camera sees, as an occupancy map built over a run, and how good it is.
+
+:class:`ObstacleMapper` takes the camera's whole frames (a windowed frame shows only the tracked objects) and adds
+each to a :class:`~.occupancy.VoxelMap` of the space over the work region: the pixels the robot's
+own model explains are dropped (:func:`~.occupancy.self_filter`, the model rendered alone at the
+measured joints), and so are the table's (within ``TABLE_BAND`` of the plane the estimator found) and the tracked
+objects' (within their shape's radius and ``OBJECT_PAD`` of the pose fitted in that frame). What is left is what the
+robot was not told about: obstacles.
+
+Its report scores the map against the scene, after the run (the map never reads the scene): per obstacle at least
+``TALL`` high, whether any of its volume was seen and whether an occupied voxel lies in it (detected / present), and
+the volume of occupied voxels that lie in nothing (false occupied).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from nextage_qp.sensing.camera.estimate import Frame
+from nextage_qp.sensing.camera.occupancy import OCCUPIED_STATE, VoxelMap, self_filter
+from nextage_qp.sensing.camera.pixels import backproject, plane_height
+
+CELL = 0.015
+"""Voxel size [m]."""
+TABLE_BAND = 0.012
+"""Points this near the table plane [m] are the table's."""
+OBJECT_PAD = 0.015
+"""Points within a tracked object's radius and this much more [m] of its fitted pose are the object's."""
+TALL = 0.03
+"""Obstacles at least this tall [m] are scored."""
+REACH = 0.15
+"""The map reaches this far [m] beyond the work region on each side, and ``HEIGHT`` above the table."""
+HEIGHT = 0.35
+
+
+class ObstacleMapper:
+    """The occupancy map of one camera (see the module docstring).
+
+    Args:
+        robot: The :class:`~nextage_qp.robots.model.Robot` (its workspace, objects and obstacle groups).
+        radii: Each tracked object's radius [m] (its shape model's).
+    """
+
+    def __init__(self, robot: Any, radii: Mapping[str, float]) -> None:
+        table = _table_top(robot)
+        ws = robot.description.workspace if robot.description is not None else None
+        if ws is not None:
+            centre, half = np.array(ws.centre, dtype=float), np.array(ws.size, dtype=float)
+        else:  # a robot file without a workspace: the space in front of the robot
+            centre, half = np.array([0.5, 0.0]), np.array([0.35, 0.5])
+        lo = np.array([*(centre - half - REACH), table - CELL])
+        hi = np.array([*(centre + half + REACH), table + HEIGHT])
+        self.map = VoxelMap(lo, hi, CELL)
+        self.radii = dict(radii)
+        self.robot = robot
+
+    def update(self, frame: Frame, own: np.ndarray, plane: tuple[np.ndarray, float] | None,
+               poses: Mapping[str, np.ndarray | None]) -> None:
+        """Add a whole frame: ``own`` is the robot's model alone at the measured joints (depth [m], NaN: none),
+        ``plane`` the table plane the estimator found, ``poses`` the tracked objects' pose vectors in that frame.
+        """  # noqa: D205
+        keep = self_filter(frame.depth, own)
+        if plane is not None:
+            with np.errstate(invalid="ignore"):
+                keep &= plane_height(frame.depth, frame.K, frame.cam_pos, frame.cam_rot, *plane) > TABLE_BAND
+        r, c = np.nonzero(keep)
+        if len(r):
+            points = backproject(frame.depth, frame.K, frame.cam_pos, frame.cam_rot, r, c)
+            gone = np.zeros(len(points), dtype=bool)
+            for name, pose in poses.items():
+                if pose is not None:
+                    gone |= np.linalg.norm(points - pose[:3], axis=1) < self.radii.get(name, 0.05) + OBJECT_PAD
+            keep[r[gone], c[gone]] = False
+        self.map.integrate(frame.depth, frame.K, frame.cam_pos, frame.cam_rot, keep)
+
+    def report(self, model: mujoco.MjModel, data: mujoco.MjData) -> dict[str, Any]:
+        """The map scored against the scene as it is in ``data`` (see the module docstring)."""
+        groups = self.robot.collision_geoms()
+        occupied = self.map.state() == OCCUPIED_STATE
+        centres = self.map.centres
+        occ = occupied.reshape(-1)
+        explained = np.zeros(len(centres), dtype=bool)
+        top = float(self.map.lo[2] + CELL)
+        obstacles = []
+        for group in self.robot.obstacle_groups():
+            for body in sorted({int(model.geom_bodyid[g]) for g in groups.get(group, ())}):
+                geoms = [g for g in groups[group] if int(model.geom_bodyid[g]) == body]
+                inside = np.zeros(len(centres), dtype=bool)
+                near = np.zeros(len(centres), dtype=bool)
+                height = 0.0
+                for g in geoms:
+                    inside |= _in_geom(model, data, g, centres, 0.0)
+                    near |= _in_geom(model, data, g, centres, CELL)
+                    height = max(height, _geom_top(model, data, g) - top)
+                explained |= near
+                if height < TALL or not inside.any():
+                    continue
+                obstacles.append({"name": model.body(body).name, "height_m": round(height, 3),
+                                  "seen": bool(self.map.seen.reshape(-1)[near].any()),
+                                  "detected": bool(occ[near].any())})
+        for name in self.robot.object_names:  # the objects, and the things they stand on, explain voxels too
+            for g in groups.get(name, ()):
+                explained |= _in_geom(model, data, g, centres, 2 * CELL)
+        present = [o for o in obstacles if o["seen"]]
+        return {"frames": self.map.frames, "cell_m": CELL,
+                "seen_share": round(float(self.map.seen.mean()), 4),
+                "obstacles_present": len(present), "obstacles_detected": sum(o["detected"] for o in present),
+                "obstacles_unseen": len(obstacles) - len(present),
+                "false_occupied_cm3": round(float((occ & ~explained).sum()) * CELL**3 * 1e6, 1),
+                "occupied_cm3": round(float(occ.sum()) * CELL**3 * 1e6, 1), "obstacles": obstacles}
+
+
+def _table_top(robot: Any) -> float:
+    """Height [m] of the top of the scene's table (its geoms' highest point; 0 without a table)."""
+    model = robot.model
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    tops = [_geom_top(model, data, g) for g in robot.collision_geoms().get("table", ())]
+    return max(tops) if tops else 0.0
+
+
+def _in_geom(model: mujoco.MjModel, data: mujoco.MjData, g: int, points: np.ndarray, margin: float) -> np.ndarray:
+    """Which points lie in geom ``g``'s bounding box (its own frame), grown by ``margin`` [m]."""
+    local = (points - data.geom_xpos[g]) @ data.geom_xmat[g].reshape(3, 3)
+    centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+    return np.all(np.abs(local - centre) <= half + margin, axis=1)
+
+
+def _geom_top(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> float:
+    """Height of geom ``g``'s highest bounding-box corner [m]."""
+    rot = data.geom_xmat[g].reshape(3, 3)
+    centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+    return float(data.geom_xpos[g, 2] + rot[2] @ centre + np.abs(rot[2]) @ half)
