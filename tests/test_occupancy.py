@@ -170,3 +170,40 @@ def test_over_a_run_the_self_filter_leaves_no_robot_voxel_in_the_map():
     assert len(occupied) > 0
     nearest = np.min(np.linalg.norm(occupied[:, None, :] - np.array(seen_at)[None], axis=2), axis=1)
     assert nearest.max() < half + 2 * vmap.cell  # no voxel of the robot: all of them where the cube was
+
+
+def test_the_camera_maps_the_clutter_it_sees_and_nothing_it_was_told_about():
+    """perception.map: a few frames of the head camera over the clutter push's table, scored against the scene."""
+    from pathlib import Path
+
+    from test_vision import PROBLEM, look_at_cube
+
+    from nextage_qp.manipulation.config import load_config
+    from nextage_qp.manipulation.runner import build_robot
+
+    if PROBLEM is not None:
+        pytest.skip(PROBLEM)
+    from nextage_qp.sensing.camera.source import CameraMeasurer
+
+    clutter = Path(__file__).resolve().parents[1] / "configs" / "push_clutter.yaml"
+    cfg = load_config(clutter, ["perception.source=camera", "perception.map=true", "scene.clutter.seed=4",
+                                "scene.clutter.count=8"])
+    robot = build_robot(cfg, str(clutter))
+    data = mujoco.MjData(robot.model)
+    q = robot.keyframe_q("home")
+    robot.set_q(data, q)
+    mujoco.mj_forward(robot.model, data)
+    q = look_at_cube(robot, q, data)
+    robot.set_q(data, q)
+    mujoco.mj_forward(robot.model, data)
+    camera = CameraMeasurer(cfg.perception, robot, data, lambda t: q, seed=0)
+    try:
+        for k in range(3):
+            camera(k / 15, {"cube": None})  # untracked: whole frames, which the map takes
+        report = camera.report()["map"]
+    finally:
+        camera.close()
+    assert report["frames"] == 3
+    assert report["obstacles_present"] >= 3  # the pieces in view
+    assert report["obstacles_detected"] == report["obstacles_present"]
+    assert report["false_occupied_cm3"] < 5.0  # neither the robot, the table nor the cube

@@ -8,8 +8,9 @@ objects' (within their shape's radius and ``OBJECT_PAD`` of the pose fitted in t
 robot was not told about: obstacles.
 
 Its report scores the map against the scene, after the run (the map never reads the scene): per obstacle at least
-``TALL`` high, whether any of its volume was seen and whether an occupied voxel lies in it (detected / present), and
-the volume of occupied voxels that lie in nothing (false occupied).
+``TALL`` high, whether a whole frame showed it (present: a point of its faces where the frame's depth is) and
+whether an occupied voxel lies in it or within a voxel of it (detected), and the volume of occupied voxels that lie
+in nothing (false occupied).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import numpy as np
 
 from nextage_qp.sensing.camera.estimate import Frame
 from nextage_qp.sensing.camera.occupancy import OCCUPIED_STATE, VoxelMap, self_filter
-from nextage_qp.sensing.camera.pixels import backproject, plane_height
+from nextage_qp.sensing.camera.pixels import backproject, plane_height, project
 
 CELL = 0.015
 """Voxel size [m]."""
@@ -57,11 +58,16 @@ class ObstacleMapper:
         self.map = VoxelMap(lo, hi, CELL)
         self.radii = dict(radii)
         self.robot = robot
+        self.visible: set[int] = set()  # obstacle bodies a whole frame showed (scored with the truth, see update)
 
     def update(self, frame: Frame, own: np.ndarray, plane: tuple[np.ndarray, float] | None,
-               poses: Mapping[str, np.ndarray | None]) -> None:
+               poses: Mapping[str, np.ndarray | None],
+               truth: tuple[mujoco.MjModel, mujoco.MjData] | None = None) -> None:
         """Add a whole frame: ``own`` is the robot's model alone at the measured joints (depth [m], NaN: none),
         ``plane`` the table plane the estimator found, ``poses`` the tracked objects' pose vectors in that frame.
+
+        ``truth`` (the scene, for the report's score alone, after the map took the frame): which obstacles the frame
+        shows, a point of their faces where the depth is.
         """  # noqa: D205
         keep = self_filter(frame.depth, own)
         if plane is not None:
@@ -76,6 +82,24 @@ class ObstacleMapper:
                     gone |= np.linalg.norm(points - pose[:3], axis=1) < self.radii.get(name, 0.05) + OBJECT_PAD
             keep[r[gone], c[gone]] = False
         self.map.integrate(frame.depth, frame.K, frame.cam_pos, frame.cam_rot, keep)
+        if truth is not None:
+            self._shown(frame, *truth)
+
+    def _shown(self, frame: Frame, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Note the obstacles ``frame`` shows: a point of their bounding box's faces where the frame's depth is."""
+        groups = self.robot.collision_geoms()
+        h, w = frame.depth.shape
+        for group in self.robot.obstacle_groups():
+            for g in groups.get(group, ()):
+                body = int(model.geom_bodyid[g])
+                if body in self.visible:
+                    continue
+                points = _face_points(model, data, g)
+                rows, cols, z = project(points, frame.K, frame.cam_pos, frame.cam_rot)
+                ok = (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+                with np.errstate(invalid="ignore"):
+                    if np.any(np.abs(frame.depth[rows[ok], cols[ok]] - z[ok]) < 0.01):
+                        self.visible.add(body)
 
     def report(self, model: mujoco.MjModel, data: mujoco.MjData) -> dict[str, Any]:
         """The map scored against the scene as it is in ``data`` (see the module docstring)."""
@@ -100,7 +124,7 @@ class ObstacleMapper:
                 if height < TALL or not inside.any():
                     continue
                 obstacles.append({"name": model.body(body).name, "height_m": round(height, 3),
-                                  "seen": bool(self.map.seen.reshape(-1)[near].any()),
+                                  "seen": body in self.visible,
                                   "detected": bool(occ[near].any())})
         for name in self.robot.object_names:  # the objects, and the things they stand on, explain voxels too
             for g in groups.get(name, ()):
@@ -121,6 +145,23 @@ def _table_top(robot: Any) -> float:
     mujoco.mj_kinematics(model, data)
     tops = [_geom_top(model, data, g) for g in robot.collision_geoms().get("table", ())]
     return max(tops) if tops else 0.0
+
+
+def _face_points(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> np.ndarray:
+    """Points [m] on geom ``g``'s bounding box's faces in the world: each face's centre and four points halfway out."""
+    rot = data.geom_xmat[g].reshape(3, 3)
+    centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+    local = []
+    for axis in range(3):
+        u, v = [k for k in range(3) if k != axis]
+        for sign in (1.0, -1.0):
+            for a, b in ((0.0, 0.0), (0.5, 0.5), (0.5, -0.5), (-0.5, 0.5), (-0.5, -0.5)):
+                p = centre.copy()
+                p[axis] += sign * half[axis]
+                p[u] += a * half[u]
+                p[v] += b * half[v]
+                local.append(p)
+    return data.geom_xpos[g] + np.array(local) @ rot.T
 
 
 def _in_geom(model: mujoco.MjModel, data: mujoco.MjData, g: int, points: np.ndarray, margin: float) -> np.ndarray:

@@ -102,7 +102,7 @@ class CameraMeasurer:
         self.cover_spread = COVER_SPREAD[cfg.depth] if cfg.cover_spread is None else cfg.cover_spread
         radii = {n: float(np.linalg.norm(s.samples, axis=1).max()) for n, s in shapes.items()}
         self.mapper = ObstacleMapper(robot, radii) if cfg.map else None
-        self.world = (model, data)  # for the map's score alone, after the run
+        self.world = (model, data)  # for the map's score alone
 
     @property
     def rate_hz(self) -> float:
@@ -167,7 +167,7 @@ class CameraMeasurer:
                 self.dump_error = f"perception.dump {self.cfg.dump}: cannot write: {exc.strerror or exc}"
         self.poses = {name: det.pose for name, det in detections.items()}
         if self.mapper is not None and win is None and self.matcher is None:  # a whole frame: the map takes it
-            self.mapper.update(frame, self.camera.own(), self.estimator.plane, self.poses)
+            self.mapper.update(frame, self.camera.own(), self.estimator.plane, self.poses, truth=self.world)
         self.lost = any(det.status in ("out_of_view", "missing") for det in detections.values())
         return dict(self.poses)
 
