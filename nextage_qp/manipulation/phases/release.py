@@ -119,15 +119,16 @@ class Release(Phase):
     def _free(self, view: View, opened: list[np.ndarray], lifted: list[np.ndarray]) -> bool:
         """Whether the pads open to ``opened`` and rise to ``lifted`` touching nothing but the object.
 
-        Solved with the offline IK (to within ``OPEN_TOL``: its collision rows may hold a pad short of where it
-        goes, as the running IK's do) and checked in the planner's collision world, at its clearance.
+        Solved with the offline IK (to within ``OPEN_TOL``) and checked in the planner's collision world, at its
+        clearance. A pad the IK's collision rows hold short of where it goes has something in its way too: opened
+        that far, the running IK would press the arm against it.
         """
         q0 = view.joint_positions(view.joint_names())
         q1 = view.plan(self._targets(opened), start=q0, allow=frozenset({self.spec.object}), restarts=False,
                        pos_tol=OPEN_TOL)
         q2 = None if q1 is None else view.plan(self._targets(lifted), start=q1, restarts=False, pos_tol=OPEN_TOL)
         if q1 is None or q2 is None:
-            return True  # not solved, not checked: the pads open as far as the IK takes them
+            return False  # the IK's collision rows hold a pad short of it: something is in the way
         return view.path_blocked([q0, q1], allow=(self.spec.object,)) is None and view.path_blocked([q1, q2]) is None
 
     def _targets(self, points: list[np.ndarray]) -> tuple[FrameTarget, ...]:
