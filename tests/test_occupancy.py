@@ -176,26 +176,15 @@ def test_the_camera_maps_the_clutter_it_sees_and_nothing_it_was_told_about():
     """perception.map: a few frames of the head camera over the clutter push's table, scored against the scene."""
     from pathlib import Path
 
-    from test_vision import PROBLEM, look_at_cube
-
-    from nextage_qp.manipulation.config import load_config
-    from nextage_qp.manipulation.runner import build_robot
+    from test_vision import PROBLEM, aimed_scene
 
     if PROBLEM is not None:
         pytest.skip(PROBLEM)
     from nextage_qp.sensing.camera.source import CameraMeasurer
 
     clutter = Path(__file__).resolve().parents[1] / "configs" / "push_clutter.yaml"
-    cfg = load_config(clutter, ["perception.source=camera", "perception.map=true", "scene.clutter.seed=4",
-                                "scene.clutter.count=8"])
-    robot = build_robot(cfg, str(clutter))
-    data = mujoco.MjData(robot.model)
-    q = robot.keyframe_q("home")
-    robot.set_q(data, q)
-    mujoco.mj_forward(robot.model, data)
-    q = look_at_cube(robot, q, data)
-    robot.set_q(data, q)
-    mujoco.mj_forward(robot.model, data)
+    cfg, robot, data, q = aimed_scene("box", 0.33, 0.0, ("perception.source=camera", "perception.map=true",
+                                                         "scene.clutter.seed=4", "scene.clutter.count=8"), clutter)
     camera = CameraMeasurer(cfg.perception, robot, data, lambda t: q, seed=0)
     try:
         for k in range(3):

@@ -62,12 +62,12 @@ def look_at_cube(robot, q: np.ndarray, data: mujoco.MjData) -> np.ndarray:
     return q
 
 
-def aimed_scene(shape: str, x: float, yaw: float, sets: tuple[str, ...] = ()):
-    """The push scene with the cube swapped for ``shape`` at ``x`` [m] ahead, yawed, more ``sets``, the head turned
-    at it: the config, the robot, the world and the joints."""
-    cfg = load_config(PUSH, [f"scene.objects.cube={SHAPES[shape]}", f"scene.poses.cube.pos=[{x},0.05,0.91]",
-                             f"scene.poses.cube.yaw={yaw}", *sets])
-    robot = build_robot(cfg, str(PUSH))
+def aimed_scene(shape: str, x: float, yaw: float, sets: tuple[str, ...] = (), config: Path = PUSH):
+    """The push scene (or ``config``'s) with the cube swapped for ``shape`` at ``x`` [m] ahead, yawed, more ``sets``,
+    the head turned at it: the config, the robot, the world and the joints."""
+    cfg = load_config(config, [f"scene.objects.cube={SHAPES[shape]}", f"scene.poses.cube.pos=[{x},0.05,0.91]",
+                               f"scene.poses.cube.yaw={yaw}", *sets])
+    robot = build_robot(cfg, str(config))
     data = mujoco.MjData(robot.model)
     q = robot.keyframe_q("home")
     robot.set_q(data, q)
@@ -216,7 +216,6 @@ def test_a_tracked_object_is_rendered_in_a_window_with_the_whole_images_depth() 
         assert np.abs(full[both] - cut[both]).max() < 1e-5  # float32 rounding
     truth = data.xpos[robot.model.body("cube").id]
     assert second is not None and np.linalg.norm(second[:3] - truth) < 0.005
-
 
 
 def test_estimator_never_reads_simulator_state() -> None:
