@@ -126,8 +126,8 @@ class IKResult(NamedTuple):
     """Outcome of one IK solve (every method returns this record).
 
     Attributes:
-        q: Best joint vector found [rad] (the robot's joints, in :attr:`~nextage_qp.robots.model.Robot.joint_names`
-        order).
+        q: Best joint vector found [rad], the robot's joints in
+            :attr:`~nextage_qp.robots.model.Robot.joint_names` order.
         converged: True when every target is within the position and orientation tolerances.
         pos_err_m: Largest position error over the targets at ``q`` [m].
         rot_err_rad: Largest orientation error over the targets at ``q`` [rad].
