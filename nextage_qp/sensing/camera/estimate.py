@@ -99,7 +99,9 @@ class Estimator:
         found = np.flatnonzero(finite)  # pixels with depth, row-major
         sub = self.rng.integers(0, len(found), min(len(found), 1500)) if len(found) else np.zeros(0, int)
         rows, cols = np.divmod(found[sub], f.depth.shape[1])
-        self.plane = table_plane(backproject(f.depth, f.K, f.cam_pos, f.cam_rot, rows, cols), self.rng) or self.plane
+        if f.whole or self.plane is None:  # a window's largest level plane may be a hand's or an object's top
+            points = backproject(f.depth, f.K, f.cam_pos, f.cam_rot, rows, cols)
+            self.plane = table_plane(points, self.rng) or self.plane
         with np.errstate(invalid="ignore"):
             unexplained = finite & ~(f.expected - f.depth < GAP)
             if self.self_pad and self.plane is not None:  # the model's padded silhouette: the model

@@ -17,6 +17,7 @@ class Frame:
     cam_pos: np.ndarray
     cam_rot: np.ndarray  # columns: camera x (right), y (up), z (backwards), MuJoCo's convention
     cover: np.ndarray | None = None  # expected depth of the model as the estimator takes it (grown: SELF_PAD)
+    whole: bool = True  # the whole image (False: a window around the tracked objects, NaN elsewhere)
 
     @property
     def model(self) -> np.ndarray:

@@ -134,7 +134,9 @@ class CameraMeasurer:
             depth = self.camera.depth(self.data, win)
         expected = self.camera.expected(win)
         t1 = time.perf_counter()
-        frame = Frame(depth, expected, self.camera.K, pos, rot)
+        # The table plane is found in whole frames (a window's largest level plane may be a hand's top); a stereo
+        # window is as it was measured (docs/perception.md), found in every frame.
+        frame = Frame(depth, expected, self.camera.K, pos, rot, whole=win is None or self.matcher is not None)
         self.last = (t, depth)  # the latest depth image [m] and its time [s] (for recordings)
         detections = self.estimator.estimate(frame, priors, held)
         self.ms["render"].append((t1 - t0) * 1e3)
