@@ -189,7 +189,7 @@ def test_a_tracked_object_is_rendered_in_a_window_with_the_whole_images_depth() 
     """Rendered depth (and the expected background) in a window around a tracked object: the whole frame's pixels."""
     from nextage_qp.sensing.camera.source import CameraMeasurer
 
-    cfg, robot, data, q = aimed_scene("box", 0.6, -0.4, ("perception.source=camera",))
+    cfg, robot, data, q = aimed_scene("box", 0.6, -0.4, ("perception.source=camera", "perception.window=true"))
     camera = CameraMeasurer(cfg.perception, robot, data, lambda t: q, seed=0)
     camera.camera.noisy = lambda z: z  # the same pixels, noise aside
     try:

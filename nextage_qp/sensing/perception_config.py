@@ -42,6 +42,11 @@ class PerceptionConfig(YamlModel):
         "fit grows by 1 + cover_spread * the share of the object it does not see (the robot covers it, the frame lacks "
         "it). Default: 8 with stereo depth (block matching smears depth across the robot's edges), 0 with rendered "
         "depth.")
+    window: bool | None = Field(
+        default=None, description="Render (and, with stereo, match) a tracked object's frames only in a window around "
+        "it, the whole frame every 15th and while one is untracked: fewer pixels to render and estimate. Default: on "
+        "with stereo depth, off with rendered depth (windowed, the default push from the camera succeeds less often: "
+        "docs/perception.md).")
     map: bool = Field(default=False, description="Build an occupancy map of the obstacles from the camera's whole "
                       "frames (source: camera) and report it, scored against the scene "
                       "(nextage_qp.sensing.camera.seen); the phases plan with the declared obstacles.")

@@ -82,6 +82,7 @@ class CameraMeasurer:
         self.reach = {n: max(s.search_radius, float(np.linalg.norm(s.samples, axis=1).max())) + MARGIN
                       for n, s in shapes.items()}  # the radius of each object's stereo window [m]
         self.windowed = 0  # frames rendered (or matched) in a window around the tracked objects
+        self.windows = cfg.window if cfg.window is not None else stereo  # perception.window's default
         self.lost = True  # an object was out of view or missing in the last frame
         kinds = (*STATUSES, "partly_occluded", "part_fitted", "unoccluded", "unoccluded_ok")
         self.counts = {n: dict.fromkeys(kinds, 0) for n in robot.object_names}
@@ -124,7 +125,7 @@ class CameraMeasurer:
         """
         t0 = time.perf_counter()
         pos, rot = self.camera.pose(self.joints(t))
-        win = self.window(priors, pos, rot)
+        win = self.window(priors, pos, rot) if self.windows else None
         self.windowed += win is not None
         if self.matcher is not None and self.right is not None:
             cut = self.matcher.cut(win) if win is not None else None
