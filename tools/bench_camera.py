@@ -1,16 +1,17 @@
 """Wall time of a default task run from the head camera against the same run from the truth, alternately.
 
     python tools/bench_camera.py [--runs 5] [--task push_cube --task dock_dumbbell] [--against COMMIT]
-                                 [--depth rendered|stereo]
+                                 [--depth rendered|stereo] [--window]
 
 Each run is a fresh ``nextage-qp run configs/TASK.yaml --json`` (``MUJOCO_GL=egl`` unless set), from the truth
 (``perception.source=truth``, the config's default) and from the camera (``--set perception.source=camera``),
 alternating so that the machine's drift affects both alike; with ``--against``, camera runs of that commit
 (exported with ``git archive``) alternate with them too; ``--depth stereo`` makes every camera run's depth block
-matching on the head's RGB pair (the vision extra). Prints every run's wall and simulated time, then per task
-and arm the median and p99 of the wall time and of the wall time per simulated second (a run from the camera
-simulates longer: it stops to look), the camera's median render and estimate time per frame, and the ratios of the
-medians, with the machine and the versions. No test asserts any of it.
+matching on the head's RGB pair (the vision extra); ``--window`` adds camera runs with
+``perception.window=true`` (a tracked object's frames rendered in a window around it), alternately too. Prints
+every run's wall and simulated time, then per task and arm the median and p99 of the wall time and of the wall
+time per simulated second (a run from the camera simulates longer: it stops to look), the camera's median render and
+estimate time per frame, and the ratios of the medians, with the machine and the versions. No test asserts any of it.
 """
 
 from __future__ import annotations
@@ -59,12 +60,15 @@ def main() -> None:
     ap.add_argument("--against", help="also time camera runs of this older commit, alternately")
     ap.add_argument("--depth", choices=("rendered", "stereo"), default="rendered",
                     help="the camera runs' perception.depth (default rendered)")
+    ap.add_argument("--window", action="store_true", help="also time camera runs with perception.window=true")
     args = ap.parse_args()
     camera = [*CAMERA, "--set", f"perception.depth={args.depth}"]
     tasks = args.task or ["push_cube", "dock_dumbbell"]
     print(f"machine: {json.dumps(machine())}; MUJOCO_GL={ENV.get('MUJOCO_GL', 'egl')}; depth {args.depth}")
     with tempfile.TemporaryDirectory() as old_dir:
         arms = {"truth": (ROOT, []), "camera": (ROOT, camera)}
+        if args.window:
+            arms["camera windowed"] = (ROOT, [*camera, "--set", "perception.window=true"])
         if args.against:
             arms[f"camera@{export(args.against, Path(old_dir))}"] = (Path(old_dir), camera)
         results: dict[tuple[str, str], list[dict[str, float]]] = {}
