@@ -103,7 +103,7 @@ def for_robot(cfg: ManipulationConfig, robot: Robot) -> ManipulationConfig:
 
 
 FREE_SPOT_TRIES = 6
-"""Free spots a target takes in turn while the first phase refuses the one it has (out of the clamp's reach, say)."""
+"""Free spots a target takes in turn while a phase that names it fails at its start (out of the clamp's reach, say)."""
 
 
 @dataclasses.dataclass
@@ -301,14 +301,19 @@ class Runner:
         if self.view.grip is not None:
             self.monitor.check_hold(self.sim, self.view.grip)
 
-    def _start(self, phase: Phase, first: bool) -> None:
-        """Start a phase; the first one that refuses a target placed by ``free_spot`` gets the next spot instead."""
+    def _start(self, phase: Phase) -> None:
+        """Start a phase; one that names a target placed by ``free_spot`` and fails at its start (the clamp cannot
+        reach the placement there, no route carries the object to it) gets the target's next spot instead.
+        """  # noqa: D205
+        spec = phase.spec
+        named = {getattr(spec, "target", None), getattr(spec, "place_at", None)}
+        spots = [p for name, p in self.free_spots.items() if name in named]
         while True:
             try:
                 phase.start(self.view)
                 return
-            except InfeasibleError as exc:
-                if not first or not any(p.take_next(self.robot.model, str(exc)) for p in self.free_spots.values()):
+            except (InfeasibleError, PhaseError) as exc:
+                if not any(p.take_next(self.robot.model, str(exc)) for p in spots):
                     raise
                 mujoco.mj_kinematics(self.robot.model, self.sim.data)  # the target's new place, nothing else moved
                 self.placement = check_placement(self.robot, self.cfg.object, self.cfg.target, self.q0, self.source)
@@ -327,7 +332,7 @@ class Runner:
                 phase.t0 = self.sim.time
                 self._phase = (rec.name, spec.kind, self.sim.time)
                 clamped0, steps0 = self.sim.pd.saturated_ticks.copy(), self.sim.pd.ticks  # the phase's own, below
-                self._start(phase, first=i == 0)
+                self._start(phase)
                 view.grip = phase.grip(view.grip)
                 while True:
                     command = phase.update(view)
