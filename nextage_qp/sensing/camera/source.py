@@ -133,7 +133,7 @@ class CameraMeasurer:
                                        (self.spec.height, self.spec.width))
         else:
             depth = self.camera.depth(self.data, win)
-        expected = self.camera.expected(win)
+        expected = self.camera.expected(win if self.matcher is None else None)  # stereo's: whole, as measured
         t1 = time.perf_counter()
         # The table plane is found in whole frames (a window's largest level plane may be a hand's top); a stereo
         # window is as it was measured (docs/perception.md), found in every frame.
