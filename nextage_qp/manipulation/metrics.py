@@ -17,7 +17,7 @@ from nextage_qp.loop.diagnosis import limit_violation
 from nextage_qp.loop.simulation import Simulation
 from nextage_qp.manipulation.config import SuccessCriteria
 from nextage_qp.manipulation.context import Grip
-from nextage_qp.manipulation.placement import obstacle_clearance, obstacle_groups
+from nextage_qp.manipulation.placement import obstacle_clearance
 from nextage_qp.native import kernels
 from nextage_qp.robots.model import CLUTTER_GROUP, Robot
 from nextage_qp.scene.files import touch_sensor
@@ -343,7 +343,7 @@ def summarize(
         "physics_share": sim.physics_s / wall_s if wall_s > 0 else None,
         "min_obstacle_clearance_m": monitor.min_clearance,
         "obstacle_contacts": contacts,
-        **({"object_obstacle_clearance_m": clearance} if clearance is not None and obstacle_groups(robot) else {}),
+        **({"object_obstacle_clearance_m": clearance} if clearance is not None and robot.obstacle_groups() else {}),
         **({"clutter_contacts": monitor.clutter_contacts} if monitor.has_clutter else {}),
         **({"objects": {n: {"error_xy_m": o.error_xy_m, "yaw_error_rad": o.yaw_error_rad, "tilt_rad": o.tilt_rad,
                             "resting": o.resting} for n, o in others.items()}} if others else {}),

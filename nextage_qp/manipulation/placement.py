@@ -9,7 +9,7 @@ distance is the target's clearance, reported with the result.
 
 A target may instead be placed where its object fits (``scene.poses.NAME.free_spot``): :func:`free_spots` searches
 its region, nearest first, for a spot where the object standing upright keeps the asked clearance from every obstacle
-beside it (:func:`obstacle_groups`), measured on the obstacles' own geometry.
+beside it (:meth:`Robot.obstacle_groups`), measured on the obstacles' own geometry.
 """
 
 from __future__ import annotations
@@ -195,11 +195,6 @@ FREE_SPOT_APART = 0.05
 """Least distance [m] between the free spots offered in turn (the next one for a spot the robot cannot use)."""
 
 
-def obstacle_groups(robot: Robot) -> tuple[str, ...]:
-    """The collision groups of the scene's obstacles it has (:meth:`Robot.obstacle_groups`)."""
-    return robot.obstacle_groups()
-
-
 def free_spots(robot: Robot, obj: str, yaw: float, region: tuple[tuple[float, float], tuple[float, float]],
                near: tuple[float, float], clearance: float, where: str) -> Iterator[tuple[np.ndarray, float]]:
     """Spots [x, y] in ``region``, nearest ``near`` first and ``FREE_SPOT_APART`` apart, where ``obj`` standing on the
@@ -220,7 +215,7 @@ def free_spots(robot: Robot, obj: str, yaw: float, region: tuple[tuple[float, fl
     data = mujoco.MjData(robot.model)
     mujoco.mj_forward(robot.model, data)
     z = rest_height(robot, data, obj)
-    groups = obstacle_groups(robot)
+    groups = robot.obstacle_groups()
     best, roomiest = -np.inf, grid[0]
     found: list[np.ndarray] = []
     for p in grid:
@@ -242,7 +237,7 @@ def free_spots(robot: Robot, obj: str, yaw: float, region: tuple[tuple[float, fl
 def obstacle_clearance(robot: Robot, data: mujoco.MjData, obj: str) -> float:
     """Smallest distance [m] from ``obj`` as it is in ``data`` to the obstacles beside it (capped at 0.1 m)."""
     geoms = robot.collision_geoms()
-    others = [g for group in obstacle_groups(robot) for g in geoms.get(group, ())]
+    others = [g for group in robot.obstacle_groups() for g in geoms.get(group, ())]
     return _closest(robot, data, geoms.get(obj, ()), others, beside=True)[0]
 
 

@@ -15,7 +15,7 @@ from nextage_qp.kinematics.frames import Kinematics
 from nextage_qp.loop.servo import Servo
 from nextage_qp.loop.simulation import Simulation
 from nextage_qp.manipulation.context import Grip
-from nextage_qp.manipulation.placement import clearance_at, obstacle_groups, obstacle_top, rest_height, table_top
+from nextage_qp.manipulation.placement import clearance_at, obstacle_top, rest_height, table_top
 from nextage_qp.mobile.base import MobileBase
 from nextage_qp.mobile.drive_models import Pose2
 from nextage_qp.mobile.odometry import to_odometry
@@ -148,7 +148,7 @@ class SimView:
         return None if hit is None else str(hit[2])
 
     def obstacle_groups(self) -> tuple[str, ...]:  # noqa: D102
-        return obstacle_groups(self.robot)
+        return self.robot.obstacle_groups()
 
     def clearance_at(self, obj: str, pos: np.ndarray, yaw: float,  # noqa: D102
                      beside: bool = False) -> tuple[float, np.ndarray]:

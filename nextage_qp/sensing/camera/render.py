@@ -126,6 +126,11 @@ def render_window(renderer: mujoco.Renderer, data: mujoco.MjData, cam_id: int, o
     return np.flipud(_metric_depth(buf, renderer.model))
 
 
+def _returns(depth: np.ndarray) -> np.ndarray:
+    """A rendered depth image [m] as the sensor gives it: NaN (no return) at and beyond ``MAX_RANGE``."""
+    return np.where(depth < MAX_RANGE, depth, np.nan).astype(np.float32)
+
+
 def _metric_depth(buf: np.ndarray, model: mujoco.MjModel) -> np.ndarray:
     """Depth [m] from a perspective camera's reversed-Z depth buffer, as :meth:`mujoco.Renderer.render` converts it."""
     extent = model.stat.extent
@@ -167,12 +172,10 @@ class RobotCamera:
     def _render(self, data: mujoco.MjData, depth: bool, cut: tuple[int, int, int, int] | None = None) -> np.ndarray:
         if depth:
             if cut is None:
-                out = render_camera(self.renderer, data, self.cam_id, self.option)
-                return np.where(out < MAX_RANGE, out, np.nan).astype(np.float32)
+                return _returns(render_camera(self.renderer, data, self.cam_id, self.option))
             r0, r1, c0, c1 = cut
-            part = render_window(self.renderer, data, self.cam_id, self.option, cut, self.K)
             full = np.full((self.spec.height, self.spec.width), np.nan, dtype=np.float32)
-            full[r0:r1, c0:c1] = np.where(part < MAX_RANGE, part, np.nan)
+            full[r0:r1, c0:c1] = _returns(render_window(self.renderer, data, self.cam_id, self.option, cut, self.K))
             return full
         return render_camera(self._rgb_renderer(), data, self.cam_id, self.option)
 
@@ -204,8 +207,7 @@ class RobotCamera:
             renderer = mujoco.Renderer(model, self.spec.height, self.spec.width)
             renderer.enable_depth_rendering()
             self._own = renderer
-        out = render_camera(self._own, self.kin, self.cam_id, self.option)
-        return np.where(out < MAX_RANGE, out, np.nan).astype(np.float32)
+        return _returns(render_camera(self._own, self.kin, self.cam_id, self.option))
 
     def expected(self, cut: tuple[int, int, int, int] | None = None) -> np.ndarray:
         """Depth [m] the model expects at the pose of the last :meth:`pose`: the robot and the static scene only.

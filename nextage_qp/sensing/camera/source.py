@@ -79,7 +79,8 @@ class CameraMeasurer:
         self.symmetry = {n: robot.yaw_symmetry(n) for n in robot.object_names}
         shapes = {n: ShapeModel.of_body(model, n, self.symmetry[n]) for n in robot.object_names}
         self.estimator = Estimator(shapes, seed, SELF_PAD if stereo else 0)  # stereo cannot measure the plain links
-        self.reach = {n: max(s.search_radius, float(np.linalg.norm(s.samples, axis=1).max())) + MARGIN
+        radii = {n: float(np.linalg.norm(s.samples, axis=1).max()) for n, s in shapes.items()}  # each shape's [m]
+        self.reach = {n: max(s.search_radius, radii[n]) + MARGIN
                       for n, s in shapes.items()}  # the radius of each object's stereo window [m]
         self.windowed = 0  # frames rendered (or matched) in a window around the tracked objects
         self.windows = cfg.window if cfg.window is not None else stereo  # perception.window's default
@@ -101,7 +102,6 @@ class CameraMeasurer:
         self.spread: dict[str, float] = {}
         """The latest frame's fits' noise relative to a clear view's (``perception.cover_spread``)."""
         self.cover_spread = COVER_SPREAD[cfg.depth] if cfg.cover_spread is None else cfg.cover_spread
-        radii = {n: float(np.linalg.norm(s.samples, axis=1).max()) for n, s in shapes.items()}
         self.mapper = ObstacleMapper(robot, radii) if cfg.map else None
         self.world = (model, data)  # for the map's score alone
 
