@@ -92,6 +92,9 @@ class ScriptedView:
     def default_posture(self):
         return np.array([-1.0])  # pose_at: the home pose
 
+    def looking_joints(self):
+        return np.zeros(0, dtype=int)
+
     def plan_path(self, q_start, q_goal, *, near=(), always=False):
         from nextage_qp.planning.rrt import PathPlan
 

@@ -47,6 +47,11 @@ class PairBounds:
         self._out_idx, self._out_lower, self._out_reach = np.empty(n, dtype=np.int64), np.empty(n), np.empty(n)
         self._no_step = np.zeros(0)
 
+    def forget(self) -> None:
+        """Drop every stored distance: the model's geometry changed in place (a geom resized, not moved)."""
+        self._base[:] = -np.inf
+        self._exact[:], self._exact_any = False, False
+
     @property
     def exact(self) -> np.ndarray:
         """Pairs whose bound is their measured distance at the configuration last seen (no geom moved since)."""

@@ -120,6 +120,10 @@ class ActiveCollisionLimit(mink.Limit):
         """Pairs not ruled out by the travel and sphere bounds that could not bind within the box (no row)."""
         kernels.warm_up(model.nv, box is not None)
 
+    def forget(self) -> None:
+        """Measure every pair anew: the model's obstacle geometry changed in place (:meth:`PairBounds.forget`)."""
+        self.bounds.forget()
+
     def allow(self, geoms: np.ndarray) -> None:
         """Let the given geoms touch: pairs with a geom in ``geoms`` (a boolean mask over geoms) get no row.
 

@@ -20,6 +20,7 @@ from nextage_qp.errors import ConfigError, UnknownNameError
 from nextage_qp.mobile.build import PLANAR_JOINTS, base_kinematic_joints
 from nextage_qp.robots.model import Robot
 from nextage_qp.scene.compile import compile_spec
+from nextage_qp.scene.seen_obstacles import blind
 
 __all__ = ["PLANAR_JOINTS", "Frame", "ObjectPoses", "chain_dofs", "ik_joint_names", "kinematic_model",
            "lever_bounds", "mocap_ids", "moved_by_a_joint", "resolve_frame", "set_object_poses"]
@@ -67,6 +68,8 @@ def kinematic_model(robot: Robot) -> mujoco.MjModel:
             if actuator.trntype == mujoco.mjtTrn.mjTRN_JOINT and actuator.target not in joints:
                 spec.delete(actuator)
         model = compile_spec(spec, f"{robot.scene} (the IK's kinematic copy)")
+        if robot.blinded:  # a controller that knows the obstacles from its camera alone
+            blind(model)
         if model.ngeom != robot.model.ngeom or model.nbody != robot.model.nbody:
             raise ConfigError(f"{robot.scene}: kinematic model does not match the robot's model")
     names = tuple(model.joint(i).name for i in range(model.njnt))

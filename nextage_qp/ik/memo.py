@@ -65,6 +65,10 @@ class SolveMemo(Generic[R]):
         self.hits += 1
         return found._replace(q=found.q.copy())
 
+    def clear(self) -> None:
+        """Forget every stored result (what they were solved against changed)."""
+        self._store.clear()
+
     def put(self, key: bytes, result: R) -> None:
         """Store a result (a copy of its joints)."""
         self._store[key] = result._replace(q=result.q.copy())

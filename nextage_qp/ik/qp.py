@@ -148,6 +148,15 @@ class QPIK:
         """The remembered descents without collision rows (None without a memo)."""
         return self.offline.relaxed_memo
 
+    def world_changed(self) -> None:
+        """The model's obstacle geometry changed in place (the camera's boxes): measure every collision pair anew and
+        forget the remembered solves (those without collision rows stand).
+        """  # noqa: D205
+        if self.collision is not None:
+            self.collision.forget()
+        if self.offline.memo is not None:
+            self.offline.memo.clear()
+
     def set_object_poses(self, poses: ObjectPoses) -> None:
         """Place objects (cube, dumbbell, ...) for collision avoidance: name -> (pos [m], quat wxyz)."""
         set_object_poses(self.model, self.configuration.data, poses, self.mocap)

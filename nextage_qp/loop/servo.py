@@ -124,11 +124,12 @@ class Servo:
         if command.joints is not None:
             idx = np.array([r.joint_index(j) for j in command.joints], dtype=int)
             goal = np.fromiter(command.joints.values(), dtype=float, count=len(idx))
-            head = self._q[look.dofs].copy() if look is not None else None
+            held = look.dofs - self.ik.nb if look is not None else None  # the head's joints in q (no base)
+            head = self._q[held].copy() if held is not None else None
             self._q[idx] = np.clip(goal, r.lower[idx], r.upper[idx])
             self._last = None
             if look is not None and head is not None:  # planned joints move the arms; the head keeps looking
-                self._q[look.dofs] = head
+                self._q[held] = head
                 self._look(look)
         elif not command.holds:
             dt = self.sim.ctrl_dt

@@ -171,6 +171,9 @@ class Reach(Protocol):
     def default_posture(self) -> np.ndarray:
         """The joints [rad] the IK's redundancy heads for when a command names no posture."""
 
+    def looking_joints(self) -> np.ndarray:
+        """Indices (into :meth:`joint_names`) of the joints a look-at task holds now: joint commands leave them."""
+
     def pad_frames(self) -> tuple[str, ...]:
         """The robot's clamping frames, one per arm, the first arm's (on the +y side) first."""
 

@@ -131,8 +131,9 @@ class PlannedRoute:
             via = vias[min(self.via, len(vias) - 1)]
             command = Command(joints=dict(zip(view.joint_names(), via, strict=True)))
             if self.via < len(vias) - 1:  # an intermediate waypoint of a planned path: on once reached and still
-                at = view.joint_positions(view.joint_names())
-                if float(np.max(np.abs(at - via))) < VIA_TOL and view.settled():
+                off = np.abs(view.joint_positions(view.joint_names()) - via)
+                off[view.looking_joints()] = 0.0  # a look-at task holds the head, whatever the path planned
+                if float(np.max(off)) < VIA_TOL and view.settled():
                     self.via += 1
                 return command
         if not self.done:

@@ -43,6 +43,7 @@ from nextage_qp.robots.model import Robot, robot_bodies, scene_bodies, tool_fram
 from nextage_qp.scene.checks import check_clear, check_robot_clear
 from nextage_qp.scene.clutter import ClutterDecl
 from nextage_qp.scene.files import BodyPose, SceneOverrides
+from nextage_qp.scene.seen_obstacles import SeenBoxes
 from nextage_qp.sensing.setup import attach_camera, log_estimates, perception_of, source_of
 
 TickCallback = Callable[["Runner", Phase | None], None]
@@ -186,7 +187,8 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
         clutter = clutter.model_copy(update={"seed": cfg.seed})
     later = tuple(name for name, p in scene.poses.items() if p.free_spot is not None)  # placed once compiled
     overrides = SceneOverrides(poses=poses, masses=dict(scene.masses), friction_scale=dict(scene.friction_scale),
-                               objects=dict(scene.objects), speckle=stereo, clutter=clutter, placed_later=later)
+                               objects=dict(scene.objects), speckle=stereo, clutter=clutter, placed_later=later,
+                               seen_pool=cfg.perception.obstacles == "camera")
     if cfg.mount is not None:
         description = dataclasses.replace(description, mount=cfg.mount)
     try:
@@ -240,12 +242,20 @@ class Runner:
         self.cfg, self.source = for_robot(cfg, self.robot), source
         cfg = self.cfg
         self.free_spots = place_free_spots(cfg, self.robot, source)
+        self.seen = SeenBoxes() if cfg.perception.obstacles == "camera" else None
+        if self.seen is not None and self.free_spots:
+            name = next(iter(self.free_spots))
+            raise ConfigError(f"{source}: scene.poses.{name}.free_spot is chosen before the run among the declared "
+                              "obstacles, but perception.obstacles: camera keeps them from the controller; give the "
+                              "target a pos, or set perception.obstacles: declared")
+        self.controlled = self.robot.blinded_copy() if self.seen is not None else self.robot
+        """The robot as the controller knows it: with camera obstacles, blind to the clutter (the physics is not)."""
         try:
             gains = robot_gains(self.robot) if cfg.gains is None else config_gains(cfg.gains, self.robot)
         except ConfigError as exc:
             raise ConfigError(f"{source}: gains: {exc}") from None
         try:
-            self.ik = QPIK(self.robot, cfg.ik)
+            self.ik = QPIK(self.controlled, cfg.ik)
         except UnknownNameError as exc:
             raise ConfigError(f"{source}: ik: {exc}") from None
         frames = tool_frames(self.robot)
@@ -257,7 +267,7 @@ class Runner:
         if self.robot.base is not None and cfg.object == BASE_BODY:  # a base that parks: nothing to place
             self.placement = Placement(np.zeros(3), None)
         else:
-            self.placement = check_placement(self.robot, cfg.object, cfg.target, q0, source)
+            self.placement = check_placement(self.controlled, cfg.object, cfg.target, q0, source)
         self.q0 = q0
         self.sim.reset(q0)
         mask = np.zeros(self.robot.model.nbody, dtype=bool)
@@ -267,7 +277,8 @@ class Runner:
         self.camera = None if self.sensors is None else self.sensors.measurer
         if self.camera is not None and cfg.perception.look_at:
             self.servo.look = watch(self.ik, cfg.perception.camera, cfg.perception.look_cost)
-        self.view = SimView(self.robot, self.sim, self.servo, planning=self.cfg.planning)
+        self.view = SimView(self.controlled, self.sim, self.servo, planning=self.cfg.planning, seen=self.seen)
+        self._map_frames = 0  # the camera map's frames the controller's obstacles were last taken from
         self.records = [PhaseRecord(cfg.phase_name(i), p.kind) for i, p in enumerate(cfg.phases)]
         self.monitor = OutcomeMonitor(self.robot, cfg.object)
         self.monitor.attach(self.sim)
@@ -298,8 +309,22 @@ class Runner:
         self.servo.step(command, objects)
         self.monitor.grip = self.view.grip
         self.sim.tick()
+        if self.seen is not None:
+            self._take_seen()
         if self.view.grip is not None:
             self.monitor.check_hold(self.sim, self.view.grip)
+
+    def _take_seen(self) -> None:
+        """Give the controller the camera map's obstacle boxes once a new whole frame is in it (when they changed)."""
+        mapper = getattr(self.camera, "mapper", None)
+        if mapper is None or mapper.map.frames == self._map_frames:
+            return
+        self._map_frames = mapper.map.frames
+        assert self.seen is not None
+        if self.seen.set(mapper.boxes()):
+            self.seen.sync(self.ik.model)
+            self.ik.world_changed()
+            self.view.world_changed()
 
     def _start(self, phase: Phase) -> None:
         """Start a phase; one that names a target placed by ``free_spot`` and fails at its start (the clamp cannot

@@ -22,7 +22,10 @@ from nextage_qp.mobile.odometry import to_odometry
 from nextage_qp.planning.rrt import PathPlan, PlanningConfig, plan_path
 from nextage_qp.planning.world import CHAIN_SLOP, SELF_SLOP, CollisionWorld, Held
 from nextage_qp.robots.model import Robot
+from nextage_qp.scene.seen_obstacles import SeenBoxes
 from nextage_qp.sensing.sensors import Wrench
+
+_NONE = np.zeros(0, dtype=int)
 
 REACH_POS_TOL = 0.003
 """Position error [m] within which :meth:`SimView.plan` counts a target as reached."""
@@ -39,8 +42,10 @@ class SimView:
     """
 
     def __init__(self, robot: Robot, sim: Simulation, servo: Servo, *, qd_tol: float = 0.05,
-                 planning: PlanningConfig | None = None) -> None:
+                 planning: PlanningConfig | None = None, seen: SeenBoxes | None = None) -> None:
         self.robot, self._sim, self._servo, self.qd_tol = robot, sim, servo, qd_tol
+        self.seen = seen
+        """The camera's obstacle boxes, for a ``robot`` blind to the clutter (:meth:`Robot.blinded_copy`), or None."""
         self.planning = planning or PlanningConfig()
         self._worlds: dict[float, CollisionWorld] = {}  # by clearance: 0 tells a touch
         self.plans: list[PathPlan] = []
@@ -50,6 +55,15 @@ class SimView:
         self._parts: dict[str, list[GeomPart]] = {}
         self._planner: QPIK | None = None
         self._kinematics: Kinematics | None = None
+
+    def world_changed(self) -> None:
+        """The camera's obstacle boxes changed: the view's model and planner take them (the worlds as they are used)."""
+        if self.seen is None:
+            return
+        self.seen.sync(self.robot.model)
+        if self._planner is not None:
+            self.seen.sync(self._planner.model)
+            self._planner.world_changed()
 
     @property
     def t(self) -> float:
@@ -127,6 +141,9 @@ class SimView:
             if c not in self._worlds:
                 self._worlds[c] = CollisionWorld(self.robot, c, cfg.table_clearance if c > 0 else 0.0)
         worlds = (self._worlds[0.0], self._worlds[keep])
+        if self.seen is not None:  # the camera's latest boxes in each world's copy of the model
+            for world in worlds:
+                self.seen.sync(world.model)
         poses = {name: Pose(p.pos, p.rot) for name, p in self._sim.measured.objects.items()}
         held = None
         if self.grip is not None:  # the held object moves with the first pad, as it sits in it now
@@ -215,6 +232,10 @@ class SimView:
         if self._kinematics is None:
             self._kinematics = Kinematics(self.robot)
         self._kinematics.check_reach(frame, pos, self._servo.q_cmd, where)
+
+    def looking_joints(self) -> np.ndarray:  # noqa: D102
+        look = self._servo.look
+        return look.dofs - self._servo.ik.nb if look is not None and look.point is not None else _NONE
 
     def default_posture(self) -> np.ndarray:  # noqa: D102
         return self._servo.ik.default_posture.copy()

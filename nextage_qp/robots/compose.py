@@ -22,6 +22,7 @@ from nextage_qp.scene.build import declare_objects, rest_on_table, table_top
 from nextage_qp.scene.clutter import add_clutter
 from nextage_qp.scene.compile import quiet_prefix_warning
 from nextage_qp.scene.files import SceneOverrides, apply_overrides, load_scene
+from nextage_qp.scene.seen_obstacles import add_pool
 
 _ASSETS = ("meshes", "textures", "materials", "hfields", "skins")
 
@@ -146,6 +147,8 @@ def compose(desc: RobotDescription, scene: str | Path, overrides: SceneOverrides
         fixed = [n for n, decl in overrides.objects.items() if decl.fixed]  # kept clear of, like the objects
         add_clutter(parent, overrides.clutter, top, str(scene), avoid=overrides.clutter_avoid, keep_clear=fixed,
                     placed_later=overrides.placed_later)
+    if overrides.seen_pool:
+        add_pool(parent)
     if overrides.speckle:
         from nextage_qp.scene.texture import speckle
 

@@ -8,6 +8,7 @@ independent of any free joints the scene adds for objects.
 
 from __future__ import annotations
 
+import copy
 import functools
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
@@ -25,6 +26,8 @@ from nextage_qp.robots.modelfile import moved_by
 from nextage_qp.scene.clutter import PREFIX as CLUTTER_PREFIX
 from nextage_qp.scene.compile import compile_spec
 from nextage_qp.scene.files import SceneOverrides, add_touch_sensors
+from nextage_qp.scene.seen_obstacles import PREFIX as SEEN_PREFIX
+from nextage_qp.scene.seen_obstacles import blind
 
 SCENE_GROUP_BODIES = ("table", "obstacle")
 """Static scene bodies that become collision groups of their own when a scene has them (and every declared fixed
@@ -73,6 +76,8 @@ class Robot:
         self.scene = scene
         self.overrides = overrides or SceneOverrides()
         self.spec = spec
+        self.blinded = False
+        """A controller's copy that knows no clutter, only the camera's boxes (:meth:`blinded_copy`)."""
         model_joints = {model.joint(i).name: i for i in range(model.njnt)}
         if missing := [j for j in desc.joints if j not in model_joints]:
             raise ConfigError(f"{scene}: model lacks the joints {missing} of robot {desc.name!r} ({desc.source})")
@@ -222,6 +227,18 @@ class Robot:
         return tuple(n for n, decl in self.overrides.objects.items()
                      if decl.fixed and mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, n) >= 0)
 
+    def blinded_copy(self) -> Robot:
+        """This robot on a copy of its model blind to the clutter, with the seen-obstacle pool in its place.
+
+        For the controller of a run whose obstacles come from its camera (:mod:`nextage_qp.scene.seen_obstacles`):
+        the same names and indices, the physics' model untouched.
+        """
+        twin = copy.copy(self)
+        twin.model = copy.copy(self.model)
+        blind(twin.model)
+        twin.blinded = True
+        return twin
+
     def obstacle_groups(self) -> tuple[str, ...]:
         """The collision groups of the scene's obstacles it has: the obstacle, the clutter, the fixed objects."""
         groups = self.collision_geoms()
@@ -354,8 +371,9 @@ def collision_geoms(robot: Robot, extra: Mapping[str, Any] | None = None) -> dic
     for name in (*SCENE_GROUP_BODIES, *robot.object_names, *robot.fixed_objects):
         if found := of_bodies(ids([name], False, "body")):
             groups[name] = found
-    clutter = {b for b in range(m.nbody) if m.body(b).name.startswith(CLUTTER_PREFIX)}
-    groups[CLUTTER_GROUP] = of_bodies(clutter)  # the generated clutter (scene.clutter), one group: empty for none
+    clutter = {b for b in range(m.nbody) if m.body(b).name.startswith((CLUTTER_PREFIX, SEEN_PREFIX))}
+    groups[CLUTTER_GROUP] = of_bodies(clutter)  # the generated clutter (scene.clutter), one group: empty for none;
+    # a blinded copy's clutter collides with nothing, its seen-obstacle pool takes the group's place
     for name, spec in (extra or {}).items():
         groups[name] = group(name, spec)
     return groups

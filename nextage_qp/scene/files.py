@@ -77,6 +77,8 @@ class SceneOverrides:
             spot): the clutter does not keep clear of them.
         speckle: Every surface that is not the robot's gets a random-dot texture (what stereo block matching needs:
             :func:`nextage_qp.scene.texture.speckle`); the physics is unchanged.
+        seen_pool: Add the pool of box geoms that hold the obstacles a camera sees
+            (:func:`nextage_qp.scene.seen_obstacles.add_pool`); the physics never meets them.
     """
 
     poses: Mapping[str, BodyPose] = field(default_factory=dict)
@@ -87,6 +89,7 @@ class SceneOverrides:
     clutter: Any = None
     clutter_avoid: tuple[tuple[float, float, float], ...] = ()
     placed_later: tuple[str, ...] = ()
+    seen_pool: bool = False
 
 
 def _yaw_quat(yaw: float) -> np.ndarray:

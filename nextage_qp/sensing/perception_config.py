@@ -8,6 +8,7 @@
       depth: rendered        # rendered (an RGB-D sensor) | stereo (block matching on the two RGB cameras below)
       stereo: [head_left, head_right]
       look_at: true          # the head keeps the task's object and target in view (a low-weight IK task)
+      obstacles: camera      # declared (the scene's) | camera (the clutter as the camera's occupancy map shows it)
       dump: runs/frame       # write one frame's RGB, depth, clusters and fitted pose as PNGs
 """
 
@@ -50,5 +51,11 @@ class PerceptionConfig(YamlModel):
     map: bool = Field(default=False, description="Build an occupancy map of the obstacles from the camera's whole "
                       "frames (source: camera) and report it, scored against the scene "
                       "(nextage_qp.sensing.camera.seen); the phases plan with the declared obstacles.")
+    obstacles: Literal["declared", "camera"] = Field(
+        default="declared", description="Where the controller's obstacles come from. declared: the scene's (every "
+        "clutter piece known exactly); camera: the generated clutter only as the camera's occupancy map shows it "
+        "(source: camera, rendered depth; implies map): its clusters become boxes that the planner's validity check "
+        "and the IK's collision rows of the clutter group use in place of the clutter (nextage_qp.scene."
+        "seen_obstacles).")
     dump: str | None = Field(default=None, description="Folder for one frame's RGB, depth, clusters and fit (PNGs).")
     dump_at_s: float = Field(default=1.0, ge=0, description="Time of the dumped frame [s].")

@@ -40,6 +40,11 @@ def perception_of(cfg: Any, robot: Any, source: str) -> tuple[FaultySensors | No
     """
     where, faults = source_of(cfg), cfg.faults
     check_dump(cfg.perception.dump, where, source)
+    if cfg.perception.obstacles == "camera" and (where != "camera" or cfg.perception.depth != "rendered"):
+        raise ConfigError(f"{source}: perception.obstacles: camera maps the obstacles from rendered depth frames, "
+                          f"but the poses come from {where}" + (" with stereo depth" if where == "camera" else "")
+                          + "; set perception.source: camera and perception.depth: rendered, or perception.obstacles: "
+                          "declared")
     if where == "simulated" and (faults is None or faults.object_pose is None):
         raise ConfigError(f"{source}: perception.source: simulated needs faults.object_pose (the simulated camera's "
                           f"rate, latency, noise, dropout); valid sources without it: truth, camera")

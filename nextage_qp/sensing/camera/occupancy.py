@@ -87,6 +87,24 @@ class VoxelMap:
         seen[occupied] = True
         self.frames += 1
 
+    def explain(self, centre: np.ndarray, radius: float) -> None:
+        """The voxels whose centres lie within ``radius`` [m] of ``centre`` hold a known object, not an obstacle:
+        their evidence of being occupied goes (they count as seen). A voxel mapped before the object was tracked, or
+        the object's faces no pixel shows free again, would otherwise stay an obstacle where the object stood.
+        """  # noqa: D205
+        ijk, _ = self.index(np.asarray(centre, dtype=float)[None, :])
+        reach = int(np.ceil(radius / self.cell)) + 1
+        lo = np.maximum(ijk[0] - reach, 0)
+        hi = np.minimum(ijk[0] + reach + 1, np.array(self.shape))
+        if np.any(hi <= lo):
+            return
+        block = tuple(slice(int(a), int(b)) for a, b in zip(lo, hi, strict=True))
+        grid = np.stack(np.meshgrid(*(np.arange(s.start, s.stop) for s in block), indexing="ij"), axis=-1)
+        near = np.linalg.norm(self.lo + (grid + 0.5) * self.cell - centre, axis=-1) <= radius
+        odds = self.logodds[block]
+        odds[near] = np.minimum(odds[near], 0.0)
+        self.seen[block][near] = True
+
     def state(self) -> np.ndarray:
         """Per voxel: :data:`UNKNOWN` (never observed), :data:`FREE` or :data:`OCCUPIED_STATE`."""
         out = np.where(self.logodds > OCCUPIED, OCCUPIED_STATE, FREE).astype(np.int8)

@@ -36,6 +36,11 @@ TALL = 0.03
 REACH = 0.15
 """The map reaches this far [m] beyond the work region on each side, and ``HEIGHT`` above the table."""
 HEIGHT = 0.35
+BOX_PAD = 0.005
+"""The controller's obstacle boxes are each cluster's voxels grown by this [m] (a voxel's edge already bounds the
+surface it holds)."""
+MIN_VOXELS = 2
+"""Clusters of fewer voxels are depth noise, not obstacles."""
 
 
 class ObstacleMapper:
@@ -60,15 +65,24 @@ class ObstacleMapper:
         self.robot = robot
         self.visible: set[int] = set()  # obstacle bodies a whole frame showed (scored with the truth, see update)
 
+    def boxes(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The map's obstacles as padded axis-aligned boxes (centre [m], half-sizes [m]) for the controller."""
+        return self.map.boxes(pad=BOX_PAD, min_voxels=MIN_VOXELS)
+
     def update(self, frame: Frame, own: np.ndarray, plane: tuple[np.ndarray, float] | None,
                poses: Mapping[str, np.ndarray | None],
-               truth: tuple[mujoco.MjModel, mujoco.MjData] | None = None) -> None:
+               truth: tuple[mujoco.MjModel, mujoco.MjData] | None = None,
+               priors: Mapping[str, np.ndarray | None] | None = None) -> None:
         """Add a whole frame: ``own`` is the robot's model alone at the measured joints (depth [m], NaN: none),
-        ``plane`` the table plane the estimator found, ``poses`` the tracked objects' pose vectors in that frame.
+        ``plane`` the table plane the estimator found, ``poses`` the tracked objects' pose vectors in that frame and
+        ``priors`` where the filter expected them (an object hidden in this frame is still where it was believed).
+        The space of each tracked object is cleared of obstacle evidence (:meth:`VoxelMap.explain`).
 
         ``truth`` (the scene, for the report's score alone, after the map took the frame): which obstacles the frame
         shows, a point of their faces where the depth is.
         """  # noqa: D205
+        known = [(name, np.asarray(p, dtype=float)) for source in (poses, priors or {}) for name, p in source.items()
+                 if p is not None]
         keep = self_filter(frame.depth, own)
         if plane is not None:
             with np.errstate(invalid="ignore"):
@@ -77,11 +91,12 @@ class ObstacleMapper:
         if len(r):
             points = backproject(frame.depth, frame.K, frame.cam_pos, frame.cam_rot, r, c)
             gone = np.zeros(len(points), dtype=bool)
-            for name, pose in poses.items():
-                if pose is not None:
-                    gone |= np.linalg.norm(points - pose[:3], axis=1) < self.radii.get(name, 0.05) + OBJECT_PAD
+            for name, pose in known:
+                gone |= np.linalg.norm(points - pose[:3], axis=1) < self.radii.get(name, 0.05) + OBJECT_PAD
             keep[r[gone], c[gone]] = False
         self.map.integrate(frame.depth, frame.K, frame.cam_pos, frame.cam_rot, keep)
+        for name, pose in known:
+            self.map.explain(pose[:3], self.radii.get(name, 0.05) + OBJECT_PAD)
         if truth is not None:
             self._shown(frame, *truth)
 

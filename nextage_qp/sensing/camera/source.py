@@ -102,7 +102,7 @@ class CameraMeasurer:
         self.spread: dict[str, float] = {}
         """The latest frame's fits' noise relative to a clear view's (``perception.cover_spread``)."""
         self.cover_spread = COVER_SPREAD[cfg.depth] if cfg.cover_spread is None else cfg.cover_spread
-        self.mapper = ObstacleMapper(robot, radii) if cfg.map else None
+        self.mapper = ObstacleMapper(robot, radii) if cfg.map or cfg.obstacles == "camera" else None
         self.world = (model, data)  # for the map's score alone
 
     @property
@@ -170,7 +170,8 @@ class CameraMeasurer:
                 self.dump_error = f"perception.dump {self.cfg.dump}: cannot write: {exc.strerror or exc}"
         self.poses = {name: det.pose for name, det in detections.items()}
         if self.mapper is not None and win is None and self.matcher is None:  # a whole frame: the map takes it
-            self.mapper.update(frame, self.camera.own(), self.estimator.plane, self.poses, truth=self.world)
+            self.mapper.update(frame, self.camera.own(), self.estimator.plane, self.poses, truth=self.world,
+                               priors=priors)
         self.lost = any(det.status in ("out_of_view", "missing") for det in detections.values())
         return dict(self.poses)
 

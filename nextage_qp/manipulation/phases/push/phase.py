@@ -37,7 +37,7 @@ from enum import Enum
 
 import numpy as np
 
-from nextage_qp.errors import NextageQPError
+from nextage_qp.errors import NextageQPError, PhaseError
 from nextage_qp.geometry import Pose, angle2, clamp, rot_of, rot_z, rotate2, turn2, unit2, yaw_of
 from nextage_qp.ik import FrameTarget
 from nextage_qp.loop.servo import Command
@@ -170,7 +170,8 @@ class Push(Phase):
     nearest: float  # the object's least distance to the target in this push [m]
     nearest_at: float | None  # when it last came STUCK_M nearer [s]
     # retreat
-    route: list[np.ndarray]  # the retreat's waypoints [m]
+    route: list[np.ndarray | PlannedRoute]  # the retreat's legs: the tool's waypoints [m] and planned joint legs
+    aside_from: np.ndarray  # where the next move aside starts [m]
     leg: int  # the next waypoint's index
     final: bool  # the retreat ends the phase
     back_at: float  # when the retreat reached its last waypoint [s]
@@ -463,17 +464,45 @@ class Push(Phase):
         """
         c = self.spec
         back = self.sp.pos - np.array([*self.d, 0.0]) * c.approach
-        self.route = [back, back + np.array([0.0, 0.0, c.clearance])]
-        if view is not None:
-            self.route.append(_aside(self.route[-1], self.frame, view))
+        up = back + np.array([0.0, 0.0, c.clearance])
+        self.route = [back, up]
         self.stage, self.leg, self.final, self.seen_from, self.asides = Stage.RETREAT, 0, final, None, 0
+        self.aside_from = up
+        if view is not None:
+            self._move_aside(view)
         return self._command(allow=True)
+
+    def _move_aside(self, view: View) -> None:
+        """Add a leg to the retreat: the tool level by ``ASIDE`` towards the robot's side (:func:`_aside`).
+
+        A joint-space leg, checked and planned around the obstacles like every transit (a straight line of the tool
+        may sweep the arm through clutter). Out of reach or with no path, no leg: the push is judged on what is seen.
+        """
+        point = _aside(self.aside_from, self.frame, view)
+        route = PlannedRoute([(self._target(point, self.tool_yaw),)], plan=self.spec.plan)
+        if route.plan(view, restarts=False):
+            self.route.append(route)
+            self.aside_from = point
+        else:
+            self.asides = LOOK_AGAIN
 
     def _retreat(self, view: View) -> Command:
         """Follow the retreat; then judge a push the camera could not see, end the phase, or approach again."""
         c = self.spec
-        if self.leg < len(self.route) and self.sp.advance(self.route[self.leg], c.speed, view.dt):
-            self.leg, self.back_at = self.leg + 1, view.t
+        if self.leg < len(self.route):
+            leg = self.route[self.leg]
+            if isinstance(leg, PlannedRoute):
+                try:
+                    command = leg.step(view)
+                except PhaseError:  # no path from where the arm is: look from here
+                    self.route, self.asides = self.route[: self.leg], LOOK_AGAIN
+                    return self._command(allow=False)
+                if not leg.done:
+                    return command
+                self._on_tool(view)
+                self.leg, self.back_at = self.leg + 1, view.t
+            elif self.sp.advance(leg, c.speed, view.dt):
+                self.leg, self.back_at = self.leg + 1, view.t
         if self.leg < len(self.route):
             return self._command(allow=self.leg == 0)
         if self.looking:  # backed off from a push the camera could not see: judge it once the object is in sight
@@ -484,7 +513,7 @@ class Push(Phase):
                     return self._command(allow=False)
                 if self.asides < LOOK_AGAIN:  # the arm still hides it: fold further to the robot's side, look again
                     self.asides += 1
-                    self.route.append(_aside(self.route[-1], self.frame, view))
+                    self._move_aside(view)
                     return self._command(allow=False)
             else:
                 self.seen_from = view.t if self.seen_from is None else self.seen_from
