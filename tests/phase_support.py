@@ -218,7 +218,10 @@ class HiddenCubeView(ScriptedView):
         return self.seen
 
     def unseen_s(self, obj):
-        return self.t - self.seen_t if obj == "cube" else 0.0
+        if obj != "cube":
+            return 0.0
+        HiddenCubeView.body_pose(self, "cube")  # the camera looks whether or not the phase asks for the pose
+        return self.t - self.seen_t
 
 
 def grasp_view():

@@ -275,9 +275,10 @@ def test_a_push_the_hand_hides_stops_to_look_from_the_robot_s_side_without_using
         view.forces["left_tool"] = -2.0 * view.frames["left_tool"].rot[:, 0] if step > 0 else np.zeros(3)
         unseen_pushed[0] = unseen_pushed[0] + step if view.unseen_s("cube") > 0.2 else 0.0
         assert unseen_pushed[0] < 0.1 + 0.01  # never pushed much farther unseen than `blind`
-        if phase.stage == "retreat" and len(phase.route) == 3:  # a retreat to look: its last leg goes aside
-            aside.append(float(np.linalg.norm((phase.route[2] - phase.route[1])[:2])))
-            assert np.linalg.norm((home - phase.route[2])[:2]) < np.linalg.norm((home - phase.route[1])[:2])
+        if phase.stage == "retreat" and len(phase.route) == 3:  # a retreat to look: its last leg goes aside (planned)
+            point = phase.route[2].waypoints[0][0].pos
+            aside.append(float(np.linalg.norm((point - phase.route[1])[:2])))
+            assert np.linalg.norm((home - point)[:2]) < np.linalg.norm((home - phase.route[1])[:2])
 
     cmd = run_until_done(phase, view, each=each)
     assert cmd.done and phase.info["looks"] >= 2 and phase.info["attempts"] <= 2  # 37 cm in 10 cm looks: 2 attempts

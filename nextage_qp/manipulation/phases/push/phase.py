@@ -67,7 +67,7 @@ from nextage_qp.manipulation.phases.push.spec import (
     VELOCITY_WINDOW,
     PushSpec,
 )
-from nextage_qp.manipulation.route import PlannedRoute
+from nextage_qp.manipulation.route import PlanMode, PlannedRoute
 
 _X = np.array([1.0, 0.0, 0.0])
 
@@ -475,16 +475,20 @@ class Push(Phase):
     def _move_aside(self, view: View) -> None:
         """Add a leg to the retreat: the tool level by ``ASIDE`` towards the robot's side (:func:`_aside`).
 
-        A joint-space leg, checked and planned around the obstacles like every transit (a straight line of the tool
-        may sweep the arm through clutter). Out of reach or with no path, no leg: the push is judged on what is seen.
+        A joint-space leg, planned around the obstacles with the planner's clearance (a straight line of the tool may
+        sweep the arm through clutter; a straight joint move that only misses it grazes it once the arm lags its
+        reference). Where the point is out of reach (clutter stands there), the tool goes to where the robot's default
+        posture holds it; with no path there either, no leg: the push is judged on what is seen.
         """
-        point = _aside(self.aside_from, self.frame, view)
-        route = PlannedRoute([(self._target(point, self.tool_yaw),)], plan=self.spec.plan)
-        if route.plan(view, restarts=False):
-            self.route.append(route)
-            self.aside_from = point
-        else:
-            self.asides = LOOK_AGAIN
+        home = view.pose_at(self.frame, view.default_posture()).pos
+        aside_plan: PlanMode = "never" if self.spec.plan == "never" else "always"  # kept clear, not only out of contact
+        for point in (_aside(self.aside_from, self.frame, view), home):  # the tool's home: clear of the clutter
+            route = PlannedRoute([(self._target(point, self.tool_yaw),)], plan=aside_plan)
+            if route.plan(view, restarts=False) or route.plan(view):
+                self.route.append(route)
+                self.aside_from = point
+                return
+        self.asides = LOOK_AGAIN
 
     def _retreat(self, view: View) -> Command:
         """Follow the retreat; then judge a push the camera could not see, end the phase, or approach again."""
@@ -520,15 +524,17 @@ class Push(Phase):
                 if view.t - self.seen_from < SEEN_S and waited < LOOK_S + SEEN_S:
                     return self._command(allow=False)
             self.looking = False
+            seen = self.seen_from is not None  # a look that never saw the object: the next approach is a new one
             obj, tgt, err = self._planar(view)
             self.info["object_error_xy_m"] = err
             if err <= c.tolerance:
                 self.final = True
-            elif self.approaches >= c.attempts and not self.blind_stop:
-                return self._finish(err)
+            elif self.approaches >= c.attempts and not (self.blind_stop and seen):
+                return self._finish(err, "" if seen else f": the camera has not seen {c.object} for "
+                                    f"{view.unseen_s(c.object):.0f} s, looking from aside")
             else:
                 self.next_d = unit2((tgt - obj)[:2])
-                if self.blind_stop:  # it stopped to look, not to be judged: the next approach is no new attempt
+                if self.blind_stop and seen:  # it stopped to look, not to be judged: the next approach is no new one
                     self.approaches -= 1
                     self.info["looks"] = self.info.get("looks", 0) + 1
             self.blind_stop = False

@@ -1,0 +1,128 @@
+"""``perception.obstacles: camera``: the controller knows the clutter only as the camera's map shows it."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from nextage_qp.manipulation.config import load_config
+from nextage_qp.manipulation.runner import Runner
+from nextage_qp.planning.world import CollisionWorld
+from nextage_qp.scene.seen_obstacles import PARK, SeenBoxes, clutter_geoms, pool_geoms
+from nextage_qp.sensing.camera.occupancy import OCCUPIED_STATE, VoxelMap
+
+CAMERA = ["perception.source=camera", "perception.obstacles=camera"]
+
+
+@pytest.fixture(scope="module")
+def runner() -> Runner:
+    pytest.importorskip("mujoco")
+    try:
+        return Runner(load_config("configs/push_clutter.yaml", CAMERA), "push_clutter")
+    except Exception as exc:  # no offscreen rendering on this machine
+        if "offscreen rendering unavailable" in str(exc):
+            pytest.skip(str(exc))
+        raise
+
+
+def _wrist(robot, qpos: np.ndarray) -> np.ndarray:
+    """The left wrist's position [m] in a state of the scene."""
+    m = robot.model
+    d = mujoco.MjData(m)
+    d.qpos[:] = qpos
+    mujoco.mj_kinematics(m, d)
+    return d.xpos[m.body("LARM_JOINT5_Link").id].copy()
+
+
+def test_the_controllers_models_hold_no_clutter_the_physics_all_of_it(runner):
+    physics, controlled = runner.robot.model, runner.controlled.model
+    clutter = clutter_geoms(physics)
+    assert len(clutter) == 6
+    assert all(physics.geom_contype[g] for g in clutter)  # the physics meets every piece
+    for model in (controlled, runner.ik.model):  # the IK's kinematic copy is compiled anew: blinded too
+        assert not model.geom_contype[clutter].any() and not model.geom_conaffinity[clutter].any()
+        assert np.allclose(model.geom_pos[clutter], PARK)
+    # The controller's clutter group is the pool; the physics' is the clutter (the pool collides with nothing there).
+    assert set(runner.ik.groups["clutter"]) == set(pool_geoms(controlled).tolist())
+    assert set(runner.robot.collision_geoms()["clutter"]) == set(clutter.tolist())
+
+
+def test_a_state_inside_a_clutter_piece_is_valid_for_the_controller_until_the_map_shows_it(runner):
+    """The planner's validity check never reads a clutter body: only the boxes the camera gives block a state."""
+    physics = runner.robot.model
+    q = runner.q0.copy()
+    qpos = runner.sim.data.qpos.copy()
+    wrist = _wrist(runner.robot, qpos)
+    # Move a clutter piece onto the wrist in a copy of the physics: the physics' own world sees it, the controller's
+    # world (made from the controller's model, as the run's planner is) does not.
+    body = physics.body("clutter_0").id
+    truth_world = CollisionWorld(runner.robot, 0.01)
+    truth_world.model.body_pos[body] = wrist
+    truth_world.set_world({}, q, qpos=qpos)
+    assert truth_world.first_collision(q) is not None
+    blind_world = CollisionWorld(runner.controlled, 0.01)
+    blind_world.model.body_pos[body] = wrist  # the piece's pose read from anywhere would not matter: it is parked
+    blind_world.set_world({}, q, qpos=qpos)
+    assert blind_world.first_collision(q) is None
+    seen = SeenBoxes()
+    assert seen.set([(wrist, np.full(3, 0.03))])
+    seen.sync(blind_world.model)
+    hit = blind_world.first_collision(q)
+    assert hit is not None and "seen_" in hit.body1 + hit.body2
+    assert seen.set([(wrist + np.array([0.0, 0.0, 0.4]), np.full(3, 0.03))])  # the box moves away: free again
+    seen.sync(blind_world.model)
+    assert blind_world.first_collision(q) is None
+    assert not seen.set([(wrist + np.array([0.0, 0.0, 0.4]), np.full(3, 0.03))])  # the same boxes: no new generation
+    assert not seen.sync(blind_world.model)
+
+
+def test_the_iks_collision_rows_take_a_box_written_in_place_and_forget_its_old_distance(runner):
+    """A pool geom resized where it stands: the IK measures its pairs anew (no stale distance bound)."""
+    ik = runner.ik
+    q = runner.q0.copy()
+    wrist = _wrist(runner.robot, runner.sim.data.qpos.copy())
+    seen = SeenBoxes()
+    centre = wrist + np.array([0.0, 0.0, 0.2])
+    clear = []
+    for half in (0.01, 0.17):  # first 19 cm clear of the wrist's centre, then grown round it where it stands
+        seen.set([(centre, np.full(3, half))])
+        seen.sync(ik.model)
+        ik.world_changed()
+        ik.load(q)
+        data = ik.configuration.data
+        mujoco.mj_kinematics(ik.model, data)
+        clear.append(ik.collision.clear(data))
+    assert clear == [True, False]
+
+
+def test_the_map_forgets_obstacle_evidence_where_a_tracked_object_stands():
+    vmap = VoxelMap(np.zeros(3), np.full(3, 0.3), 0.015)
+    vmap.logodds[:], vmap.seen[:] = 3.0, True  # everything occupied
+    vmap.explain(np.full(3, 0.15), 0.05)
+    state = vmap.state()
+    ijk, _ = vmap.index(np.array([[0.15, 0.15, 0.15], [0.15, 0.15, 0.19], [0.05, 0.05, 0.05]]))
+    assert state[tuple(ijk[0])] != OCCUPIED_STATE and state[tuple(ijk[1])] != OCCUPIED_STATE
+    assert state[tuple(ijk[2])] == OCCUPIED_STATE
+
+
+@pytest.mark.parametrize(("extra", "words"), [
+    (["perception.source=truth"], "poses come from truth"),
+    (["perception.depth=stereo"], "with stereo depth"),
+])
+def test_camera_obstacles_without_rendered_camera_depth_are_refused_in_one_line(extra, words):
+    from nextage_qp.errors import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        Runner(load_config("configs/push_clutter.yaml", [*CAMERA, *extra]), "push_clutter")
+    message = str(err.value)
+    assert "perception.obstacles: camera" in message and words in message and "\n" not in message
+
+
+def test_a_free_spot_with_camera_obstacles_is_refused_in_one_line():
+    from nextage_qp.errors import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        Runner(load_config("configs/place_free_spot.yaml", CAMERA), "place_free_spot")
+    message = str(err.value)
+    assert "free_spot" in message and "perception.obstacles: declared" in message and "\n" not in message
