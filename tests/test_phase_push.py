@@ -482,3 +482,43 @@ def test_in_clutter_an_approach_counts_only_where_the_arm_reaches_along_its_push
     start = next(r[-1] for r in routes(view, spec, tool, checked.direction, checked.raised)
                  if np.allclose(r[-1], checked.route.planned[-1][0], atol=0.01))
     assert line_clear(view, spec, checked, start, push._target)
+
+
+def test_a_look_whose_aside_point_is_out_of_reach_moves_the_tool_home(monkeypatch):
+    """Clutter where the move aside would put the tool (its IK finds no pose there): the tool goes to where the
+    default posture holds it instead, through a planned joint leg, and looks from there."""
+    from nextage_qp.manipulation.phases.push import phase as push_phase
+
+    blocked = np.array([0.45, 0.12, 0.95])
+    monkeypatch.setattr(push_phase, "_aside", lambda point, frame, view: blocked.copy())
+    view = HiddenCubeView(bodies={"cube": pose(0.33, 0.0, 0.91), "cube_target": pose(0.70, 0.0, 0.91)},
+                          commanded={"left_tool": pose(0.5, 0.23, 1.03)}, frames={"left_tool": pose(0.5, 0.23, 1.03)},
+                          reach=lambda targets: not any(np.allclose(t.pos, blocked) for t in targets))
+    home = view.pose_at("left_tool", view.default_posture()).pos
+    phase = make("push", frame="left_tool", object="cube", target="cube_target", blind=0.1)
+    phase.start(view)
+    push, asides = pushed_along_the_tool_face(view), []
+
+    def each(cmd):
+        push(cmd)
+        if phase.stage == "retreat" and len(phase.route) == 3:
+            asides.append(phase.route[2])
+
+    cmd = run_until_done(phase, view, each=each)
+    assert cmd.done and asides
+    assert all(np.allclose(leg.waypoints[0][0].pos, home) and leg.mode == "always" for leg in asides)
+    assert np.linalg.norm(view.bodies["cube"].pos[:2] - [0.70, 0.0]) <= 0.002
+
+
+def test_a_push_the_camera_never_sees_again_ends_with_its_attempts_naming_why():
+    """Once the hand has hidden the cube, the camera never sees it again (another obstacle in the way): each look
+    that sees nothing uses up an attempt, and the push fails saying so, instead of looking until its timeout."""
+    view = HiddenCubeView(bodies={"cube": pose(0.33, 0.0, 0.91), "cube_target": pose(0.70, 0.0, 0.91)},
+                          commanded={"left_tool": pose(0.5, 0.23, 1.03)}, frames={"left_tool": pose(0.5, 0.23, 1.03)})
+    view.blind = 10.0  # seen at the start only
+    phase = make("push", frame="left_tool", object="cube", target="cube_target", blind=0.1, attempts=3, timeout=600)
+    phase.start(view)
+    push = pushed_along_the_tool_face(view)
+    with pytest.raises(PhaseError, match=r"after 3 approaches .*the camera has not seen cube for \d+ s"):
+        run_until_done(phase, view, each=push)
+    assert view.t < 300.0

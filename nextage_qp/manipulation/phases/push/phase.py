@@ -24,8 +24,10 @@ tool retreats and the phase is done; short on the same line it pushes again (``n
 approaches again along the error, up to ``attempts`` approaches, and with nothing left to try an error within
 ``accept`` ends the phase, a larger one fails it. A push the camera could not see (the hand hid the object) is judged
 after backing off, once the object is in sight again (the tool first moves towards the robot's side, ``ASIDE``, which
-folds the arm out of the camera's line of sight; still hidden after ``LOOK_S``, it moves on as far again, up to
-``LOOK_AGAIN`` times, and then judges on the estimate it has). With ``look_to_judge`` every push is judged so, never
+folds the arm out of the camera's line of sight, through a planned joint leg, or to where the default posture holds
+it when clutter stands there; still hidden after ``LOOK_S``, it moves on as far again, up to ``LOOK_AGAIN`` times,
+and then judges on the estimate it has). A stop to look uses no attempt when the camera then sees the object; one
+that never sees it does. With ``look_to_judge`` every push is judged so, never
 with the hand beside the object (a push judged short is then approached again rather than nudged).
 """
 
