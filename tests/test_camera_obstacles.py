@@ -119,10 +119,21 @@ def test_camera_obstacles_without_rendered_camera_depth_are_refused_in_one_line(
     assert "perception.obstacles: camera" in message and words in message and "\n" not in message
 
 
-def test_a_free_spot_with_camera_obstacles_is_refused_in_one_line():
-    from nextage_qp.errors import ConfigError
+def test_a_free_spot_with_camera_obstacles_is_chosen_among_the_boxes_the_camera_gave():
+    """The target is not placed before the run (nothing is seen yet) but at the start of the first phase naming it,
+    among the seen boxes alone: a box where the spot was pushes it away by the clearance."""
+    from nextage_qp.manipulation.runner import place_spot
 
-    with pytest.raises(ConfigError) as err:
-        Runner(load_config("configs/place_free_spot.yaml", CAMERA), "place_free_spot")
-    message = str(err.value)
-    assert "free_spot" in message and "perception.obstacles: declared" in message and "\n" not in message
+    runner = Runner(load_config("configs/place_free_spot.yaml", CAMERA), "place_free_spot")
+    assert not runner.free_spots and [r[0] for r in runner._unplaced] == ["box_target"]
+    request = runner._unplaced[0]
+    clearance = request[3].clearance
+    blind = place_spot(runner.controlled, request, (), "place_free_spot")  # nothing seen
+    seen = SeenBoxes()
+    seen.set([(np.array([*blind.pos, 0.95]), np.array([0.02, 0.02, 0.05]))])
+    seen.sync(runner.controlled.model)
+    moved = place_spot(runner.controlled, request, (), "place_free_spot")
+    assert moved.clearance >= clearance
+    assert np.linalg.norm(moved.pos - blind.pos) >= clearance  # the box's half-size and the object's aside
+    physics = runner.robot.model
+    assert np.allclose(physics.body_pos[physics.geom_bodyid[pool_geoms(physics)]], PARK)  # the physics' pool parked

@@ -73,7 +73,7 @@ def test_a_spot_the_first_phase_refuses_is_replaced_by_the_next(runner):
     first = spot.pos.copy()
     m = runner.robot.model
     try:
-        assert spot.take_next(m, "out of reach")
+        assert spot.take_next((m,), "out of reach")
         assert np.linalg.norm(spot.pos - first) >= FREE_SPOT_APART - 1e-9
         assert np.allclose(m.body("box_target").pos[:2], spot.pos)
         assert spot.report()["spots_refused"] == 1

@@ -117,8 +117,8 @@ class PlacedSpot:
     clearance: float
     refused: list[str] = dataclasses.field(default_factory=list)
 
-    def take_next(self, model: mujoco.MjModel, why: str) -> bool:
-        """Move the target to the next spot (the robot refused this one: ``why``); False when none is left."""
+    def take_next(self, models: Sequence[mujoco.MjModel], why: str) -> bool:
+        """Move the target to the next spot in each of ``models`` (this one refused: ``why``); False if none is left."""
         if len(self.refused) + 1 >= FREE_SPOT_TRIES:
             return False
         nxt = next(self.spots, None)
@@ -126,7 +126,8 @@ class PlacedSpot:
             return False
         self.refused.append(why)
         self.pos, self.clearance = nxt
-        model.body_pos[self.body][:2] = self.pos
+        for model in models:
+            model.body_pos[self.body][:2] = self.pos
         return True
 
     def report(self) -> dict[str, Any]:
@@ -135,18 +136,21 @@ class PlacedSpot:
                 "spots_refused": len(self.refused)}
 
 
-def place_free_spots(cfg: ManipulationConfig, robot: Robot, source: str) -> dict[str, PlacedSpot]:
-    """Move each target the scene places by ``free_spot`` to where its object fits, in the compiled model.
+FreeSpotRequest = tuple[str, str, float, Any]
+"""A target placed by ``free_spot``: its name, its object's, its yaw [rad] and the ``free_spot`` declaration."""
+
+
+def free_spot_requests(cfg: ManipulationConfig, robot: Robot, source: str) -> list[FreeSpotRequest]:
+    """The targets the scene places by ``free_spot`` (see :func:`place_free_spots`), checked.
 
     A target's object is the task's object for the task's target, else the object ``NAME`` of a marker
     ``NAME_target``.
 
     Raises:
         ConfigError: A free spot is given for a body that is no object's target.
-        InfeasibleError: No spot of a region keeps the clearance (exit 2, before anything moves).
     """
     scene = to_world(cfg.scene, robot.description.workspace, cfg.robot, source)
-    placed: dict[str, PlacedSpot] = {}
+    out: list[FreeSpotRequest] = []
     m = robot.model
     for name, pose in scene.poses.items():
         spot = pose.free_spot
@@ -157,15 +161,36 @@ def place_free_spots(cfg: ManipulationConfig, robot: Robot, source: str) -> dict
             raise ConfigError(f"{source}: scene.poses.{name}.free_spot: {name!r} is no object's target; give it for "
                               f"{cfg.target!r} or a marker NAME_target of an object ({', '.join(robot.object_names)})",
                               key=f"scene.poses.{name}.free_spot")
-        bid = m.body(name).id
-        quat = m.body_quat[bid]
-        yaw = float(2.0 * np.arctan2(quat[3], quat[0]))
-        spots = free_spots(robot, obj, yaw, spot.region, spot.centre(), spot.clearance,
-                           f"{source}: scene.poses.{name}.free_spot")
-        xy, room = next(spots)
-        m.body_pos[bid][:2] = xy
-        placed[name] = PlacedSpot(bid, spots, xy, room)
-    return placed
+        quat = m.body_quat[m.body(name).id]
+        out.append((name, obj, float(2.0 * np.arctan2(quat[3], quat[0])), spot))
+    return out
+
+
+def place_spot(robot: Robot, request: FreeSpotRequest, models: Sequence[mujoco.MjModel], source: str) -> PlacedSpot:
+    """Place one target where its object fits among ``robot``'s obstacles, in each of ``models``.
+
+    Raises:
+        InfeasibleError: No spot of the region keeps the clearance.
+    """
+    name, obj, yaw, spot = request
+    spots = free_spots(robot, obj, yaw, spot.region, spot.centre(), spot.clearance,
+                       f"{source}: scene.poses.{name}.free_spot")
+    xy, room = next(spots)
+    bid = robot.model.body(name).id
+    for model in models:
+        model.body_pos[bid][:2] = xy
+    return PlacedSpot(bid, spots, xy, room)
+
+
+def place_free_spots(cfg: ManipulationConfig, robot: Robot, source: str) -> dict[str, PlacedSpot]:
+    """Move each target the scene places by ``free_spot`` to where its object fits, in the compiled model.
+
+    Raises:
+        ConfigError: A free spot is given for a body that is no object's target.
+        InfeasibleError: No spot of a region keeps the clearance (exit 2, before anything moves).
+    """
+    return {request[0]: place_spot(robot, request, (robot.model,), source)
+            for request in free_spot_requests(cfg, robot, source)}
 
 
 def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
@@ -241,13 +266,14 @@ class Runner:
         self.robot = robot or build_robot(cfg, source)
         self.cfg, self.source = for_robot(cfg, self.robot), source
         cfg = self.cfg
-        self.free_spots = place_free_spots(cfg, self.robot, source)
         self.seen = SeenBoxes() if cfg.perception.obstacles == "camera" else None
-        if self.seen is not None and self.free_spots:
-            name = next(iter(self.free_spots))
-            raise ConfigError(f"{source}: scene.poses.{name}.free_spot is chosen before the run among the declared "
-                              "obstacles, but perception.obstacles: camera keeps them from the controller; give the "
-                              "target a pos, or set perception.obstacles: declared")
+        self.free_spots: dict[str, PlacedSpot] = {}
+        self._unplaced: list[FreeSpotRequest] = []
+        """Free-spot targets placed once the camera has looked (at the start of the first phase naming them)."""
+        if self.seen is None:
+            self.free_spots = place_free_spots(cfg, self.robot, source)
+        else:
+            self._unplaced = free_spot_requests(cfg, self.robot, source)
         self.controlled = self.robot.blinded_copy() if self.seen is not None else self.robot
         """The robot as the controller knows it: with camera obstacles, blind to the clutter (the physics is not)."""
         try:
@@ -332,16 +358,28 @@ class Runner:
         """  # noqa: D205
         spec = phase.spec
         named = {getattr(spec, "target", None), getattr(spec, "place_at", None)}
+        models = (self.robot.model, *((self.controlled.model,) if self.controlled is not self.robot else ()))
+        for request in [r for r in self._unplaced if r[0] in named]:  # among the obstacles the camera has seen
+            self._unplaced.remove(request)
+            try:
+                self.free_spots[request[0]] = place_spot(self.controlled, request, models, self.source)
+            except InfeasibleError as exc:
+                raise PhaseError(f"{exc} (among the obstacles the camera has seen)") from None
+            self._moved_target()
         spots = [p for name, p in self.free_spots.items() if name in named]
         while True:
             try:
                 phase.start(self.view)
                 return
             except (InfeasibleError, PhaseError) as exc:
-                if not any(p.take_next(self.robot.model, str(exc)) for p in spots):
+                if not any(p.take_next(models, str(exc)) for p in spots):
                     raise
-                mujoco.mj_kinematics(self.robot.model, self.sim.data)  # the target's new place, nothing else moved
-                self.placement = check_placement(self.robot, self.cfg.object, self.cfg.target, self.q0, self.source)
+                self._moved_target()
+
+    def _moved_target(self) -> None:
+        """A target took a new place: the physics' poses follow (nothing else moved), and its placement is checked."""
+        mujoco.mj_kinematics(self.robot.model, self.sim.data)
+        self.placement = check_placement(self.controlled, self.cfg.object, self.cfg.target, self.q0, self.source)
 
     def run(self, on_tick: TickCallback | None = None) -> RunResult:
         """Run every phase, then settle; returns the result (also on failure, with ``error``)."""

@@ -55,7 +55,7 @@ class PerceptionConfig(YamlModel):
         default="declared", description="Where the controller's obstacles come from. declared: the scene's (every "
         "clutter piece known exactly); camera: the generated clutter only as the camera's occupancy map shows it "
         "(source: camera, rendered depth; implies map): its clusters become boxes that the planner's validity check "
-        "and the IK's collision rows of the clutter group use in place of the clutter (nextage_qp.scene."
-        "seen_obstacles).")
+        "and the IK's collision rows of the clutter group use in place of the clutter, and free spots are chosen "
+        "among them when a phase first names the target (nextage_qp.scene.seen_obstacles).")
     dump: str | None = Field(default=None, description="Folder for one frame's RGB, depth, clusters and fit (PNGs).")
     dump_at_s: float = Field(default=1.0, ge=0, description="Time of the dumped frame [s].")

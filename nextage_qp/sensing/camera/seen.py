@@ -36,9 +36,9 @@ TALL = 0.03
 REACH = 0.15
 """The map reaches this far [m] beyond the work region on each side, and ``HEIGHT`` above the table."""
 HEIGHT = 0.35
-BOX_PAD = 0.005
-"""The controller's obstacle boxes are each cluster's voxels grown by this [m] (a voxel's edge already bounds the
-surface it holds)."""
+BOX_PAD = 0.0
+"""The controller's obstacle boxes are each cluster's voxels grown by this [m]: none, a voxel that holds a point of a
+surface is whole in the box, so the box already bounds what was seen by up to a voxel's edge."""
 MIN_VOXELS = 2
 """Clusters of fewer voxels are depth noise, not obstacles."""
 
@@ -66,8 +66,19 @@ class ObstacleMapper:
         self.visible: set[int] = set()  # obstacle bodies a whole frame showed (scored with the truth, see update)
 
     def boxes(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        """The map's obstacles as padded axis-aligned boxes (centre [m], half-sizes [m]) for the controller."""
-        return self.map.boxes(pad=BOX_PAD, min_voxels=MIN_VOXELS)
+        """The map's obstacles as padded axis-aligned boxes (centre [m], half-sizes [m]) for the controller.
+
+        Each reaches down to the table: a camera above sees an obstacle's top and the faces turned to it, and the
+        steep faces only at grazing angles (a few points per voxel, which the rays past them carve free); what lies
+        under a seen surface is hidden from it, and counts as occupied.
+        """
+        out = []
+        floor = float(self.map.lo[2])
+        for centre, half in self.map.boxes(pad=BOX_PAD, min_voxels=MIN_VOXELS):
+            lo, hi = centre - half, centre + half
+            lo[2] = min(lo[2], floor)
+            out.append(((lo + hi) / 2, (hi - lo) / 2))
+        return out
 
     def update(self, frame: Frame, own: np.ndarray, plane: tuple[np.ndarray, float] | None,
                poses: Mapping[str, np.ndarray | None],
