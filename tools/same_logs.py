@@ -34,8 +34,12 @@ RUNS = {
     "aloha_push": ["configs/push_across.yaml", "--robot", "aloha"],
     "aloha_park": ["configs/aloha/park.yaml"],
     "camera_push": ["configs/push_cube.yaml", "--set", "perception.source=camera"],
+    "camera_dock": ["configs/dock_dumbbell.yaml", "--set", "perception.source=camera"],
+    "stereo_push": ["configs/push_cube.yaml", "--set", "perception.source=camera", "--set", "perception.depth=stereo"],
+    "push_clutter": ["configs/push_clutter.yaml"],
+    "camera_push_clutter": ["configs/push_clutter.yaml", "--set", "perception.source=camera"],
 }
-"""Every shipped config's default run (and the camera push), by name."""
+"""Every shipped config's default run (and the cameras' push and dock, and the clutter push), by name."""
 
 TIMING = ("wall", "time_s", "_ms_", "check_ms", "real_time_factor", "physics_share", "timing", "outputs", "log")
 """Result keys that measure wall time or name output files: left out of the comparison."""
