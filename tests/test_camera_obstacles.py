@@ -137,3 +137,24 @@ def test_a_free_spot_with_camera_obstacles_is_chosen_among_the_boxes_the_camera_
     assert np.linalg.norm(moved.pos - blind.pos) >= clearance  # the box's half-size and the object's aside
     physics = runner.robot.model
     assert np.allclose(physics.body_pos[physics.geom_bodyid[pool_geoms(physics)]], PARK)  # the physics' pool parked
+
+
+def test_a_piece_standing_at_an_angle_gets_a_box_turned_with_it():
+    """A 12 x 4 cm footprint at 30 deg: the oriented box holds every voxel's corner within a voxel of the piece's own
+    footprint, a third smaller than the axis-aligned box of its voxels."""
+    vmap = VoxelMap(np.zeros(3), np.full(3, 0.4), 0.01)
+    yaw = np.radians(30.0)
+    axes = np.array([[np.cos(yaw), np.sin(yaw)], [-np.sin(yaw), np.cos(yaw)]])
+    local = (vmap.centres[:, :2] - 0.2) @ axes.T
+    inside = (np.abs(local[:, 0]) <= 0.06) & (np.abs(local[:, 1]) <= 0.02) & (vmap.centres[:, 2] < 0.1)
+    vmap.logodds.reshape(-1)[inside] = 3.0
+    vmap.seen.reshape(-1)[inside] = True
+    (centre, half, turned), = vmap.oriented_boxes()
+    (_, aligned), = vmap.boxes(pad=0.0)
+    assert abs(np.degrees(turned) - 30.0) <= 3.0
+    assert np.all(half[:2] <= np.array([0.06, 0.02]) + vmap.cell)
+    assert half[0] * half[1] < 0.75 * aligned[0] * aligned[1]
+    cells = np.argwhere(vmap.state() == OCCUPIED_STATE)
+    corners = np.array([(cells[:, :2] + [a, b]) * vmap.cell for a in (0, 1) for b in (0, 1)]).reshape(-1, 2)
+    rel = (corners - centre[:2]) @ np.array([[np.cos(turned), np.sin(turned)], [-np.sin(turned), np.cos(turned)]]).T
+    assert np.all(np.abs(rel) <= half[:2] + 1e-9)

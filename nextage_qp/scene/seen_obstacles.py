@@ -80,27 +80,31 @@ def blind(model: mujoco.MjModel) -> None:
 
 
 class SeenBoxes:
-    """The obstacle boxes the camera gives (centre [m], half-sizes [m], axis-aligned), written into blinded models.
+    """The camera's obstacle boxes (centre [m], half-sizes [m], yaw about the vertical [rad]) for blinded models.
 
     Each :meth:`set` that changes the boxes starts a new generation; :meth:`sync` writes the current one into a model
     that does not have it yet.
     """
 
     def __init__(self) -> None:
-        self.boxes: list[tuple[np.ndarray, np.ndarray]] = []
+        self.boxes: list[tuple[np.ndarray, np.ndarray, float]] = []
         self.generation = 0
         self.dropped = 0
         """Boxes beyond the pool's size left out at the last :meth:`set` (the smallest)."""
         self._synced: dict[int, tuple[mujoco.MjModel, int]] = {}
 
-    def set(self, boxes: Sequence[tuple[np.ndarray, np.ndarray]]) -> bool:
-        """Take new boxes (the largest :data:`POOL`, each at most :data:`MAX_HALF`); True when they changed."""
-        kept = sorted(((np.asarray(c, dtype=float), np.minimum(np.asarray(h, dtype=float), MAX_HALF))
-                       for c, h in boxes), key=lambda b: -float(np.prod(b[1])))
+    def set(self, boxes: Sequence[tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, float]]) -> bool:
+        """Take new boxes (centre, half-sizes, optional yaw [rad]; the largest :data:`POOL`); True if they changed.
+
+        Each half-size is at most :data:`MAX_HALF`.
+        """
+        kept = sorted(((np.asarray(b[0], dtype=float), np.minimum(np.asarray(b[1], dtype=float), MAX_HALF),
+                        float(b[2]) if len(b) > 2 else 0.0) for b in boxes), key=lambda b: -float(np.prod(b[1])))
         self.dropped = max(len(kept) - POOL, 0)
         kept = kept[:POOL]
         same = len(kept) == len(self.boxes) and all(
-            np.array_equal(c, c0) and np.array_equal(h, h0) for (c, h), (c0, h0) in zip(kept, self.boxes, strict=True))
+            np.array_equal(c, c0) and np.array_equal(h, h0) and y == y0
+            for (c, h, y), (c0, h0, y0) in zip(kept, self.boxes, strict=True))
         if same:
             return False
         self.boxes = kept
@@ -116,11 +120,12 @@ class SeenBoxes:
         pool = pool_geoms(model)
         for k, g in enumerate(pool):
             if k < len(self.boxes):
-                centre, half = self.boxes[k]
+                centre, half, yaw = self.boxes[k]
             else:
-                centre, half = PARK, np.full(3, IDLE)
+                centre, half, yaw = PARK, np.full(3, IDLE), 0.0
             body = int(model.geom_bodyid[g])
             model.body_pos[body] = centre
+            model.body_quat[body] = [np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
             model.geom_size[g] = half
             model.geom_aabb[g] = [0.0, 0.0, 0.0, *half]
             if model.body_bvhnum[body]:

@@ -126,13 +126,12 @@ class VoxelMap:
         n = int(region.sum())
         return float(self.seen[region].sum()) / n if n else 1.0
 
-    def boxes(self, pad: float = 0.01, unknown_in: tuple[np.ndarray, np.ndarray] | None = None,
-              min_voxels: int = 1) -> list[tuple[np.ndarray, np.ndarray]]:
-        """Obstacles as axis-aligned boxes (centre [m], half-sizes [m]), one per connected cluster of voxels.
+    def clusters(self, unknown_in: tuple[np.ndarray, np.ndarray] | None = None,
+                 min_voxels: int = 1) -> list[np.ndarray]:
+        """The voxel indices (n, 3) of each connected cluster of occupied voxels (26-connected).
 
-        The occupied voxels (26-connected) and, with ``unknown_in`` (lo, hi) [m], the never-seen voxels inside that
-        box too (unseen space counts as occupied for planning); each cluster's voxel bounds grown by ``pad``.
-        Clusters of fewer than ``min_voxels`` are dropped (a speck of depth noise).
+        With ``unknown_in`` (lo, hi) [m], the never-seen voxels inside that box count too (unseen space counts as
+        occupied for planning). Clusters of fewer than ``min_voxels`` are dropped (a speck of depth noise).
         """
         solid = self.state() == OCCUPIED_STATE
         if unknown_in is not None:
@@ -140,11 +139,53 @@ class VoxelMap:
         labels, _ = ndimage.label(solid, structure=np.ones((3, 3, 3), dtype=bool))
         out = []
         for k, sl in enumerate(ndimage.find_objects(labels), start=1):
-            if sl is None or int((labels[sl] == k).sum()) < min_voxels:
+            if sl is None:
                 continue
-            lo = self.lo + np.array([s.start for s in sl]) * self.cell - pad
-            hi = self.lo + np.array([s.stop for s in sl]) * self.cell + pad
+            cells = np.argwhere(labels[sl] == k)
+            if len(cells) >= min_voxels:
+                out.append(cells + np.array([s.start for s in sl]))
+        return out
+
+    def boxes(self, pad: float = 0.01, unknown_in: tuple[np.ndarray, np.ndarray] | None = None,
+              min_voxels: int = 1) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Obstacles as axis-aligned boxes (centre [m], half-sizes [m]), one per cluster (:meth:`clusters`).
+
+        Each is the cluster's voxel bounds grown by ``pad``.
+        """
+        out = []
+        for cells in self.clusters(unknown_in, min_voxels):
+            lo = self.lo + cells.min(axis=0) * self.cell - pad
+            hi = self.lo + (cells.max(axis=0) + 1) * self.cell + pad
             out.append(((lo + hi) / 2, (hi - lo) / 2))
+        return out
+
+    def oriented_boxes(self, pad: float = 0.0, min_voxels: int = 1,
+                       step: float = np.radians(3.0)) -> list[tuple[np.ndarray, np.ndarray, float]]:
+        """Obstacles as boxes turned about the vertical (centre [m], half-sizes [m], yaw [rad]), one per cluster.
+
+        Each is the smallest-footprint rectangle (yaw searched in ``step``s over a quarter turn) holding every corner
+        of the cluster's voxels, over their height, grown by ``pad``: a piece standing at an angle is no longer
+        bounded by the axis-aligned box of its voxels, which is up to twice its footprint.
+        """
+        out = []
+        square = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])
+        yaws = np.arange(0.0, np.pi / 2, step)
+        for cells in self.clusters(None, min_voxels):
+            flat = np.unique(cells[:, :2], axis=0)
+            corners = (self.lo[:2] + ((flat[:, None, :] + square[None]) * self.cell).reshape(-1, 2))
+            c, s = np.cos(yaws), np.sin(yaws)
+            u = corners @ np.stack([c, s])  # (points, yaws): along each candidate's first axis
+            v = corners @ np.stack([-s, c])
+            area = (u.max(0) - u.min(0)) * (v.max(0) - v.min(0))
+            best = int(np.argmin(area))
+            yaw = float(yaws[best])
+            lo_u, hi_u, lo_v, hi_v = u[:, best].min(), u[:, best].max(), v[:, best].min(), v[:, best].max()
+            mu, mv = (lo_u + hi_u) / 2, (lo_v + hi_v) / 2
+            xy = np.array([mu * c[best] - mv * s[best], mu * s[best] + mv * c[best]])
+            z0 = self.lo[2] + cells[:, 2].min() * self.cell
+            z1 = self.lo[2] + (cells[:, 2].max() + 1) * self.cell
+            half = np.array([(hi_u - lo_u) / 2, (hi_v - lo_v) / 2, (z1 - z0) / 2]) + pad
+            out.append((np.array([*xy, (z0 + z1) / 2]), half, yaw))
         return out
 
 

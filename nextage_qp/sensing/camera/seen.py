@@ -65,19 +65,21 @@ class ObstacleMapper:
         self.robot = robot
         self.visible: set[int] = set()  # obstacle bodies a whole frame showed (scored with the truth, see update)
 
-    def boxes(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        """The map's obstacles as padded axis-aligned boxes (centre [m], half-sizes [m]) for the controller.
+    def boxes(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
+        """The map's obstacles as boxes turned about the vertical (centre [m], half-sizes [m], yaw [rad]) for the
+        controller (:meth:`VoxelMap.oriented_boxes`).
 
         Each reaches down to the table: a camera above sees an obstacle's top and the faces turned to it, and the
         steep faces only at grazing angles (a few points per voxel, which the rays past them carve free); what lies
         under a seen surface is hidden from it, and counts as occupied.
-        """
+        """  # noqa: D205
         out = []
         floor = float(self.map.lo[2])
-        for centre, half in self.map.boxes(pad=BOX_PAD, min_voxels=MIN_VOXELS):
-            lo, hi = centre - half, centre + half
-            lo[2] = min(lo[2], floor)
-            out.append(((lo + hi) / 2, (hi - lo) / 2))
+        for centre, half, yaw in self.map.oriented_boxes(pad=BOX_PAD, min_voxels=MIN_VOXELS):
+            top = centre[2] + half[2]
+            bottom = min(centre[2] - half[2], floor)
+            out.append((np.array([centre[0], centre[1], (top + bottom) / 2]),
+                        np.array([half[0], half[1], (top - bottom) / 2]), yaw))
         return out
 
     def update(self, frame: Frame, own: np.ndarray, plane: tuple[np.ndarray, float] | None,
