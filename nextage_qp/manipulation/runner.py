@@ -126,9 +126,13 @@ class PlacedSpot:
             return False
         self.refused.append(why)
         self.pos, self.clearance = nxt
+        self.put(models)
+        return True
+
+    def put(self, models: Sequence[mujoco.MjModel]) -> None:
+        """Stand the target at its spot in each of ``models``."""
         for model in models:
             model.body_pos[self.body][:2] = self.pos
-        return True
 
     def report(self) -> dict[str, Any]:
         """Where the target went, the object's clearance there [m], and the spots refused before it."""
@@ -176,10 +180,9 @@ def place_spot(robot: Robot, request: FreeSpotRequest, models: Sequence[mujoco.M
     spots = free_spots(robot, obj, yaw, spot.region, spot.centre(), spot.clearance,
                        f"{source}: scene.poses.{name}.free_spot")
     xy, room = next(spots)
-    bid = robot.model.body(name).id
-    for model in models:
-        model.body_pos[bid][:2] = xy
-    return PlacedSpot(bid, spots, xy, room)
+    placed = PlacedSpot(robot.model.body(name).id, spots, xy, room)
+    placed.put(models)
+    return placed
 
 
 def place_free_spots(cfg: ManipulationConfig, robot: Robot, source: str) -> dict[str, PlacedSpot]:
@@ -276,6 +279,8 @@ class Runner:
             self._unplaced = free_spot_requests(cfg, self.robot, source)
         self.controlled = self.robot.blinded_copy() if self.seen is not None else self.robot
         """The robot as the controller knows it: with camera obstacles, blind to the clutter (the physics is not)."""
+        self._target_models = (self.robot.model, *((self.controlled.model,) if self.seen is not None else ()))
+        """The models a free-spot target stands in: the physics' and, when it has its own, the controller's."""
         try:
             gains = robot_gains(self.robot) if cfg.gains is None else config_gains(cfg.gains, self.robot)
         except ConfigError as exc:
@@ -358,11 +363,10 @@ class Runner:
         """  # noqa: D205
         spec = phase.spec
         named = {getattr(spec, "target", None), getattr(spec, "place_at", None)}
-        models = (self.robot.model, *((self.controlled.model,) if self.controlled is not self.robot else ()))
         for request in [r for r in self._unplaced if r[0] in named]:  # among the obstacles the camera has seen
             self._unplaced.remove(request)
             try:
-                self.free_spots[request[0]] = place_spot(self.controlled, request, models, self.source)
+                self.free_spots[request[0]] = place_spot(self.controlled, request, self._target_models, self.source)
             except InfeasibleError as exc:
                 raise PhaseError(f"{exc} (among the obstacles the camera has seen)") from None
             self._moved_target()
@@ -372,7 +376,7 @@ class Runner:
                 phase.start(self.view)
                 return
             except (InfeasibleError, PhaseError) as exc:
-                if not any(p.take_next(models, str(exc)) for p in spots):
+                if not any(p.take_next(self._target_models, str(exc)) for p in spots):
                     raise
                 self._moved_target()
 

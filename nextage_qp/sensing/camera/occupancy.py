@@ -170,10 +170,10 @@ class VoxelMap:
         out = []
         square = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])
         yaws = np.arange(0.0, np.pi / 2, step)
+        c, s = np.cos(yaws), np.sin(yaws)
         for cells in self.clusters(None, min_voxels):
             flat = np.unique(cells[:, :2], axis=0)
             corners = (self.lo[:2] + ((flat[:, None, :] + square[None]) * self.cell).reshape(-1, 2))
-            c, s = np.cos(yaws), np.sin(yaws)
             u = corners @ np.stack([c, s])  # (points, yaws): along each candidate's first axis
             v = corners @ np.stack([-s, c])
             area = (u.max(0) - u.min(0)) * (v.max(0) - v.min(0))
