@@ -37,6 +37,7 @@ RUNS = {
     "camera_dock": ["configs/dock_dumbbell.yaml", "--set", "perception.source=camera"],
     "stereo_push": ["configs/push_cube.yaml", "--set", "perception.source=camera", "--set", "perception.depth=stereo"],
     "push_clutter": ["configs/push_clutter.yaml"],
+    "place_free_spot": ["configs/place_free_spot.yaml"],
     "camera_push_clutter": ["configs/push_clutter.yaml", "--set", "perception.source=camera"],
 }
 """Every shipped config's default run (and the cameras' push and dock, and the clutter push), by name."""
