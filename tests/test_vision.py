@@ -530,3 +530,28 @@ def test_a_prediction_too_high_is_fitted_where_the_object_rests() -> None:
     det = Estimator({"cube": model}, seed=1).estimate(frame, {"cube": prior})["cube"]
     assert det.status == "ok", det
     assert np.linalg.norm(det.pose[:3] - truth) < 0.002
+
+
+def test_the_compiled_signed_distance_is_the_array_one_for_every_part_kind_and_pose() -> None:
+    """Box, cylinder, capsule, sphere and convex mesh, each off the object's origin and turned, placed and turned."""
+    from scipy.spatial import ConvexHull
+
+    from nextage_qp.sensing.camera.shapes import Part
+
+    rng = np.random.default_rng(3)
+    vertices = rng.normal(size=(12, 3)) * 0.02
+    hull = ConvexHull(vertices)
+    planes = np.column_stack([hull.equations[:, :3], -hull.equations[:, 3]])
+    sizes = {"box": [0.02, 0.03, 0.04], "cylinder": [0.02, 0.05, 0.0], "capsule": [0.01, 0.03, 0.0],
+             "sphere": [0.015, 0.0, 0.0]}
+    parts = [Part(kind, np.array(size), rng.normal(size=3) * 0.02, rot_of(rng.normal(size=3)))
+             for kind, size in sizes.items()]
+    parts.append(Part("mesh", vertices, rng.normal(size=3) * 0.02, rot_of(rng.normal(size=3)), planes))
+    for k in range(len(parts) + 1):  # each part alone, then the union of all
+        shape = ShapeModel(parts[k : k + 1] if k < len(parts) else parts, 0.0)
+        points = rng.normal(size=(400, 3)) * 0.05
+        np.testing.assert_allclose(shape.sdf(points), shape.sdf_array(points), rtol=0.0, atol=1e-12)
+        t, rot = rng.normal(size=3) * 0.1, rot_of(rng.normal(size=3))
+        np.testing.assert_allclose(shape.sdf_at(points, t, rot), shape.sdf_array((points - t) @ rot), rtol=0,
+                                   atol=1e-12)
+        assert (shape.sdf(shape.samples) ** 2).max() < 1e-8  # its surface samples lie on it

@@ -46,8 +46,7 @@ def pose_rot(x: np.ndarray) -> np.ndarray:
 
 def residuals(shape: ShapeModel, points: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Signed distances [m] of ``points`` to ``shape`` at pose ``x`` (see :func:`pose_rot`): > 0 outside."""
-    local = (points - x[:3]) @ pose_rot(x)
-    return shape.sdf(local)
+    return shape.sdf_at(points, x[:3], pose_rot(x))
 
 
 def _both(shape: ShapeModel, points: np.ndarray, free: np.ndarray, x: np.ndarray) -> np.ndarray:

@@ -14,10 +14,14 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from nextage_qp.geometry import geom_parts
+from nextage_qp.native.sdf import pack, union_sdf
 
 _T = mujoco.mjtGeom
 _KINDS = {_T.mjGEOM_BOX: "box", _T.mjGEOM_CYLINDER: "cylinder", _T.mjGEOM_CAPSULE: "capsule",
           _T.mjGEOM_SPHERE: "sphere", _T.mjGEOM_ELLIPSOID: "sphere", _T.mjGEOM_MESH: "mesh"}
+
+
+_ORIGIN, _IDENTITY = np.zeros(3), np.eye(3)
 
 
 @dataclass(frozen=True)
@@ -54,6 +58,7 @@ class ShapeModel:
 
     def __init__(self, parts: list[Part], symmetry: float) -> None:
         self.parts, self.symmetry = parts, symmetry
+        self._packed = pack(parts)  # the parts as arrays, for the compiled signed distance
         self.samples = self._sample()
         self.normals = self._gradient(self.samples)
         self.bottom = float(self.samples[:, 2].min())  # lowest point below the origin [m] (< 0)
@@ -81,6 +86,19 @@ class ShapeModel:
 
     def sdf(self, p: np.ndarray) -> np.ndarray:
         """Signed distance [m] of points ``p`` (n, 3) in the object's frame to the union of its parts."""
+        return self.sdf_at(p, _ORIGIN, _IDENTITY)
+
+    def sdf_at(self, p: np.ndarray, t: np.ndarray, rot: np.ndarray) -> np.ndarray:
+        """Signed distance [m] of world points ``p`` (n, 3) to the shape placed at ``t`` turned by ``rot``.
+
+        The same as ``sdf((p - t) @ rot)``, compiled (:func:`~nextage_qp.native.sdf.union_sdf`).
+        """
+        pts = np.ascontiguousarray(p, dtype=float).reshape(-1, 3)
+        return union_sdf(pts, np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(rot, dtype=float),
+                         *self._packed)
+
+    def sdf_array(self, p: np.ndarray) -> np.ndarray:
+        """:meth:`sdf` by array operations per part (the reference the compiled one is tested against)."""
         return np.min([_sdf_local(part, (p - part.pos) @ part.rot) for part in self.parts], axis=0)
 
     def _gradient(self, p: np.ndarray) -> np.ndarray:
