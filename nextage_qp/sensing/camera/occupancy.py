@@ -50,6 +50,7 @@ class VoxelMap:
         idx = np.stack(np.meshgrid(*(np.arange(n) for n in self.shape), indexing="ij"), axis=-1).reshape(-1, 3)
         self.centres = self.lo + (idx + 0.5) * self.cell  # (N, 3), in the arrays' C order
         self.frames = 0
+        self._oriented: tuple[np.ndarray, tuple[float, int, float], list] | None = None  # oriented_boxes' last answer
 
     def index(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Voxel indices (n, 3) of world points (n, 3), and which of them lie inside the map."""
@@ -165,8 +166,13 @@ class VoxelMap:
 
         Each is the smallest-footprint rectangle (yaw searched in ``step``s over a quarter turn) holding every corner
         of the cluster's voxels, over their height, grown by ``pad``: a piece standing at an angle is no longer
-        bounded by the axis-aligned box of its voxels, which is up to twice its footprint.
+        bounded by the axis-aligned box of its voxels, which is up to twice its footprint. While the occupied voxels
+        stay those of the last call, its boxes are given again without labelling the map anew.
         """
+        solid = self.state() == OCCUPIED_STATE
+        key = (pad, min_voxels, step)
+        if self._oriented is not None and self._oriented[1] == key and np.array_equal(self._oriented[0], solid):
+            return list(self._oriented[2])  # the occupied voxels as last time: the same boxes
         out = []
         square = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])
         yaws = np.arange(0.0, np.pi / 2, step)
@@ -186,7 +192,8 @@ class VoxelMap:
             z1 = self.lo[2] + (cells[:, 2].max() + 1) * self.cell
             half = np.array([(hi_u - lo_u) / 2, (hi_v - lo_v) / 2, (z1 - z0) / 2]) + pad
             out.append((np.array([*xy, (z0 + z1) / 2]), half, yaw))
-        return out
+        self._oriented = (solid, key, out)
+        return list(out)
 
 
 SELF_PAD = 3
