@@ -95,7 +95,7 @@ class ScriptedView:
     def looking_joints(self):
         return np.zeros(0, dtype=int)
 
-    def plan_path(self, q_start, q_goal, *, near=(), always=False):
+    def plan_path(self, q_start, q_goal, *, near=(), always=False, escape=False):
         from nextage_qp.planning.rrt import PathPlan
 
         self.paths = [*getattr(self, "paths", []), (np.asarray(q_start), np.asarray(q_goal), tuple(near), always)]

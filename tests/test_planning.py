@@ -131,6 +131,39 @@ def test_a_held_object_blocks_a_path_that_drags_it_through_an_obstacle():
     assert not plan.found or world.first_on_path(plan.path) is None
 
 
+def test_a_start_inside_an_obstacle_is_left_first_only_where_the_robot_stands():
+    """The hand 4 mm into a post at home: invalid as a waypoint; as the robot's own state, left, then planned."""
+    cfg = load_config(ROOT / "configs" / "push_cube.yaml", [
+        "scene.objects.post={shape: box, size: [0.03, 0.03, 0.03], pos: [0.60, 0.26, 0.99], fixed: true}"])
+    robot = build_robot(cfg, "post")
+    world = CollisionWorld(robot, clearance=0.005)
+    home = robot.keyframe_q("home")
+    world.set_world({}, home)
+    start = world.first_collision(home)
+    assert start is not None and start.distance < 0 and "post" in start.body2, start
+    goal = home.copy()
+    goal[robot.joint_index("LARM_JOINT1")] -= 0.3  # the arm lifts
+    arm = robot.moved_groups([robot.joint_index("LARM_JOINT1")])
+    strict = plan_path(world, home, goal, lower=robot.lower, upper=robot.upper, joints=arm)
+    assert strict.status == "invalid_start" and "post" in strict.reason()
+    plan = plan_path(world, home, goal, lower=robot.lower, upper=robot.upper, joints=arm, escape_start=True)
+    assert plan.found, plan.reason()
+    np.testing.assert_array_equal(plan.path[0], home)
+    np.testing.assert_array_equal(plan.path[-1], goal)
+    assert world.first_on_path(plan.path[1:]) is None  # free once out
+    out = plan.path[1]
+    depth = world.room(home)[0]
+    n = 4 * world.steps(home, out)
+    assert all(world.room(home + s * (out - home))[0] >= depth - 0.0015 for s in np.linspace(0.0, 1.0, n + 1))
+    assert float(np.abs(out - home).max()) <= 0.2  # near: within the largest escape radius
+    deep = load_config(ROOT / "configs" / "push_cube.yaml", [
+        "scene.objects.post={shape: box, size: [0.15, 0.15, 0.12], pos: [0.59, 0.26, 1.0], fixed: true}"])
+    buried = CollisionWorld(build_robot(deep, "post"), clearance=0.005)
+    buried.set_world({}, home)
+    assert plan_path(buried, home, goal, lower=robot.lower, upper=robot.upper, joints=arm,
+                     escape_start=True).status == "invalid_start"  # the hand inside the post: no way out nearby
+
+
 @pytest.mark.parametrize(("override", "says"), [
     ("scene.clutter.count=-1", "scene.clutter.count"),
     ("scene.clutter.size=[0.05, 0.02]", "size"),

@@ -193,12 +193,14 @@ class Reach(Protocol):
         """
 
     def plan_path(self, q_start: np.ndarray, q_goal: np.ndarray, *, near: Sequence[str] = (),
-                  always: bool = False) -> PathPlan:
+                  always: bool = False, escape: bool = False) -> PathPlan:
         """A collision-free joint path from ``q_start`` to ``q_goal`` [rad] through the world as it is believed now.
 
         The straight joint-space segment when nothing touches along it (unless ``always``), else a planned path that
         keeps the planner's clearance from obstacles and objects (``near``: bodies it may come close to but not
         touch, e.g. the object a push or grasp goes to). A held object (the view's grip) moves with its pads.
+        ``escape``: ``q_start`` is where the robot stands, and a path may leave it first when it is in collision as
+        the world is believed (:func:`~nextage_qp.planning.rrt.plan_path`).
         """
 
     def obstacle_groups(self) -> tuple[str, ...]:

@@ -97,9 +97,13 @@ class PlannedRoute:
                 return False
         return True
 
-    def _plan_leg(self, view: View, k: int, start: np.ndarray) -> bool:
-        """Check (and, where blocked, plan) joint-space leg ``k`` from ``start``; False with :attr:`blocked` set."""
-        path = view.plan_path(start, self.joints[k], near=self.near, always=self.mode == "always")
+    def _plan_leg(self, view: View, k: int, start: np.ndarray, escape: bool = False) -> bool:
+        """Check (and, where blocked, plan) joint-space leg ``k`` from ``start``; False with :attr:`blocked` set.
+
+        ``escape``: ``start`` is where the robot stands; in collision as the world is believed, the path leaves it
+        first (:func:`~nextage_qp.planning.rrt.escape`).
+        """
+        path = view.plan_path(start, self.joints[k], near=self.near, always=self.mode == "always", escape=escape)
         if not path.found:
             self.blocked = f"leg {k + 1} of {len(self.joints)}: {path.reason()}"
             return False
@@ -117,7 +121,8 @@ class PlannedRoute:
         q, targets = self.joints[leg], self.waypoints[leg]
         if not self._first_planned:
             self._first_planned = True
-            if not self.straight[0] and not self._plan_leg(view, 0, view.joint_positions(view.joint_names())):
+            if not self.straight[0] and not self._plan_leg(view, 0, view.joint_positions(view.joint_names()),
+                                                           escape=True):
                 raise PhaseError(f"no collision-free path to the route's first waypoint: {self.blocked}")
         if self.straight[leg]:
             if self._points is None:

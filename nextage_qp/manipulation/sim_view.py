@@ -178,7 +178,7 @@ class SimView:
         return touch.room(np.asarray(q, dtype=float))[0]
 
     def plan_path(self, q_start: np.ndarray, q_goal: np.ndarray, *, near: Sequence[str] = (),  # noqa: D102
-                  always: bool = False) -> PathPlan:
+                  always: bool = False, escape: bool = False) -> PathPlan:
         qa, qb = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
         touch, keep = self._worlds_at(qa, near)
         seed = 1 + len(self.plans)  # a run's plans repeat: each seeded by its place in the run
@@ -190,7 +190,8 @@ class SimView:
 
             def planned(world: CollisionWorld) -> PathPlan:  # over the whole groups (arms, torso) that move
                 return plan_path(world, qa, qb, lower=self.robot.lower, upper=self.robot.upper, joints=joints,
-                                 time_limit=self.planning.time_limit, seed=seed, straight_first=False)
+                                 time_limit=self.planning.time_limit, seed=seed, straight_first=False,
+                                 escape_start=escape)
 
             plan = planned(keep)
             if plan.status in ("invalid_start", "invalid_goal") and plan.why is not None and plan.why.distance >= 0:

@@ -30,6 +30,12 @@ OMPL_RESOLUTION = 0.002
 """OMPL's motion checks: the share of the joint space's extent between two checked states."""
 SHORTCUT_STEPS = 60
 """Random shortcut attempts of the simplification (a fixed number: a plan repeats on any machine)."""
+ESCAPE = (0.02, 0.05, 0.1, 0.2)
+"""Joint radii [rad], in turn, within which a valid state is sought near a start in collision (:func:`escape`)."""
+ESCAPE_SAMPLES = 40
+"""Random states tried per radius of :data:`ESCAPE`."""
+ESCAPE_SLACK = 0.001
+"""How much deeper [m] than at the start the way out of a start in collision may reach (the check's rounding)."""
 
 
 class PlanningConfig(YamlModel):
@@ -84,13 +90,18 @@ class PathPlan:
 
 def plan_path(world: CollisionWorld, q_start: np.ndarray, q_goal: np.ndarray, *, lower: np.ndarray,
               upper: np.ndarray, time_limit: float = 1.0, seed: int = 1, straight_first: bool = True,
-              joints: Sequence[int] | None = None) -> PathPlan:
+              joints: Sequence[int] | None = None, escape_start: bool = False) -> PathPlan:
     """A collision-free joint path from ``q_start`` to ``q_goal`` (robot joint vectors [rad]).
 
     The straight segment is taken when it is free (``straight_first``); else RRT-Connect plans within
     ``time_limit`` [s] in the space of ``joints`` (default: those that differ between start and goal; a caller
     passes whole arms, which may move aside where the joints that must move cannot pass), bounded by ``lower`` and
     ``upper``, and the path is shortcut and checked densely.
+
+    With ``escape_start`` (the start is where the robot stands), a start in collision (as the world is believed: a
+    seen box drawn around a piece of clutter a voxel wider than the piece) is left first, along the straight segment
+    to the nearest valid state found nearby (:func:`escape`), as MoveIt's start-state fix does; the path is planned
+    from there. Without it such a start is ``invalid_start``.
     """
     t0, checks0 = time.perf_counter(), world.checks
     qa, qb = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
@@ -101,7 +112,12 @@ def plan_path(world: CollisionWorld, q_start: np.ndarray, q_goal: np.ndarray, *,
         return PathPlan(path, status, why, time.perf_counter() - t0, world.checks - checks0, moving)
 
     if (why := world.first_collision(qa)) is not None:
-        return done([], "invalid_start", why)
+        out = escape(world, qa, moving, lower, upper, seed) if escape_start else None
+        if out is None:
+            return done([], "invalid_start", why)
+        rest = plan_path(world, out, qb, lower=lower, upper=upper, time_limit=time_limit - (time.perf_counter() - t0),
+                         seed=seed, straight_first=straight_first, joints=joints, escape_start=False)
+        return done([qa, *rest.path], "planned" if rest.found else rest.status, rest.why)
     if (why := world.first_collision(qb)) is not None:
         return done([], "invalid_goal", why)
     if straight_first and world.first_on_segment(qa, qb) is None:
@@ -118,6 +134,37 @@ def plan_path(world: CollisionWorld, q_start: np.ndarray, q_goal: np.ndarray, *,
         if world.first_on_path(path) is None:
             return done(path, "planned")
     return done([], "no_path")
+
+
+def escape(world: CollisionWorld, q: np.ndarray, moving: Sequence[int], lower: np.ndarray, upper: np.ndarray,
+           seed: int) -> np.ndarray | None:
+    """A valid state near ``q`` (in collision), reached from it without going deeper in, or None.
+
+    Random states of the ``moving`` joints within each radius of :data:`ESCAPE` in turn (``ESCAPE_SAMPLES`` each,
+    seeded: a run repeats); of those valid whose straight segment from ``q`` never reaches deeper than ``q`` is (by
+    more than ``ESCAPE_SLACK``), the nearest.
+    """
+    if not moving:
+        return None
+    rng = np.random.default_rng(seed)
+    idx = np.asarray(moving, dtype=int)
+    depth = world.room(q)[0]
+    for radius in ESCAPE:
+        found = []
+        for _ in range(ESCAPE_SAMPLES):
+            cand = q.copy()
+            cand[idx] = np.clip(q[idx] + rng.uniform(-radius, radius, len(idx)), lower[idx], upper[idx])
+            if world.valid(cand) and _leaves(world, q, cand, depth):
+                found.append(cand)
+        if found:
+            return min(found, key=lambda c: float(np.abs(c - q).max()))
+    return None
+
+
+def _leaves(world: CollisionWorld, qa: np.ndarray, qb: np.ndarray, depth: float) -> bool:
+    """Whether the straight segment from ``qa`` (room ``depth`` [m], < 0) to ``qb`` never reaches deeper."""
+    n = world.steps(qa, qb)
+    return all(world.room(qa + (k / n) * (qb - qa))[0] >= depth - ESCAPE_SLACK for k in range(1, n))
 
 
 def _ompl(world: CollisionWorld, qa: np.ndarray, qb: np.ndarray, moving: Sequence[int], lower: np.ndarray,
