@@ -109,15 +109,19 @@ def test_a_narrow_passage_a_slot_through_a_wall_is_found():
     assert all(abs(q[1] - 0.6) <= 0.02 for q in crossing)
 
 
-def test_a_held_object_blocks_a_path_that_drags_it_through_an_obstacle():
-    cfg = load_config(ROOT / "configs" / "push_cube.yaml", [
-        "scene.objects.post={shape: box, size: [0.02, 0.02, 0.03], pos: [0.59, 0.12]}"])
-    robot = build_robot(cfg, "post")
+def _post_world(post: str):
+    """The push scene with a box ``post`` (its flow mapping) added, its collision world and the robot's home, set."""
+    robot = build_robot(load_config(ROOT / "configs" / "push_cube.yaml", [f"scene.objects.post={post}"]), "post")
     world = CollisionWorld(robot, clearance=0.005)
     home = robot.keyframe_q("home")
+    world.set_world({}, home)
+    return robot, world, home
+
+
+def test_a_held_object_blocks_a_path_that_drags_it_through_an_obstacle():
+    robot, world, home = _post_world("{shape: box, size: [0.02, 0.02, 0.03], pos: [0.59, 0.12]}")
     sweep = home.copy()
     sweep[robot.joint_index("LARM_JOINT0")] -= 0.5  # the left hand swings across the table towards the middle
-    world.set_world({}, home)
     hand = Pose(np.zeros(3), np.eye(3))
     free = world.first_on_segment(home, sweep)
     post = robot.model.body("post")
@@ -133,12 +137,7 @@ def test_a_held_object_blocks_a_path_that_drags_it_through_an_obstacle():
 
 def test_a_start_inside_an_obstacle_is_left_first_only_where_the_robot_stands():
     """The hand 4 mm into a post at home: invalid as a waypoint; as the robot's own state, left, then planned."""
-    cfg = load_config(ROOT / "configs" / "push_cube.yaml", [
-        "scene.objects.post={shape: box, size: [0.03, 0.03, 0.03], pos: [0.60, 0.26, 0.99], fixed: true}"])
-    robot = build_robot(cfg, "post")
-    world = CollisionWorld(robot, clearance=0.005)
-    home = robot.keyframe_q("home")
-    world.set_world({}, home)
+    robot, world, home = _post_world("{shape: box, size: [0.03, 0.03, 0.03], pos: [0.60, 0.26, 0.99], fixed: true}")
     start = world.first_collision(home)
     assert start is not None and start.distance < 0 and "post" in start.body2, start
     goal = home.copy()
@@ -156,10 +155,7 @@ def test_a_start_inside_an_obstacle_is_left_first_only_where_the_robot_stands():
     n = 4 * world.steps(home, out)
     assert all(world.room(home + s * (out - home))[0] >= depth - 0.0015 for s in np.linspace(0.0, 1.0, n + 1))
     assert float(np.abs(out - home).max()) <= 0.2  # near: within the largest escape radius
-    deep = load_config(ROOT / "configs" / "push_cube.yaml", [
-        "scene.objects.post={shape: box, size: [0.15, 0.15, 0.12], pos: [0.59, 0.26, 1.0], fixed: true}"])
-    buried = CollisionWorld(build_robot(deep, "post"), clearance=0.005)
-    buried.set_world({}, home)
+    _, buried, _ = _post_world("{shape: box, size: [0.15, 0.15, 0.12], pos: [0.59, 0.26, 1.0], fixed: true}")
     assert plan_path(buried, home, goal, lower=robot.lower, upper=robot.upper, joints=arm,
                      escape_start=True).status == "invalid_start"  # the hand inside the post: no way out nearby
 
