@@ -117,7 +117,7 @@ def plan_path(world: CollisionWorld, q_start: np.ndarray, q_goal: np.ndarray, *,
             return done([], "invalid_start", why)
         rest = plan_path(world, out, qb, lower=lower, upper=upper, time_limit=time_limit - (time.perf_counter() - t0),
                          seed=seed, straight_first=straight_first, joints=joints, escape_start=False)
-        return done([qa, *rest.path], "planned" if rest.found else rest.status, rest.why)
+        return done([qa, *rest.path], "planned", None) if rest.found else done([], rest.status, rest.why)
     if (why := world.first_collision(qb)) is not None:
         return done([], "invalid_goal", why)
     if straight_first and world.first_on_segment(qa, qb) is None:

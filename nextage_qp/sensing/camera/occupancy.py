@@ -137,6 +137,10 @@ class VoxelMap:
         solid = self.state() == OCCUPIED_STATE
         if unknown_in is not None:
             solid |= ~self.seen & self._region(*unknown_in)
+        return self._clusters_of(solid, min_voxels)
+
+    def _clusters_of(self, solid: np.ndarray, min_voxels: int) -> list[np.ndarray]:
+        """The voxel indices of each 26-connected cluster of ``solid`` voxels, of at least ``min_voxels``."""
         labels, _ = ndimage.label(solid, structure=np.ones((3, 3, 3), dtype=bool))
         out = []
         for k, sl in enumerate(ndimage.find_objects(labels), start=1):
@@ -177,7 +181,7 @@ class VoxelMap:
         square = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])
         yaws = np.arange(0.0, np.pi / 2, step)
         c, s = np.cos(yaws), np.sin(yaws)
-        for cells in self.clusters(None, min_voxels):
+        for cells in self._clusters_of(solid, min_voxels):
             flat = np.unique(cells[:, :2], axis=0)
             corners = (self.lo[:2] + ((flat[:, None, :] + square[None]) * self.cell).reshape(-1, 2))
             u = corners @ np.stack([c, s])  # (points, yaws): along each candidate's first axis
