@@ -135,6 +135,16 @@ def test_a_held_object_blocks_a_path_that_drags_it_through_an_obstacle():
     assert not plan.found or world.first_on_path(plan.path) is None
 
 
+def test_a_path_of_one_state_is_that_state_checked():
+    """A pose alone (a placement's joints) is judged as a path of one state: in collision, it says what it touches."""
+    robot, world, home = _post_world("{shape: box, size: [0.03, 0.03, 0.03], pos: [0.60, 0.26, 0.99], fixed: true}")
+    hit = world.first_on_path([home])
+    assert hit is not None and hit[:2] == (0, 0.0) and "post" in hit[2].body1 + hit[2].body2, hit
+    clear = home.copy()
+    clear[robot.joint_index("LARM_JOINT0")] += 0.4  # the left hand swung away from the post
+    assert world.first_collision(clear) is None and world.first_on_path([clear]) is None
+
+
 def test_a_start_inside_an_obstacle_is_left_first_only_where_the_robot_stands():
     """The hand 4 mm into a post at home: invalid as a waypoint; as the robot's own state, left, then planned."""
     robot, world, home = _post_world("{shape: box, size: [0.03, 0.03, 0.03], pos: [0.60, 0.26, 0.99], fixed: true}")
@@ -180,6 +190,20 @@ def test_every_planning_and_clutter_key_is_validated_in_one_line(override, says,
     assert main(["run", str(CLUTTER), "--set", override]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and says in err[0], err
+
+
+def test_a_placement_that_puts_the_arms_into_the_clutter_is_refused_naming_the_piece(capsys):
+    """A sweep episode's scene: the clamp at the box's target puts the left forearm into a clutter piece (the pose
+    solved with the clutter ignored), and the IK keeping clear of it stalls short. Refused before anything moves, in
+    one line naming the link and the piece, not claiming a clear pose."""
+    sets = ["scene.objects.box.size=[0.0273694609596842,0.04264597299399814,0.12]",
+            "scene.objects.box.pos=[0.5171660035542716,0.021578978261265896]", "scene.objects.box.yaw=-0.04290161171814",
+            "scene.poses.box_target.pos=[0.39087506749303746,0.3323907576992709,0.905]",
+            "scene.poses.box_target.yaw=0.5203765058435428", "scene.clutter.count=6", "seed=76924364"]
+    config = ROOT / "configs" / "pick_place_clutter.yaml"
+    assert main(["run", str(config), *[a for s in sets for a in ("--set", s)]]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "an obstacle is in the way" in err[0] and "mm into clutter_" in err[0], err
 
 
 def test_touching_the_clutter_is_counted_per_physics_step_and_judged(cluttered):

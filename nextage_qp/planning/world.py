@@ -236,7 +236,13 @@ class CollisionWorld:
             s = min(1.0, s + max(room, RESOLUTION) / travel)
 
     def first_on_path(self, path: Sequence[np.ndarray]) -> tuple[int, float, Collision] | None:
-        """The first invalid state along a path of joint waypoints: (segment, fraction, why), or None."""
+        """The first invalid state along a path of joint waypoints: (segment, fraction, why), or None.
+
+        A path of one state is that state alone.
+        """
+        if len(path) == 1:
+            why = self.first_collision(np.asarray(path[0], dtype=float))
+            return None if why is None else (0, 0.0, why)
         for i in range(len(path) - 1):
             hit = self.first_on_segment(path[i], path[i + 1])
             if hit is not None:
