@@ -78,6 +78,17 @@ def test_push_fails_with_the_error_when_no_attempt_is_left():
         run_until_done(phase, view, each=knocked_aside_after_the_first_push(view, phase))
 
 
+def test_a_correction_no_tool_reaches_fails_naming_where_the_object_would_have_to_go():
+    view = push_view(reach=lambda targets: abs(yaw_of(targets[0].rot)) < 0.3)  # only pushes near straight ahead
+    phase = make("push", frame="left_tool", object="cube", target="cube_target")
+    phase.start(view)
+    with pytest.raises(PhaseError, match=r"no side to push it from towards cube_target is within the robot's reach "
+                                         r"\(at \(0\.\d{3}, -?0\.\d{3}\) m it would have to go towards \([+-]0\.\d\d, "
+                                         r"-0\.9\d\); no tool reaches it within 60 deg of that\)$"):  # sideways: -y
+        run_until_done(phase, view, each=knocked_aside_after_the_first_push(view, phase))
+    assert phase.info["unreachable_corrections"] == 1
+
+
 @pytest.mark.parametrize("force", [2.0, 0.1])
 def test_push_hidden_by_the_hand_goes_by_the_contact_then_backs_off_to_judge(force):
     """Hidden from the camera, the push takes the cube's face to be on the tool while the wrist feels it, and judges

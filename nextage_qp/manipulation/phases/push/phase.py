@@ -549,9 +549,12 @@ class Push(Phase):
         self.full = False
         if self.plan_failed:  # no reachable side to correct from
             self.info["unreachable_corrections"] = self.info.get("unreachable_corrections", 0) + 1
-            _, _, err = self._planar(view)
-            why = f" (the last route the arm reached is blocked: {self.blocked})" if self.blocked else ""
-            return self._finish(err, f": no side to push it from towards {c.target} is within the robot's reach{why}")
+            obj, _, err = self._planar(view)
+            e, fan = self.next_d, np.degrees(max(c.fan))
+            why = f"; the last route the arm reached is blocked: {self.blocked}" if self.blocked else ""
+            return self._finish(err, f": no side to push it from towards {c.target} is within the robot's reach (at "
+                                     f"({obj[0]:.3f}, {obj[1]:.3f}) m it would have to go towards ({e[0]:+.2f}, "
+                                     f"{e[1]:+.2f}); no tool reaches it within {fan:.0f} deg of that{why})")
         if not self._worth_it(view):  # an accepted error, and a correction that could not reach the tolerance: keep it
             self.info["declined_corrections"] = self.info.get("declined_corrections", 0) + 1
             self.stage, self.final, self.approaches = Stage.RETREAT, True, self.approaches - 1
