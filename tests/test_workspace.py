@@ -144,3 +144,52 @@ def test_robot_init_says_why_a_model_gets_no_workspace(tmp_path, capsys):
     assert main(["robot", "init", str(ROOT / "tests" / "data" / "robots" / "two_arms.xml"), "--out", str(out)]) == 0
     assert "no table height found" in capsys.readouterr().out
     assert load_robot(out).workspace is None  # the draft loads without one: world-frame tasks still run on it
+
+
+PICK = ROOT / "configs" / "pick_place_box.yaml"
+
+
+@pytest.mark.parametrize("old, new, says", [
+    ("    pad: left_palm", "    pad:", "arms left, right declare no pad"),  # an undeclared pad is the wrist
+    ("    pad: left_palm", "    pad: left_tool", "arm right declares no pad"),
+])
+def test_a_clamp_the_robot_cannot_make_is_refused_in_one_line(tmp_path, capsys, old, new, says):
+    robot = _nextage_copy(tmp_path, old, new).read_text().replace("    pad: right_palm\n", "")
+    path = tmp_path / "nopad.yaml"
+    path.write_text("\n".join(line for line in robot.splitlines() if line.strip() != "pad:") + "\n")
+    assert main(["run", str(PICK), "--robot", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "phases[0] (clamp): robot" in err and "cannot clamp" in err and says in err and "arms[].pad" in err
+
+
+def test_a_pad_on_a_body_without_a_force_sensor_is_refused_naming_the_bodies_with_one(tmp_path, capsys):
+    robot = _nextage_copy(tmp_path, "    pad: left_palm", "    pad: left_elbow_pad")
+    robot.write_text(robot.read_text() + "frames:\n  left_elbow_pad: {body: LARM_JOINT2_Link, pos: [0.0, 0.0, 0.0]}\n")
+    assert main(["run", str(PICK), "--robot", str(robot)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "pad 'left_elbow_pad' is on body 'LARM_JOINT2_Link', which has no force/torque sensor" in err
+    assert "LARM_JOINT5_Link (left_pad)" in err  # where one is
+
+
+@needs_robosuite
+@pytest.mark.parametrize("config", ["pick_place_box", "stack_boxes"])
+@pytest.mark.parametrize("robot", ["yumi", "aloha"])
+def test_the_shared_clamp_tasks_refuse_a_robot_without_pads_before_anything_moves(capsys, config, robot):
+    assert main(["run", str(ROOT / "configs" / f"{config}.yaml"), "--set", f"robot={robot}"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"robot {robot!r} cannot clamp" in err
+
+
+@pytest.mark.parametrize("config", ["pick_place_box", "stack_boxes"])
+def test_the_shared_clamp_tasks_stand_in_the_workspace(config):
+    path = ROOT / "configs" / f"{config}.yaml"
+    cfg = load_config(path)
+    assert cfg.scene.frame == "workspace" and all(s.frames is None for s in cfg.phases if s.kind == "grasp")
+    built = build_robot(cfg, str(path))
+    ws = load_robot("nextage").workspace
+    assert ws is not None
+    for name, decl in cfg.scene.objects.items():
+        assert decl.pos is not None
+        assert np.allclose(built.model.body(name).pos[:2], np.add(ws.centre, decl.pos[:2]))

@@ -29,6 +29,7 @@ from nextage_qp.manipulation.config import ManipulationConfig
 from nextage_qp.manipulation.joint_checks import check_angles
 from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, RunResult, summarize
 from nextage_qp.manipulation.phases import Phase, build, names_in
+from nextage_qp.manipulation.phases.grasp.spec import GraspSpec
 from nextage_qp.manipulation.phases.push.spec import FULL_ORIENT_JOINTS, PushSpec
 from nextage_qp.manipulation.placement import Placement, check_placement, free_spots
 from nextage_qp.manipulation.sim_view import SimView
@@ -44,6 +45,7 @@ from nextage_qp.scene.checks import check_clear, check_robot_clear
 from nextage_qp.scene.clutter import ClutterDecl
 from nextage_qp.scene.files import BodyPose, SceneOverrides
 from nextage_qp.scene.seen_obstacles import SeenBoxes
+from nextage_qp.sensing.sensors import WrenchSensor
 from nextage_qp.sensing.setup import attach_camera, log_estimates, perception_of, source_of
 
 TickCallback = Callable[["Runner", Phase | None], None]
@@ -233,6 +235,7 @@ def build_robot(cfg: ManipulationConfig, source: str) -> Robot:
         raise
     check_own_names(robot)  # the robot file's own names: its error, not the task config's
     check_names(cfg, robot, source)
+    check_clamps(cfg, robot, source)
     check_angles(cfg, robot, source)
     check_clear(robot.model, robot.joint_names, robot.object_names, source)
     return robot
@@ -254,6 +257,46 @@ def check_names(cfg: ManipulationConfig, robot: Robot, source: str) -> None:
     for key, kind, name in names_in(cfg, ""):
         if name not in accepted[kind]:
             raise ConfigError(f"{source}: {key.lstrip('.')}: {name!r} is not valid; valid: {', '.join(valid[kind])}")
+
+
+def check_clamps(cfg: ManipulationConfig, robot: Robot, source: str) -> None:
+    """Refuse a clamp the robot cannot make: pads it does not declare, or pads that feel no force.
+
+    A ``grasp`` closes until force/torque sensors on the pads' bodies read its squeeze, so each pad frame (the
+    phase's ``frames``, or each arm's ``pad``) must be on a body that carries a force and a torque sensor, and pads
+    left to the robot must be ones its robot file declares (an undeclared pad is the wrist's origin, not a face).
+
+    Raises:
+        InfeasibleError: ``source: phases[i] (name): robot 'r' cannot clamp: why; what would do``.
+    """
+    sensed = {s.body: s.name for s in WrenchSensor.of_model(robot.model)}
+    for i, spec in enumerate(cfg.phases):
+        if not isinstance(spec, GraspSpec):
+            continue
+        where = f"{source}: phases[{i}] ({spec.name or spec.kind}): robot {cfg.robot!r} cannot clamp"
+        if spec.frames is None:
+            if len(robot.arms) < 2:
+                raise InfeasibleError(f"{where}: it has {len(robot.arms)} arm, the clamp needs two", source=source,
+                                      key=f"phases[{i}]")
+            bare = [arm.name for arm in robot.arms[:2] if not arm.clamps]
+            if bare:
+                many = len(bare) > 1
+                raise InfeasibleError(
+                    f"{where}: arm{'s' if many else ''} {', '.join(bare)} declare{'' if many else 's'} no pad "
+                    "(arms[].pad in its robot file: a frame on the face that clamps, on a body with a force/torque "
+                    "sensor)", source=source, key=f"phases[{i}]")
+            frames: tuple[str, ...] = tuple(arm.pad for arm in robot.arms[:2])
+        else:
+            frames = spec.frames
+        for frame in frames:
+            kind, fid = robot.frame(frame)
+            body = fid if kind == "body" else int(robot.model.site_bodyid[fid])
+            if body not in sensed:
+                found = ", ".join(f"{robot.model.body(b).name} ({n})" for b, n in sensed.items()) or "none"
+                raise InfeasibleError(
+                    f"{where}: pad {frame!r} is on body {robot.model.body(body).name!r}, which has no force/torque "
+                    f"sensor to feel the squeeze (bodies with one: {found}); add a force and a torque sensor at a "
+                    "site on it to the model", source=source, key=f"phases[{i}]")
 
 
 class Runner:

@@ -35,6 +35,8 @@ class Arm:
     wrist: str
     tool: str
     pad: str
+    clamps: bool = True
+    """Whether the robot file declares the pad (else ``pad`` is the wrist, which no clamp can use)."""
 
     @property
     def group(self) -> str:
@@ -208,7 +210,8 @@ def load_robot(ref: str | Path | None = None) -> RobotDescription:
         raise ConfigError(f"{shown}: model: {doc.model!r} not found (looked for {model})")
     if model.suffix.lower() not in (".xml", ".urdf"):
         raise ConfigError(f"{shown}: model: {doc.model!r} must be an MJCF (.xml) or URDF (.urdf) file")
-    arms = tuple(Arm(a.name, a.joints, a.wrist, a.tool or a.wrist, a.pad or a.wrist) for a in doc.arms)
+    arms = tuple(Arm(a.name, a.joints, a.wrist, a.tool or a.wrist, a.pad or a.wrist, a.pad is not None)
+                 for a in doc.arms)
     gains = doc.gains if isinstance(doc.gains, GainRule) else (here / doc.gains).resolve()
     if isinstance(gains, Path) and not gains.is_file():
         raise ConfigError(f"{shown}: gains: {doc.gains!r} not found (looked for {gains})")

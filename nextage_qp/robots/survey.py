@@ -150,7 +150,7 @@ def bare_description(path: Path) -> RobotDescription:
     """
     s = survey(path.resolve(), search_home=False, fix_angle=False, lenient=True)
     names = [s.model.joint(j).name for j in s.joints]
-    arms = tuple(Arm(a.name, tuple(names[s.joints.index(j)] for j in a.joints), a.wrist, a.wrist, a.wrist)
+    arms = tuple(Arm(a.name, tuple(names[s.joints.index(j)] for j in a.joints), a.wrist, a.wrist, a.wrist, False)
                  for a in s.arms.arms)
     groups = {"torso": tuple(s.model.joint(j).name for j in s.arms.torso)} if s.arms.torso else {}
     groups |= {k: tuple(s.model.joint(j).name for j in v) for k, v in s.arms.groups.items()}
