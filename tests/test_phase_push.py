@@ -433,7 +433,7 @@ def test_a_failure_inside_a_phase_names_the_phase():
     from nextage_qp import api
 
     result = api.run_task("configs/pick_place_box.yaml", overrides=[
-        "scene.objects.box.pos=[0.55,-0.05]", "scene.poses.box_target.pos=[0.30,0.33,0.905]",
+        "scene.objects.box.pos=[0.10,-0.05]", "scene.poses.box_target.pos=[-0.15,0.33,0.03]",
         "scene.objects.box.mass=0.3"]).record
     assert not result["success"]
     assert result["error"].startswith("phase 'lift over the wall and set down on the target' (place): no "

@@ -100,7 +100,7 @@ def test_a_task_written_here_runs_from_yaml_alone(tmp_path, capsys):
 def test_a_target_out_of_the_clamps_reach_is_refused_before_anything_moves(capsys):
     code = main(["run", str(ROOT / "configs" / "pick_place_box.yaml"),
                  "--set", "scene.objects.box.size=[0.03,0.16,0.12]",  # 32 cm long: the clamp turns it
-                 "--set", "scene.poses.box_target.pos=[0.3,0.5,0.905]"])
+                 "--set", "scene.poses.box_target.pos=[-0.15,0.5,0.03]"])  # workspace
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
     assert "cannot reach box_target's pose" in err[0] and "out of the arms' reach" in err[0]
