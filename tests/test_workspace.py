@@ -132,7 +132,7 @@ def test_robot_init_drafts_a_robot_ready_for_the_shared_push(tmp_path, capsys):
     qpos[robot.qpos_idx] = robot.keyframe_q("home")
     assert not [p for p in self_contacts(robot.model, d, qpos) if "table" not in p and "cube" not in p]
     note = next(line for line in out.read_text().splitlines() if "manipulability" in line)
-    values = [float(v) for v in out.read_text().split("6-D)")[1].split("\nkeyframes")[0].replace("#", "").split(",")]
+    values = [float(v) for v in out.read_text().split("each tool)")[1].split("\nkeyframes")[0].replace("#", "").split(",")]
     assert note and min(values) > 1e-3  # away from singularities
     result = Runner(load_config(ACROSS, [f"robot={out}"]), str(ACROSS)).run()
     assert result["success"], result.get("error")
@@ -193,3 +193,20 @@ def test_the_shared_clamp_tasks_stand_in_the_workspace(config):
     for name, decl in cfg.scene.objects.items():
         assert decl.pos is not None
         assert np.allclose(built.model.body(name).pos[:2], np.add(ws.centre, decl.pos[:2]))
+
+
+@needs_robosuite
+def test_a_tool_the_last_joint_does_not_move_does_not_read_as_a_singularity():
+    """The ALOHA's tools sit on the link before wrist_rotate: five joints move each, so the 6 x 6 Jacobian over the
+    arm's joints is singular everywhere; the measure over the joints that move the tool is not, at its home."""
+    from nextage_qp.experiments.table_ready import _manipulability
+    from nextage_qp.kinematics.frames import Kinematics
+    from nextage_qp.robots.model import Robot
+
+    robot = Robot.from_scene("push_cube", None, load_robot("aloha"))
+    q = robot.keyframe_q("home")
+    for arm in robot.arms:
+        assert len(robot.chain_joints(arm.tool)) == 5
+        jac = Kinematics(robot).jacobian(arm.tool, q)[:, [robot.joint_index(j) for j in arm.joints]]
+        assert abs(np.linalg.det(jac)) < 1e-9  # the whole arm's: a zero column
+    assert min(_manipulability(robot, q, [arm.tool for arm in robot.arms])) > 1e-2

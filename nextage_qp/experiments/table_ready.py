@@ -10,7 +10,8 @@ draft in a task scene and adds what a table task needs, each derived from the mo
 * **workspace**: the table top's height (among a few below the shoulders) over which both tools, level and facing the
   middle, reach the largest rectangle of a grid in front of the robot; the table stands clear of the robot's body;
 * a **ready home**: both tools :data:`READY_HEIGHT` over the work region, level, facing each other, solved by the IK
-  from the draft's home, kept only when free of self-contact; its manipulability is reported.
+  from the draft's home, kept only when free of self-contact; one the motors hold against gravity wins, then the least
+  singular; its manipulability is reported.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from nextage_qp.robots.draft import TABLE_GAP, Ready
 from nextage_qp.robots.model import robot_bodies
 from nextage_qp.robots.model_checks import Finding
 from nextage_qp.robots.modelfile import descendants, self_contacts
+from nextage_qp.robots.physics_checks import file_or_model_limit
 from nextage_qp.robots.robot_file import FrameFile, WorkspaceFile
 
 CUBE = 0.07
@@ -228,11 +230,35 @@ def _area(rect: tuple[int, int, int, int]) -> int:
 
 
 def _manipulability(robot, q: np.ndarray, frames: list[str]) -> list[float]:
-    """Per frame, sqrt(det(J J^T)) of its 6-D Jacobian over the robot's joints at ``q``."""
+    """Per frame, the product of the singular values of its 6-D Jacobian over the joints that move it, at ``q``.
+
+    With six or more such joints it is Yoshikawa's sqrt(det(J J^T)); with fewer (a tool on the link before the last
+    joint: that joint cannot move it) it is sqrt(det(J^T J)), so that a joint which does not move the frame does not
+    read as a singularity. Zero at a singularity.
+    """
     from nextage_qp.kinematics.frames import Kinematics
 
     kin = Kinematics(robot)
-    return [float(np.sqrt(max(np.linalg.det(jac @ jac.T), 0.0))) for jac in (kin.jacobian(f, q) for f in frames)]
+    out = []
+    for frame in frames:
+        jac = kin.jacobian(frame, q)[:, robot.chain_joints(frame)]
+        out.append(float(np.prod(np.linalg.svd(jac, compute_uv=False)[: min(jac.shape)])))
+    return out
+
+
+def _load_ratio(robot, d: mujoco.MjData) -> float:
+    """The largest ratio of a robot joint's gravity torque at ``d``'s pose to its torque limit (1: at the limit).
+
+    ``d``'s ``qpos`` must be set; a joint without a limit does not count.
+    """
+    m = robot.model
+    mujoco.mj_forward(m, d)
+    ratios = [0.0]
+    for j in robot.joint_ids:
+        limit = file_or_model_limit(m, int(j), robot.description.torque_limits)
+        if limit:
+            ratios.append(abs(float(d.qfrc_bias[m.jnt_dofadr[j]])) / limit)
+    return max(ratios)
 
 
 def _table_gap(robot, d: mujoco.MjData) -> tuple[float, str]:
@@ -254,6 +280,9 @@ def _table_gap(robot, d: mujoco.MjData) -> tuple[float, str]:
 
 def _ready_home(robot, ik, arms, faces, centre, size, top, home) -> tuple[dict[str, float] | None, str]:
     """Both tools over the work region, level and facing each other, free of contact, the least singular found.
+
+    A pose the motors hold against gravity (each robot joint's gravity torque within its limit) wins over one they do
+    not, whatever its manipulability; among those held, the least singular wins.
 
     Tried at three heights and three spreads, each from the draft's home and from :data:`READY_STARTS` seeded poses
     within the limits; None where every solution misses, or touches the robot itself or the table.
@@ -288,14 +317,16 @@ def _ready_home(robot, ik, arms, faces, centre, size, top, home) -> tuple[dict[s
                 why = f"{near} comes within {gap * 1e3:.0f} mm of the table"
                 continue
             measure = _manipulability(robot, np.asarray(result.q), tools)
-            if best is None or min(measure) > min(best[2]):
-                best = (np.asarray(result.q), height, measure)
+            rank = (max(_load_ratio(robot, d), 1.0), -min(measure))  # held by the motors first, then least singular
+            if best is None or rank < best[3]:
+                best = (np.asarray(result.q), height, measure, rank)
     if best is None:
         return None, f"no ready home over the work region ({why}); home stays the draft's"
-    q, height, measure = best
+    q, height, measure, _ = best
     values = {name: round(float(v), 5) for name, v in zip(robot.joint_names, q, strict=True)}
     return values, (f"ready home: both tools {height:.2f} m over the work region, level, facing each other; "
-                    "manipulability (sqrt det J J^T, 6-D) " + ", ".join(f"{v:.3g}" for v in measure))
+                    "manipulability (product of the singular values of the 6-D Jacobian over the joints that move "
+                    "each tool) " + ", ".join(f"{v:.3g}" for v in measure))
 
 
 WORKSPACE_HEIGHT = 0.035
