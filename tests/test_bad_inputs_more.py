@@ -58,7 +58,7 @@ CASES: list[tuple[str, list[str], dict[str, str], int, str]] = [
      robot("gains_dir:", "torque_limits: {LARM_JOINT0: true}\ngains_dir:"), 2,
      "torque_limits.LARM_JOINT0: expected a number, got a boolean"),
     ("collision pair of a group with itself", ["run", PUSH, "--set", "ik.collision_pairs.0.b=left_hand"], {}, 2,
-     "ik.collision_pairs[0]: a and b are both 'left_hand'"),
+     "ik.collision_pairs[0]: 'left_hand' with itself keeps nothing apart: no two of its geoms on different bodies"),
     ("two phases of one name", ["run", str(ROOT / "configs" / "dock_dumbbell.yaml"), "--set", "phases.1.name=clamp"],
      {}, 2, "phases[1].name: 'clamp' is also phases[0]'s name"),
     ("scene.masses of 1e300 kg", ["run", PUSH, "--set", "scene.masses.cube=1e300"], {}, 2,

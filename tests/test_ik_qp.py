@@ -509,3 +509,27 @@ def test_a_descent_within_good_enough_ends_at_its_first_step_without_progress(ro
     a, b = plain.solve(reached, home), plain.solve(reached, home, good_enough=(1e-3, 1e-2))
     assert a.converged and b.converged
     np.testing.assert_array_equal(a.q, b.q)
+
+
+def test_a_group_paired_with_itself_keeps_its_own_links_apart_but_not_where_they_join(robot: Robot) -> None:
+    """An arm with itself: rows for its links that can fold onto each other, none for a parent and its child (they
+    touch at their joint) nor for geoms nearer than min_distance at home (they could never be kept apart)."""
+    from nextage_qp.ik.collision import apart_at
+
+    pair = CollisionPairConfig(a="left_arm", b="left_arm", min_distance=0.005, detection_distance=0.03)
+    ik = QPIK(robot, IKConfig(collision_pairs=(pair,)))
+    m = ik.model
+    assert ik.collision is not None and ik.collision.geom1.size > 20
+    d = mujoco.MjData(m)
+    d.qpos[:] = ik.full(robot.keyframe_q("home"))
+    mujoco.mj_kinematics(m, d)
+    bodies = set()
+    for a, b in zip(ik.collision.geom1, ik.collision.geom2, strict=True):
+        ba, bb = int(m.geom_bodyid[a]), int(m.geom_bodyid[b])
+        assert ba != bb and m.body_parentid[ba] != bb and m.body_parentid[bb] != ba
+        assert mujoco.mj_geomDistance(m, d, int(a), int(b), 0.1, None) >= 0.005
+        bodies |= {m.body(ba).name, m.body(bb).name}
+    assert {"LARM_JOINT1_Link", "LARM_JOINT5_Link"} <= bodies  # the upper arm and the hand
+    assert not any(n.startswith("RARM") for n in bodies)
+    near = apart_at(m, d.qpos, ik.groups["left_arm"], 1.0)  # nothing is a metre from the rest of its arm
+    assert near == []

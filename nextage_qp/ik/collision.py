@@ -32,6 +32,23 @@ from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.native import kernels
 
 
+def apart_at(model: mujoco.MjModel, qpos: np.ndarray, geoms: Sequence[int],
+             min_distance: float) -> list[tuple[int, int]]:
+    """The pairs of ``geoms`` (on bodies neither the same nor parent and child) ``min_distance`` [m] apart at ``qpos``.
+
+    A group's own links that a collision pair can keep apart: those nearer (touching where they join) never could.
+    """
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    out = []
+    for a, b in itertools.combinations(sorted(set(geoms)), 2):
+        if model.geom_bodyid[a] != model.geom_bodyid[b] and not _are_geom_bodies_parent_child(model, a, b) and \
+                mujoco.mj_geomDistance(model, data, a, b, min_distance + 0.01, None) >= min_distance:
+            out.append((a, b))
+    return out
+
+
 class ActiveCollisionLimit(mink.Limit):
     r"""Keep geom pairs apart, emitting one QP row per pair that is within detection distance and can bind.
 

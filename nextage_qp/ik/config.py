@@ -19,11 +19,14 @@ class CollisionPairConfig(YamlModel):
     """Collision avoidance between two named geom groups (see :meth:`Robot.collision_geoms`).
 
     Every geom of group ``a`` is kept at least ``min_distance`` from every geom of group ``b``; the
-    constraint is sent to the QP only while the pair is closer than ``detection_distance``.
+    constraint is sent to the QP only while the pair is closer than ``detection_distance``. A group paired with
+    itself (``a`` = ``b``) keeps its own links apart: an arm that would fold its forearm onto its upper arm. Its
+    links that touch where they join (a parent and its child), and pairs of its geoms nearer than ``min_distance``
+    at the robot's home, are left out.
     """
 
     a: str = Field(description="First geom group, e.g. 'left_arm'.")
-    b: str = Field(description="Second geom group, e.g. 'table'.")
+    b: str = Field(description="Second geom group, e.g. 'table'; 'a' again: the group's own links kept apart.")
     min_distance: float = Field(default=0.005, ge=0.0, description="Distance kept between the groups [m].")
     detection_distance: float = Field(
         default=0.05, gt=0.0, description="Distance below which the pair becomes a QP constraint [m]."
@@ -31,9 +34,6 @@ class CollisionPairConfig(YamlModel):
 
     @model_validator(mode="after")
     def _detection_beyond_minimum(self) -> CollisionPairConfig:
-        if self.a == self.b:
-            raise ValueError(f"a and b are both {self.a!r}: a pair keeps two different groups apart (a group's own "
-                             "links touch at their joints)")
         if self.detection_distance <= self.min_distance:
             raise ValueError(
                 f"detection_distance ({self.detection_distance} m) must exceed min_distance ({self.min_distance} m)"

@@ -332,6 +332,8 @@ class Runner:
             self.ik = QPIK(self.controlled, cfg.ik)
         except UnknownNameError as exc:
             raise ConfigError(f"{source}: ik: {exc}") from None
+        except ConfigError as exc:
+            raise ConfigError(f"{source}: {exc}", source=source, key=exc.key) from None
         frames = tool_frames(self.robot)
         self.sensors, self.shoves = perception_of(cfg, self.robot, source)
         self.sim = Simulation(self.robot, gains, cfg.trajectory, timing=cfg.timing, frames=frames, sensors=self.sensors)
