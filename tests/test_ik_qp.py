@@ -531,5 +531,20 @@ def test_a_group_paired_with_itself_keeps_its_own_links_apart_but_not_where_they
         bodies |= {m.body(ba).name, m.body(bb).name}
     assert {"LARM_JOINT1_Link", "LARM_JOINT5_Link"} <= bodies  # the upper arm and the hand
     assert not any(n.startswith("RARM") for n in bodies)
-    near = apart_at(m, d.qpos, ik.groups["left_arm"], 1.0)  # nothing is a metre from the rest of its arm
-    assert near == []
+    arm = ik.groups["left_arm"]
+    assert apart_at(m, d.qpos, arm, arm, 1.0) == []  # nothing is a metre from the rest of its arm
+
+
+def test_geoms_that_touch_at_home_are_left_out_of_a_pair_of_two_groups(robot: Robot) -> None:
+    """A shoulder that touches the torso where it is mounted (a drafted PR2's, 6 cm inside it) would freeze the arm
+    under an arm-torso pair: such geom pairs are left out, judged at home, the others kept."""
+    pair = CollisionPairConfig(a="left_arm", b="torso", min_distance=0.15, detection_distance=0.2)
+    ik = QPIK(robot, IKConfig(collision_pairs=(pair,)))
+    m = ik.model
+    d = mujoco.MjData(m)
+    d.qpos[:] = ik.full(robot.keyframe_q("home"))
+    mujoco.mj_kinematics(m, d)
+    kept = list(zip(ik.collision.geom1, ik.collision.geom2, strict=True))
+    assert kept and all(mujoco.mj_geomDistance(m, d, int(a), int(b), 1.0, None) >= 0.15 for a, b in kept)
+    everything = QPIK(robot, IKConfig(collision_pairs=(pair.model_copy(update={"min_distance": 0.0}),)))
+    assert everything.collision.geom1.size > len(kept)  # the near ones were there to leave out

@@ -52,6 +52,8 @@ READY_STARTS = 3
 """Seeded poses within the limits the ready home is also solved from (besides the draft's home)."""
 MIN_TOP = 0.05
 """Lowest table top [m] tried (the floor is z = 0)."""
+PITCHES = (0.0, 0.2, 0.4)
+"""Pitches [rad] of the tool (its face's normal tipped down) at which the push height is sought, level first."""
 READY_HEIGHT = 0.20
 """The ready home holds the tools this far [m] over the table top."""
 TABLE_TOP = "table_top"
@@ -202,26 +204,31 @@ def make_ready(desc: RobotDescription) -> Ready:
     pairs = tuple(CollisionPairConfig(a=f"{arm.name}_arm", b="table", min_distance=TABLE_GAP)
                   for arm in arms if f"{arm.name}_arm" in groups)
     kept = QPIK(placed, IKConfig(collision_pairs=pairs))
-    ready.push_height = _lowest_push(kept, arms, faces, centre, top, home)
+    ready.push_height, ready.push_pitch = _lowest_push(kept, arms, faces, centre, top, home)
     ready.home, note = _ready_home(placed, QPIK(placed, IKConfig()), arms, faces, centre, size, top, home)
     ready.notes.append(note)
     return ready
 
 
-def _lowest_push(ik, arms, faces, centre, top, home) -> float:
-    """The lowest tool height over a :data:`CUBE` cube's centre at which every tool reaches the work region's centre.
+def _lowest_push(ik, arms, faces, centre, top, home) -> tuple[float, float]:
+    """The lowest tool height over a :data:`CUBE` cube's centre at which every tool reaches the region's centre.
 
-    Each tool level and facing the middle, its arm kept :data:`TABLE_GAP` off the table by the IK; at most a quarter
-    of the cube over its centre.
+    Returns the height [m] and the tool's pitch [rad] there. Each tool facing the middle, its arm kept
+    :data:`TABLE_GAP` off the table by the IK; level first, then pitched down by each of :data:`PITCHES` in turn (a
+    long hand whose arm meets the table before its tip comes low enough, level, reaches lower tipped down); at most
+    a quarter of the cube over its centre.
     """
     from nextage_qp.ik import FrameTarget
 
-    for height in np.arange(0.0, CUBE / 4 + 1e-9, 0.002):
-        p = np.array([centre[0], centre[1], top + CUBE / 2 + height])
-        if all(ik.solve([FrameTarget(arm.tool, pos=p, axis=np.array([1.0, 0.0, 0.0]), direction=faces[arm.tool])],
-                        home).pos_err_m <= REACH_TOL for arm in arms):
-            return float(height)
-    return CUBE / 4
+    for pitch in PITCHES:
+        for height in np.arange(0.0, CUBE / 4 + 1e-9, 0.002):
+            p = np.array([centre[0], centre[1], top + CUBE / 2 + height])
+            down = np.array([0.0, 0.0, -np.sin(pitch)])
+            if all(ik.solve([FrameTarget(arm.tool, pos=p, axis=np.array([1.0, 0.0, 0.0]),
+                                         direction=np.cos(pitch) * faces[arm.tool] + down)],
+                            home).pos_err_m <= REACH_TOL for arm in arms):
+                return float(height), float(pitch)
+    return CUBE / 4, 0.0
 
 
 def _area(rect: tuple[int, int, int, int]) -> int:

@@ -32,21 +32,28 @@ from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.native import kernels
 
 
-def apart_at(model: mujoco.MjModel, qpos: np.ndarray, geoms: Sequence[int],
+def apart_at(model: mujoco.MjModel, qpos: np.ndarray, geoms_a: Sequence[int], geoms_b: Sequence[int],
              min_distance: float) -> list[tuple[int, int]]:
-    """The pairs of ``geoms`` (on bodies neither the same nor parent and child) ``min_distance`` [m] apart at ``qpos``.
+    """The geom pairs of two groups that a collision pair can keep ``min_distance`` [m] apart, judged at ``qpos``.
 
-    A group's own links that a collision pair can keep apart: those nearer (touching where they join) never could.
+    Each pair once, on two bodies that are neither the same nor parent and child. A pair of the robot's own geoms (or
+    of the robot and the static scene) nearer than ``min_distance`` at ``qpos`` (the robot's home) is left out: it
+    touches where the links join or where the robot stands, and no row could keep it apart. A pair with an object
+    (a mocap body of the IK model: it moves) is always kept.
     """
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
-    out = []
-    for a, b in itertools.combinations(sorted(set(geoms)), 2):
-        if model.geom_bodyid[a] != model.geom_bodyid[b] and not _are_geom_bodies_parent_child(model, a, b) and \
+    body, mocap = model.geom_bodyid, model.body_mocapid
+    out = set()
+    for a, b in itertools.product(sorted(set(geoms_a)), sorted(set(geoms_b))):
+        a, b = min(a, b), max(a, b)
+        if body[a] == body[b] or (a, b) in out or _are_geom_bodies_parent_child(model, a, b):
+            continue
+        if mocap[body[a]] >= 0 or mocap[body[b]] >= 0 or \
                 mujoco.mj_geomDistance(model, data, a, b, min_distance + 0.01, None) >= min_distance:
-            out.append((a, b))
-    return out
+            out.add((a, b))
+    return sorted(out)
 
 
 class ActiveCollisionLimit(mink.Limit):

@@ -92,20 +92,20 @@ class QPIK:
         self.groups = groups = robot.collision_geoms(config.group_specs())
         self._allow_masks: dict[frozenset[str], np.ndarray] = {}
         pairs: list[tuple[Sequence[int], Sequence[int], float, float]] = []
+        home = self.full(robot.keyframe_q("home"))
         for i, pair in enumerate(config.collision_pairs):
             for name in (pair.a, pair.b):
                 if name not in groups:
                     raise UnknownNameError(f"geom group (collision_pairs[{i}])", name, groups)
-            if pair.a == pair.b:  # the group's own links: each pair of its geoms clear of each other at home
-                apart = apart_at(self.model, self.full(robot.keyframe_q("home")), groups[pair.a], pair.min_distance)
-                if not apart:
-                    raise ConfigError(f"ik.collision_pairs[{i}]: {pair.a!r} with itself keeps nothing apart: no two "
-                                      f"of its geoms on different bodies are {pair.min_distance:g} m apart at home; "
-                                      "pair it with another group, or name a group of several links (an arm)",
-                                      key=f"ik.collision_pairs[{i}]")
-                pairs += [([g1], [g2], pair.min_distance, pair.detection_distance) for g1, g2 in apart]
-            else:
-                pairs.append((groups[pair.a], groups[pair.b], pair.min_distance, pair.detection_distance))
+            # the pairs of geoms not touching at home (a group with itself: its own links kept apart)
+            apart = apart_at(self.model, home, groups[pair.a], groups[pair.b], pair.min_distance)
+            if not apart:
+                raise ConfigError(f"ik.collision_pairs[{i}]: "
+                                  + (f"{pair.a!r} with itself" if pair.a == pair.b else f"{pair.a!r} and {pair.b!r}")
+                                  + " keeps nothing apart: no two of its geoms on different bodies are "
+                                  f"{pair.min_distance:g} m apart at home; pair it with another group, or name a group "
+                                  "of several links (an arm)", key=f"ik.collision_pairs[{i}]")
+            pairs += [([g1], [g2], pair.min_distance, pair.detection_distance) for g1, g2 in apart]
         self.collision = ActiveCollisionLimit(self.model, pairs, config.collision_gain, self.box) if pairs else None
         self._frames: dict[str, Frame] = {}
         self.tasks = TaskCache(config.lm_damping, config.position_cost, config.orientation_cost, self.frame)

@@ -46,6 +46,7 @@ class Ready:
     frames: dict[str, FrameFile] = field(default_factory=dict)
     tools: dict[str, str] = field(default_factory=dict)
     push_height: float = 0.0
+    push_pitch: float = 0.0
     workspace: WorkspaceFile | None = None
     home: dict[str, float] | None = None
     notes: list[str] = field(default_factory=list)
@@ -169,8 +170,11 @@ def draft_text(s: Survey, out: Path, ready: Ready | None = None) -> str:
         lines.append(f"exclude: {_flow(pairs, 9)}  # in contact at home")
     if ready.workspace is not None:
         ws = ready.workspace
-        lines += [f"push_face: {{height: {ready.push_height:.4f}}}  # the lowest both tools reach, level, with the "
-                  f"arms {TABLE_GAP * 1e3:g} mm off the table [m]",
+        face = (f"push_face: {{height: {ready.push_height:.4f}}}  # the lowest both tools reach, level, with the "
+                f"arms {TABLE_GAP * 1e3:g} mm off the table [m]") if not ready.push_pitch else (
+                f"push_face: {{height: {ready.push_height:.4f}, pitch: {ready.push_pitch:g}}}  # the lowest both tools "
+                f"reach, tipped down, with the arms {TABLE_GAP * 1e3:g} mm off the table (level, none does) [m], [rad]")
+        lines += [face,
                   "workspace:  # where both tools, level, reach the table (task configs with scene.frame: workspace)",
                   f"  centre: [{ws.centre[0]!r}, {ws.centre[1]!r}]  # world x-y [m]",
                   f"  size: [{ws.size[0]!r}, {ws.size[1]!r}]  # half-extent [m]",
