@@ -99,12 +99,11 @@ class QPIK:
                     raise UnknownNameError(f"geom group (collision_pairs[{i}])", name, groups)
             # the pairs of geoms not touching at home (a group with itself: its own links kept apart)
             apart = apart_at(self.model, home, groups[pair.a], groups[pair.b], pair.min_distance)
-            if not apart:
-                raise ConfigError(f"ik.collision_pairs[{i}]: "
-                                  + (f"{pair.a!r} with itself" if pair.a == pair.b else f"{pair.a!r} and {pair.b!r}")
-                                  + " keeps nothing apart: no two of its geoms on different bodies are "
-                                  f"{pair.min_distance:g} m apart at home; pair it with another group, or name a group "
-                                  "of several links (an arm)", key=f"ik.collision_pairs[{i}]")
+            if not apart and pair.a == pair.b:
+                raise ConfigError(f"ik.collision_pairs[{i}]: {pair.a!r} with itself keeps nothing apart: no two of "
+                                  f"its geoms on different bodies are {pair.min_distance:g} m apart at home; pair it "
+                                  "with another group, or name a group of several links (an arm)",
+                                  key=f"ik.collision_pairs[{i}]")
             pairs += [([g1], [g2], pair.min_distance, pair.detection_distance) for g1, g2 in apart]
         self.collision = ActiveCollisionLimit(self.model, pairs, config.collision_gain, self.box) if pairs else None
         self._frames: dict[str, Frame] = {}
