@@ -189,3 +189,17 @@ def test_a_holonomic_base_parks_too(tmp_path: Path) -> None:
     result = Runner(cfg, str(path)).run()
     assert result["success"], result["error"]
     assert result["base"]["type"] == "holonomic" and result["object_error_xy_m"] < 0.01
+
+
+def test_a_pair_of_the_moving_base_and_a_crate_in_the_world_gets_rows() -> None:
+    """The base moves on its own joints from the world and the crate is welded to it: no parent and child, so the
+    config's mobile_base-obstacle pair keeps them apart (mink's own test takes the world for the base's parent)."""
+    from nextage_qp.manipulation.config import load_config
+    from nextage_qp.manipulation.runner import build_robot
+
+    cfg = load_config(ROOT / "configs" / "fetch_push.yaml")
+    ik = QPIK(build_robot(cfg, "fetch_push"), cfg.ik)
+    crate = {int(g) for g in ik.groups["obstacle"]}
+    base = {int(g) for g in ik.groups["mobile_base"]}
+    pairs = {(int(a), int(b)) for a, b in zip(ik.collision.geom1, ik.collision.geom2, strict=True)}
+    assert any((a in crate and b in base) or (b in crate and a in base) for a, b in pairs)

@@ -20,7 +20,6 @@ import mink
 import mujoco
 import numpy as np
 from mink.limits.collision_avoidance_limit import (
-    _are_geom_bodies_parent_child,
     _is_pass_contype_conaffinity_check,
     _is_welded_together,
 )
@@ -30,6 +29,19 @@ from nextage_qp.ik.broadphase import PairBounds
 from nextage_qp.ik.kinematic_model import lever_bounds, moved_by_a_joint
 from nextage_qp.ik.limits import JointBoxLimit
 from nextage_qp.native import kernels
+
+
+def parent_and_child(model: mujoco.MjModel, a: int, b: int) -> bool:
+    """Whether geoms ``a`` and ``b`` are on a parent and its child (each body taken with what is welded to it).
+
+    mink's test (``_are_geom_bodies_parent_child``), except that the world is no one's parent here: a body moving on
+    its own joints from the world (a mobile base, a shoulder on a mount fixed in the world) and a body welded to the
+    world (a crate, the table) are not a parent and its child, and a collision pair keeps them apart.
+    """
+    weld = model.body_weldid
+    wa, wb = int(weld[model.geom_bodyid[a]]), int(weld[model.geom_bodyid[b]])
+    pa, pb = int(weld[model.body_parentid[wa]]), int(weld[model.body_parentid[wb]])
+    return (wa == pb and wa != 0) or (wb == pa and wb != 0)
 
 
 def apart_at(model: mujoco.MjModel, qpos: np.ndarray, geoms_a: Sequence[int], geoms_b: Sequence[int],
@@ -48,7 +60,7 @@ def apart_at(model: mujoco.MjModel, qpos: np.ndarray, geoms_a: Sequence[int], ge
     out = set()
     for a, b in itertools.product(sorted(set(geoms_a)), sorted(set(geoms_b))):
         a, b = min(a, b), max(a, b)
-        if body[a] == body[b] or (a, b) in out or _are_geom_bodies_parent_child(model, a, b):
+        if body[a] == body[b] or (a, b) in out or parent_and_child(model, a, b):
             continue
         if mocap[body[a]] >= 0 or mocap[body[b]] >= 0 or \
                 mujoco.mj_geomDistance(model, data, a, b, min_distance + 0.01, None) >= min_distance:
@@ -93,7 +105,7 @@ class ActiveCollisionLimit(mink.Limit):
                 if (
                     a != b
                     and not _is_welded_together(model, a, b)
-                    and not _are_geom_bodies_parent_child(model, a, b)
+                    and not parent_and_child(model, a, b)
                     and _is_pass_contype_conaffinity_check(model, a, b)
                 ):
                     key = (min(a, b), max(a, b))
