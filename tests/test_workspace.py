@@ -224,3 +224,17 @@ def test_robot_init_tips_a_tool_down_that_cannot_come_low_enough_level(tmp_path,
     face = load_robot(out).push_face
     assert face.pitch > 0 and face.height < 0.07 / 4
     assert "tipped down" in out.read_text()
+
+
+def test_robot_check_says_whether_the_robot_can_clamp(tmp_path):
+    from nextage_qp.experiments.table_ready import check_at_table
+
+    assert not [f for f in check_at_table(ROOT / "robots" / "nextage.yaml").findings if f.topic == "clamp"]
+    bare = _nextage_copy(tmp_path, "    pad: left_palm", "")
+    bare.write_text(bare.read_text().replace("    pad: right_palm\n", ""))
+    said = [f for f in check_at_table(bare).findings if f.topic == "clamp"]
+    assert len(said) == 1 and said[0].level == "info" and "declare no pad" in said[0].message
+    numb = _nextage_copy(tmp_path, "    pad: left_palm", "    pad: left_elbow_pad")
+    numb.write_text(numb.read_text() + "frames:\n  left_elbow_pad: {body: LARM_JOINT2_Link, pos: [0.0, 0.0, 0.0]}\n")
+    said = [f for f in check_at_table(numb).problems if f.topic == "clamp"]
+    assert len(said) == 1 and "'LARM_JOINT2_Link', which has no force/torque sensor" in said[0].message

@@ -385,12 +385,42 @@ def workspace_reach(desc: RobotDescription) -> list[Finding]:
     return found
 
 
-def check_at_table(ref: str | Path) -> CheckReport:
-    """``robot check``: :func:`~nextage_qp.robots.check_report.check_robot`, then a loading robot file's workspace.
+def clamp_ready(desc: RobotDescription) -> list[Finding]:
+    """Whether the robot can make the clamp of the shared grasp tasks.
 
-    The workspace is judged at its table (:func:`workspace_reach`).
+    A declared pad on each arm, on a body whose force/torque sensor feels the squeeze (the runner refuses a grasp
+    otherwise, before anything moves).
+    """
+    from nextage_qp.robots.model import Robot
+    from nextage_qp.sensing.sensors import WrenchSensor
+
+    bare = [arm.name for arm in desc.arms[:2] if not arm.clamps]
+    if bare:
+        return [Finding("info", "clamp", f"arm{'s' if len(bare) > 1 else ''} {', '.join(bare)} declare"
+                        f"{'' if len(bare) > 1 else 's'} no pad: task configs that clamp (configs/pick_place_box.yaml, "
+                        "stack_boxes.yaml) refuse this robot", "arms[].pad: a frame on the face that clamps, on a body "
+                        "with a force/torque sensor")]
+    robot = Robot.from_scene("push_cube", None, desc)
+    sensed = {s.body for s in WrenchSensor.of_model(robot.model)}
+    found = []
+    for arm in desc.arms[:2]:
+        kind, fid = robot.frame(arm.pad)
+        body = fid if kind == "body" else int(robot.model.site_bodyid[fid])
+        if body not in sensed:
+            found.append(Finding("problem", "clamp", f"arm {arm.name}'s pad {arm.pad!r} is on body "
+                                 f"{robot.model.body(body).name!r}, which has no force/torque sensor: a clamp cannot "
+                                 "feel its squeeze", "add a force and a torque sensor at a site on that body to the "
+                                 "model, or move the pad"))
+    return found
+
+
+def check_at_table(ref: str | Path) -> CheckReport:
+    """``robot check``: :func:`~nextage_qp.robots.check_report.check_robot`, then a robot file's workspace and clamp.
+
+    The workspace is judged at its table (:func:`workspace_reach`), the clamp by its pads (:func:`clamp_ready`).
     """
     report = check_robot(ref)
     if Path(ref).suffix.lower() not in (".xml", ".urdf") and not report.problems:
-        report.findings += workspace_reach(load_robot(ref))
+        desc = load_robot(ref)
+        report.findings += workspace_reach(desc) + clamp_ready(desc)
     return report
