@@ -221,9 +221,9 @@ def _lowest_push(ik, arms, faces, centre, top, home) -> tuple[float, float]:
     from nextage_qp.ik import FrameTarget
 
     for pitch in PITCHES:
+        down = np.array([0.0, 0.0, -np.sin(pitch)])
         for height in np.arange(0.0, CUBE / 4 + 1e-9, 0.002):
             p = np.array([centre[0], centre[1], top + CUBE / 2 + height])
-            down = np.array([0.0, 0.0, -np.sin(pitch)])
             if all(ik.solve([FrameTarget(arm.tool, pos=p, axis=np.array([1.0, 0.0, 0.0]),
                                          direction=np.cos(pitch) * faces[arm.tool] + down)],
                             home).pos_err_m <= REACH_TOL for arm in arms):
@@ -249,7 +249,7 @@ def _manipulability(robot, q: np.ndarray, frames: list[str]) -> list[float]:
     out = []
     for frame in frames:
         jac = kin.jacobian(frame, q)[:, robot.chain_joints(frame)]
-        out.append(float(np.prod(np.linalg.svd(jac, compute_uv=False)[: min(jac.shape)])))
+        out.append(float(np.prod(np.linalg.svd(jac, compute_uv=False))))  # min(6, n) values
     return out
 
 
@@ -392,7 +392,7 @@ def clamp_ready(desc: RobotDescription) -> list[Finding]:
     otherwise, before anything moves).
     """
     from nextage_qp.robots.model import Robot
-    from nextage_qp.sensing.sensors import WrenchSensor
+    from nextage_qp.sensing.sensors import unsensed
 
     bare = [arm.name for arm in desc.arms[:2] if not arm.clamps]
     if bare:
@@ -400,18 +400,12 @@ def clamp_ready(desc: RobotDescription) -> list[Finding]:
                         f"{'' if len(bare) > 1 else 's'} no pad: task configs that clamp (configs/pick_place_box.yaml, "
                         "stack_boxes.yaml) refuse this robot", "arms[].pad: a frame on the face that clamps, on a body "
                         "with a force/torque sensor")]
-    robot = Robot.from_scene("push_cube", None, desc)
-    sensed = {s.body for s in WrenchSensor.of_model(robot.model)}
-    found = []
-    for arm in desc.arms[:2]:
-        kind, fid = robot.frame(arm.pad)
-        body = fid if kind == "body" else int(robot.model.site_bodyid[fid])
-        if body not in sensed:
-            found.append(Finding("problem", "clamp", f"arm {arm.name}'s pad {arm.pad!r} is on body "
-                                 f"{robot.model.body(body).name!r}, which has no force/torque sensor: a clamp cannot "
-                                 "feel its squeeze", "add a force and a torque sensor at a site on that body to the "
-                                 "model, or move the pad"))
-    return found
+    arms = desc.arms[:2]
+    numb = dict(unsensed(Robot.from_scene("push_cube", None, desc), [arm.pad for arm in arms]))  # pad -> its body
+    return [Finding("problem", "clamp", f"arm {arm.name}'s pad {arm.pad!r} is on body {numb[arm.pad]!r}, which has "
+                    "no force/torque sensor: a clamp cannot feel its squeeze", "add a force and a torque sensor at a "
+                    "site on that body to the model, or move the pad")
+            for arm in arms if arm.pad in numb]
 
 
 def check_at_table(ref: str | Path) -> CheckReport:

@@ -45,7 +45,7 @@ from nextage_qp.scene.checks import check_clear, check_robot_clear
 from nextage_qp.scene.clutter import ClutterDecl
 from nextage_qp.scene.files import BodyPose, SceneOverrides
 from nextage_qp.scene.seen_obstacles import SeenBoxes
-from nextage_qp.sensing.sensors import WrenchSensor
+from nextage_qp.sensing.sensors import WrenchSensor, unsensed
 from nextage_qp.sensing.setup import attach_camera, log_estimates, perception_of, source_of
 
 TickCallback = Callable[["Runner", Phase | None], None]
@@ -269,7 +269,6 @@ def check_clamps(cfg: ManipulationConfig, robot: Robot, source: str) -> None:
     Raises:
         InfeasibleError: ``source: phases[i] (name): robot 'r' cannot clamp: why; what would do``.
     """
-    sensed = {s.body: s.name for s in WrenchSensor.of_model(robot.model)}
     for i, spec in enumerate(cfg.phases):
         if not isinstance(spec, GraspSpec):
             continue
@@ -288,15 +287,15 @@ def check_clamps(cfg: ManipulationConfig, robot: Robot, source: str) -> None:
             frames: tuple[str, ...] = tuple(arm.pad for arm in robot.arms[:2])
         else:
             frames = spec.frames
-        for frame in frames:
-            kind, fid = robot.frame(frame)
-            body = fid if kind == "body" else int(robot.model.site_bodyid[fid])
-            if body not in sensed:
-                found = ", ".join(f"{robot.model.body(b).name} ({n})" for b, n in sensed.items()) or "none"
-                raise InfeasibleError(
-                    f"{where}: pad {frame!r} is on body {robot.model.body(body).name!r}, which has no force/torque "
-                    f"sensor to feel the squeeze (bodies with one: {found}); add a force and a torque sensor at a "
-                    "site on it to the model", source=source, key=f"phases[{i}]")
+        numb = unsensed(robot, frames)
+        if numb:
+            frame, body = numb[0]
+            found = ", ".join(f"{robot.model.body(s.body).name} ({s.name})"
+                              for s in WrenchSensor.of_model(robot.model)) or "none"
+            raise InfeasibleError(
+                f"{where}: pad {frame!r} is on body {body!r}, which has no force/torque sensor to feel the squeeze "
+                f"(bodies with one: {found}); add a force and a torque sensor at a site on it to the model",
+                source=source, key=f"phases[{i}]")
 
 
 class Runner:

@@ -208,10 +208,18 @@ class Robot:
             return "body", bid
         raise UnknownFrameError(name, self.frame_names)
 
+    def frame_body(self, name: str) -> int:
+        """The body a frame (a site or a body, see :meth:`frame`) lives on.
+
+        Raises:
+            UnknownFrameError: The name is neither a site nor a body.
+        """
+        kind, i = self.frame(name)
+        return int(self.model.site_bodyid[i]) if kind == "site" else i
+
     def chain_joints(self, frame: str) -> list[int]:
         """Indices into q of the robot joints that move ``frame`` (those above it in the kinematic tree)."""
-        kind, i = self.frame(frame)
-        chain = set(moved_by(self.model, int(self.model.site_bodyid[i]) if kind == "site" else i))
+        chain = set(moved_by(self.model, self.frame_body(frame)))
         return [k for k, j in enumerate(self.joint_ids) if int(j) in chain]
 
     @functools.cached_property

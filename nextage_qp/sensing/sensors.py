@@ -8,9 +8,9 @@ dropouts or an estimator are another ``Sensors``, with no edit to the loop.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import NamedTuple, Protocol
+from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import mujoco
 import numpy as np
@@ -18,6 +18,9 @@ import numpy as np
 from nextage_qp.errors import SensorError
 from nextage_qp.geometry import Pose
 from nextage_qp.mobile.drive_models import Pose2
+
+if TYPE_CHECKING:
+    from nextage_qp.robots.model import Robot
 
 
 class Wrench(NamedTuple):
@@ -69,6 +72,16 @@ class WrenchSensor:
         force, torque = int(mujoco.mjtSensor.mjSENS_FORCE), int(mujoco.mjtSensor.mjSENS_TORQUE)
         return [WrenchSensor(model, kinds[force], kinds[torque]) for kinds in by_site.values()
                 if force in kinds and torque in kinds]
+
+
+def unsensed(robot: Robot, frames: Sequence[str]) -> list[tuple[str, str]]:
+    """Each of ``frames`` whose body carries no force/torque sensor (:class:`WrenchSensor`), with that body's name.
+
+    A clamp's pads must feel its squeeze: the ``grasp`` refuses pads listed here, ``robot check`` names them.
+    """
+    sensed = {s.body for s in WrenchSensor.of_model(robot.model)}
+    bodies = [(frame, robot.frame_body(frame)) for frame in frames]
+    return [(frame, robot.model.body(body).name) for frame, body in bodies if body not in sensed]
 
 
 @dataclass(frozen=True)
