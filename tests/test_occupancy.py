@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from nextage_qp.sensing.camera.occupancy import FREE, OCCUPIED_STATE, UNKNOWN, VoxelMap, self_filter
+from nextage_qp.sensing.camera.pixels import backproject
 
 SCENE = """
 <mujoco>
@@ -196,3 +197,33 @@ def test_the_camera_maps_the_clutter_it_sees_and_nothing_it_was_told_about():
     assert report["obstacles_present"] >= 3  # the pieces in view
     assert report["obstacles_detected"] == report["obstacles_present"]
     assert report["false_occupied_cm3"] < 5.0  # neither the robot, the table nor the cube
+
+
+def test_never_seen_space_comes_as_clusters_but_for_the_shadow_of_what_the_mask_holds(side_view):
+    """What the front box hides is a never-seen cluster (an obstacle for planning); given the box's shadow as the mask
+    (as the robot's links' and the tracked objects' are), it is not."""
+    _, pos, rot, depth = side_view
+    vmap = VoxelMap(LO, HI, cell=0.015)
+    vmap.integrate(depth, K, pos, rot, _above_table(depth, pos, rot))
+    lo, hi = np.array([0.3, -0.2, 0.02]), HI  # over the table, clear of the band a ray never carves
+    hidden = (0.62, 0.0, 0.04)
+    ijk, _ = vmap.index(np.array([hidden]))
+
+    def holds(clusters) -> bool:
+        return any(np.all(cells == ijk[0], axis=1).any() for cells in clusters)
+
+    assert holds(vmap.unknown_clusters(lo, hi, np.zeros(vmap.shape, dtype=bool)))
+    rows, cols = np.nonzero(np.isfinite(depth))
+    points = backproject(depth, K, pos, rot, rows, cols)
+    front = np.full(depth.shape, np.nan)  # the pixels that show the front box: its shadow is the mask
+    on = points[:, 0] < 0.55
+    front[rows[on], cols[on]] = depth[rows[on], cols[on]]
+    shadow = vmap.behind(K, pos, rot, front)
+    assert shadow[tuple(ijk[0])]
+    assert not holds(vmap.unknown_clusters(lo, hi, shadow))
+    box = vmap.oriented_box(next(c for c in vmap.unknown_clusters(lo, hi, np.zeros(vmap.shape, dtype=bool))
+                                 if np.all(c == ijk[0], axis=1).any()))
+    centre, half, yaw = box
+    local = np.array(hidden) - centre
+    turn = np.array([[np.cos(yaw), np.sin(yaw), 0.0], [-np.sin(yaw), np.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
+    assert np.all(np.abs(turn @ local) <= half + 1e-9)

@@ -12,6 +12,7 @@ boxes the camera's occupancy map gives and writes them into the pool of every su
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -93,13 +94,18 @@ class SeenBoxes:
         """Boxes beyond the pool's size left out at the last :meth:`set` (the smallest)."""
         self._synced: dict[int, tuple[mujoco.MjModel, int]] = {}
 
-    def set(self, boxes: Sequence[tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, float]]) -> bool:
-        """Take new boxes (centre, half-sizes, optional yaw [rad]; the largest :data:`POOL`); True if they changed.
+    def set(self, boxes: Sequence[tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, float]],
+            unseen: Sequence[tuple[np.ndarray, np.ndarray, float]] = ()) -> bool:
+        """Take new boxes (centre, half-sizes, optional yaw [rad]); True if they changed.
 
-        Each half-size is at most :data:`MAX_HALF`.
+        ``boxes`` are what the camera saw, ``unseen`` the space it never saw; of each the largest first, the seen
+        before the unseen, :data:`POOL` in all. Each half-size is at most :data:`MAX_HALF`.
         """
-        kept = sorted(((np.asarray(b[0], dtype=float), np.minimum(np.asarray(b[1], dtype=float), MAX_HALF),
-                        float(b[2]) if len(b) > 2 else 0.0) for b in boxes), key=lambda b: -float(np.prod(b[1])))
+        def largest(group: Sequence[Any]) -> list[tuple[np.ndarray, np.ndarray, float]]:
+            return sorted(((np.asarray(b[0], dtype=float), np.minimum(np.asarray(b[1], dtype=float), MAX_HALF),
+                            float(b[2]) if len(b) > 2 else 0.0) for b in group), key=lambda b: -float(np.prod(b[1])))
+
+        kept = largest(boxes) + largest(unseen)
         self.dropped = max(len(kept) - POOL, 0)
         kept = kept[:POOL]
         same = len(kept) == len(self.boxes) and all(

@@ -15,6 +15,8 @@ obstacles. :meth:`VoxelMap.seen_share` is how much of a region the map has obser
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from scipy import ndimage
 
@@ -50,7 +52,7 @@ class VoxelMap:
         idx = np.stack(np.meshgrid(*(np.arange(n) for n in self.shape), indexing="ij"), axis=-1).reshape(-1, 3)
         self.centres = self.lo + (idx + 0.5) * self.cell  # (N, 3), in the arrays' C order
         self.frames = 0
-        self._oriented: tuple[np.ndarray, tuple[float, int, float], list] | None = None  # oriented_boxes' last answer
+        self._oriented: tuple[np.ndarray, tuple[Any, ...], list] | None = None  # oriented_boxes' last answer
 
     def index(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Voxel indices (n, 3) of world points (n, 3), and which of them lie inside the map."""
@@ -87,6 +89,19 @@ class VoxelMap:
         seen[free] = True
         seen[occupied] = True
         self.frames += 1
+
+    def behind(self, K: np.ndarray, pos: np.ndarray, rot: np.ndarray, depth: np.ndarray) -> np.ndarray:
+        """The voxels (the map's shape) at or behind what a depth image shows: the shadow of what it shows.
+
+        ``depth`` [m] (NaN: nothing there) is from a camera with intrinsics ``K`` at ``pos``, ``rot``.
+        """
+        h, w = depth.shape
+        rows, cols, z = project(self.centres, K, pos, rot)
+        view = (z > NEAR) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        at = np.full(len(z), np.nan)
+        at[view] = depth[rows[view], cols[view]]
+        with np.errstate(invalid="ignore"):
+            return (at <= z + self.cell).reshape(self.shape)
 
     def explain(self, centre: np.ndarray, radius: float) -> None:
         """The voxels whose centres lie within ``radius`` [m] of ``centre`` hold a known object, not an obstacle:
@@ -164,40 +179,65 @@ class VoxelMap:
             out.append(((lo + hi) / 2, (hi - lo) / 2))
         return out
 
-    def oriented_boxes(self, pad: float = 0.0, min_voxels: int = 1,
-                       step: float = np.radians(3.0)) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    def oriented_boxes(self, pad: float = 0.0, min_voxels: int = 1, step: float = np.radians(3.0),
+                       above: float | None = None) -> list[tuple[np.ndarray, np.ndarray, float]]:
         """Obstacles as boxes turned about the vertical (centre [m], half-sizes [m], yaw [rad]), one per cluster.
 
         Each is the smallest-footprint rectangle (yaw searched in ``step``s over a quarter turn) holding every corner
         of the cluster's voxels, over their height, grown by ``pad``: a piece standing at an angle is no longer
-        bounded by the axis-aligned box of its voxels, which is up to twice its footprint. While the occupied voxels
-        stay those of the last call, its boxes are given again without labelling the map anew.
+        bounded by the axis-aligned box of its voxels, which is up to twice its footprint. ``above`` [m]: only the
+        voxels whose centres lie higher count. While the occupied voxels stay those of the last call, its boxes are
+        given again without labelling the map anew.
         """
         solid = self.state() == OCCUPIED_STATE
-        key = (pad, min_voxels, step)
+        if above is not None:
+            solid &= (self.centres[:, 2] > above).reshape(self.shape)
+        key = (pad, min_voxels, step, above)
         if self._oriented is not None and self._oriented[1] == key and np.array_equal(self._oriented[0], solid):
             return list(self._oriented[2])  # the occupied voxels as last time: the same boxes
-        out = []
+        out = [self.oriented_box(cells, pad, step) for cells in self._clusters_of(solid, min_voxels)]
+        self._oriented = (solid, key, out)
+        return list(out)
+
+    def unknown_clusters(self, lo: np.ndarray, hi: np.ndarray, apart: np.ndarray,
+                         min_voxels: int = 1) -> list[np.ndarray]:
+        """The voxel indices (n, 3) of each connected cluster of never-seen voxels whose centres lie in the box
+        ``lo``-``hi`` [m] and outside the mask ``apart`` (the map's shape; e.g. the space hidden behind the robot's
+        own links, which the camera sees once they move).
+        """  # noqa: D205
+        return self._clusters_of(~self.seen & self._region(lo, hi) & ~apart, min_voxels)
+
+    def oriented_box(self, cells: np.ndarray, pad: float = 0.0,
+                     step: float = np.radians(3.0)) -> tuple[np.ndarray, np.ndarray, float]:
+        """The box turned about the vertical (centre [m], half-sizes [m], yaw [rad]) around the voxels ``cells``.
+
+        The one with the smallest footprint that holds every corner of the voxels (n, 3), over their height, grown by
+        ``pad`` [m].
+        """
         square = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])
         yaws = np.arange(0.0, np.pi / 2, step)
         c, s = np.cos(yaws), np.sin(yaws)
-        for cells in self._clusters_of(solid, min_voxels):
-            flat = np.unique(cells[:, :2], axis=0)
-            corners = (self.lo[:2] + ((flat[:, None, :] + square[None]) * self.cell).reshape(-1, 2))
-            u = corners @ np.stack([c, s])  # (points, yaws): along each candidate's first axis
-            v = corners @ np.stack([-s, c])
-            area = (u.max(0) - u.min(0)) * (v.max(0) - v.min(0))
-            best = int(np.argmin(area))
-            yaw = float(yaws[best])
-            lo_u, hi_u, lo_v, hi_v = u[:, best].min(), u[:, best].max(), v[:, best].min(), v[:, best].max()
-            mu, mv = (lo_u + hi_u) / 2, (lo_v + hi_v) / 2
-            xy = np.array([mu * c[best] - mv * s[best], mu * s[best] + mv * c[best]])
-            z0 = self.lo[2] + cells[:, 2].min() * self.cell
-            z1 = self.lo[2] + (cells[:, 2].max() + 1) * self.cell
-            half = np.array([(hi_u - lo_u) / 2, (hi_v - lo_v) / 2, (z1 - z0) / 2]) + pad
-            out.append((np.array([*xy, (z0 + z1) / 2]), half, yaw))
-        self._oriented = (solid, key, out)
-        return list(out)
+        flat = np.unique(cells[:, :2], axis=0)
+        corners = (self.lo[:2] + ((flat[:, None, :] + square[None]) * self.cell).reshape(-1, 2))
+        u = corners @ np.stack([c, s])  # (points, yaws): along each candidate's first axis
+        v = corners @ np.stack([-s, c])
+        area = (u.max(0) - u.min(0)) * (v.max(0) - v.min(0))
+        best = int(np.argmin(area))
+        yaw = float(yaws[best])
+        lo_u, hi_u, lo_v, hi_v = u[:, best].min(), u[:, best].max(), v[:, best].min(), v[:, best].max()
+        mu, mv = (lo_u + hi_u) / 2, (lo_v + hi_v) / 2
+        xy = np.array([mu * c[best] - mv * s[best], mu * s[best] + mv * c[best]])
+        z0 = self.lo[2] + cells[:, 2].min() * self.cell
+        z1 = self.lo[2] + (cells[:, 2].max() + 1) * self.cell
+        half = np.array([(hi_u - lo_u) / 2, (hi_v - lo_v) / 2, (z1 - z0) / 2]) + pad
+        return np.array([*xy, (z0 + z1) / 2]), half, yaw
+
+    def cells_of(self, points: np.ndarray) -> np.ndarray:
+        """A mask (the map's shape) of the voxels that hold any of the world points (n, 3) [m]."""
+        mask = np.zeros(self.shape, dtype=bool)
+        ijk, inside = self.index(points)
+        mask[tuple(ijk[inside].T)] = True
+        return mask
 
 
 SELF_PAD = 3

@@ -41,6 +41,9 @@ BOX_PAD = 0.0
 surface is whole in the box, so the box already bounds what was seen by up to a voxel's edge."""
 MIN_VOXELS = 2
 """Clusters of fewer voxels are depth noise, not obstacles."""
+FLOOR = 2 * CELL
+"""Space within this [m] of the table top is the table's for the map's coverage and its unknown space: a ray ends on
+the table a cell behind the voxels just over it, which are never seen through."""
 
 
 class ObstacleMapper:
@@ -61,9 +64,27 @@ class ObstacleMapper:
         lo = np.array([*(centre - half - REACH), table - CELL])
         hi = np.array([*(centre + half + REACH), table + HEIGHT])
         self.map = VoxelMap(lo, hi, CELL)
+        self.table = table
+        self.work = (centre - half, centre + half)  # the work region's footprint (x-y) [m]
         self.radii = dict(radii)
         self.robot = robot
+        self.apart = np.zeros(self.map.shape, dtype=bool)
+        """The voxels some whole frame showed at or behind the robot's links or a tracked object: space hidden by the
+        robot or the objects it was told about, not an obstacle when never seen (:meth:`unknown_boxes`)."""
         self.visible: set[int] = set()  # obstacle bodies a whole frame showed (scored with the truth, see update)
+
+    def region(self) -> tuple[np.ndarray, np.ndarray]:
+        """The mapped space over the table (lo, hi) [m]: the map's box from ``FLOOR`` above the table top."""
+        lo = self.map.lo.copy()
+        lo[2] = self.table + FLOOR
+        return lo, self.map.lo + np.array(self.map.shape) * self.map.cell
+
+    def seen_share(self, lo: np.ndarray | None = None, hi: np.ndarray | None = None) -> float:
+        """Share of the mapped space over the table the camera has observed, or of its part in the box ``lo``-``hi``."""
+        r_lo, r_hi = self.region()
+        if lo is not None and hi is not None:
+            r_lo, r_hi = np.maximum(r_lo, lo), np.minimum(r_hi, hi)
+        return self.map.seen_share(r_lo, r_hi) if np.all(r_hi > r_lo) else 1.0
 
     def boxes(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
         """The map's obstacles as boxes turned about the vertical (centre [m], half-sizes [m], yaw [rad]) for the
@@ -71,13 +92,32 @@ class ObstacleMapper:
 
         Each reaches down to the table: a camera above sees an obstacle's top and the faces turned to it, and the
         steep faces only at grazing angles (a few points per voxel, which the rays past them carve free); what lies
-        under a seen surface is hidden from it, and counts as occupied.
+        under a seen surface is hidden from it, and counts as occupied. The voxels within a cell of the table top are
+        left out of the clusters: the table's own points a plane's error lifts over its band fill them, and would join
+        every piece on the table into one.
         """  # noqa: D205
         out = []
         floor = float(self.map.lo[2])
-        for centre, half, yaw in self.map.oriented_boxes(pad=BOX_PAD, min_voxels=MIN_VOXELS):
+        for centre, half, yaw in self.map.oriented_boxes(pad=BOX_PAD, min_voxels=MIN_VOXELS, above=self.table + CELL):
             top = centre[2] + half[2]
             bottom = min(centre[2] - half[2], floor)
+            out.append((np.array([centre[0], centre[1], (top + bottom) / 2]),
+                        np.array([half[0], half[1], (top - bottom) / 2]), yaw))
+        return out
+
+    def unknown_boxes(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
+        """The never-seen space over the work region as boxes: for planning, what the camera never saw is occupied.
+
+        One box turned about the vertical per connected cluster of never-seen voxels (of ``MIN_VOXELS`` or more, from
+        ``FLOOR`` above the table up), reaching down to the table; the voxels a frame showed at or behind the robot's
+        links or a tracked object are left out: space hidden by what the robot knows, seen once it moves.
+        """
+        out = []
+        lo, hi = self.region()
+        lo[:2], hi[:2] = self.work
+        for cells in self.map.unknown_clusters(lo, hi, self.apart, MIN_VOXELS):
+            centre, half, yaw = self.map.oriented_box(cells)
+            top, bottom = centre[2] + half[2], self.table
             out.append((np.array([centre[0], centre[1], (top + bottom) / 2]),
                         np.array([half[0], half[1], (top - bottom) / 2]), yaw))
         return out
@@ -97,6 +137,7 @@ class ObstacleMapper:
         known = [(name, np.asarray(p, dtype=float)) for source in (poses, priors or {}) for name, p in source.items()
                  if p is not None]
         keep = self_filter(frame.depth, own)
+        theirs = np.zeros(frame.depth.shape, dtype=bool)  # the pixels of the tracked objects
         if plane is not None:
             with np.errstate(invalid="ignore"):
                 keep &= plane_height(frame.depth, frame.K, frame.cam_pos, frame.cam_rot, *plane) > TABLE_BAND
@@ -107,7 +148,10 @@ class ObstacleMapper:
             for name, pose in known:
                 gone |= np.linalg.norm(points - pose[:3], axis=1) < self.radii.get(name, 0.05) + OBJECT_PAD
             keep[r[gone], c[gone]] = False
+            theirs[r[gone], c[gone]] = True
         self.map.integrate(frame.depth, frame.K, frame.cam_pos, frame.cam_rot, keep)
+        shown = np.where(np.isfinite(own), own, np.where(theirs, frame.depth, np.nan))  # the robot, the objects
+        self.apart |= self.map.behind(frame.K, frame.cam_pos, frame.cam_rot, shown)
         for name, pose in known:
             self.map.explain(pose[:3], self.radii.get(name, 0.05) + OBJECT_PAD)
         if truth is not None:
