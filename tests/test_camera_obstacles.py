@@ -158,3 +158,58 @@ def test_a_piece_standing_at_an_angle_gets_a_box_turned_with_it():
     corners = np.array([(cells[:, :2] + [a, b]) * vmap.cell for a in (0, 1) for b in (0, 1)]).reshape(-1, 2)
     rel = (corners - centre[:2]) @ np.array([[np.cos(turned), np.sin(turned)], [-np.sin(turned), np.cos(turned)]]).T
     assert np.all(np.abs(rel) <= half[:2] + 1e-9)
+
+
+def test_the_controller_keeps_what_it_saw_before_the_space_it_never_saw():
+    """The pool holds the seen boxes first (largest first), then the never-seen space's, up to its size."""
+    from nextage_qp.scene.seen_obstacles import POOL
+
+    def box(x: float, half: float):
+        return np.array([x, 0.0, 1.0]), np.full(3, half), 0.0
+
+    seen = SeenBoxes()
+    seen.set([box(0.1 * k, 0.01) for k in range(POOL - 2)], [box(-1.0 - k, 0.2) for k in range(5)])
+    halves = [float(h[0]) for _, h, _ in seen.boxes]
+    assert len(halves) == POOL and halves[: POOL - 2] == [0.01] * (POOL - 2) and halves[POOL - 2:] == [0.2, 0.2]
+    assert seen.dropped == 3
+
+
+def test_before_the_first_phase_the_head_looks_over_the_work_region_and_plans_see_what_they_sweep():
+    """The scan turns the head to each of its points and leaves the map seeing more of the space over the table;
+    never-seen space in the work region joins the controller's obstacles (unless ``perception.unknown: free``)."""
+    try:
+        runner = Runner(load_config("configs/push_clutter.yaml", CAMERA), "push_clutter")
+    except Exception as exc:  # no offscreen rendering on this machine
+        if "offscreen rendering unavailable" in str(exc):
+            pytest.skip(str(exc))
+        raise
+    runner._find_objects()
+    q0 = runner.sim.data.qpos[runner.robot.qpos_idx].copy()
+    runner._scan()
+    scan = runner.scan
+    assert scan is not None and scan["looked_at"] == scan["points"] == 9
+    assert scan["seen_share_after"] > scan["seen_share_before"] + 0.1
+    arms = [j for j, n in enumerate(runner.robot.joint_names) if "ARM" in n]
+    assert np.allclose(runner.sim.data.qpos[runner.robot.qpos_idx][arms], q0[arms], atol=0.02)  # the arms held still
+    mapper = runner.camera.mapper
+    unseen = mapper.unknown_boxes()
+    kept = {tuple(np.round(c, 9)) for c, _, _ in runner.seen.boxes}
+    assert all(tuple(np.round(c, 9)) in kept for c, _, _ in unseen)
+    lo, hi = mapper.work
+    assert all(lo[0] - 0.02 <= c[0] <= hi[0] + 0.02 and lo[1] - 0.02 <= c[1] <= hi[1] + 0.02 for c, _, _ in unseen)
+    right = [j for j, n in enumerate(runner.robot.joint_names) if n.startswith("RARM")][:3]
+    goal = runner.q0 + np.where(np.isin(np.arange(len(runner.q0)), right), -0.2, 0.0)
+    plan = runner.view.plan_path(runner.q0, goal, escape=True)  # (the map's boxes may graze a hand at home)
+    assert plan.found and len(runner.view.swept_seen) == 1 and 0.0 < runner.view.swept_seen[0] <= 1.0
+    runner.camera.close()
+
+
+@pytest.mark.parametrize("extra", [["perception.source=truth"], ["perception.source=camera", "perception.look_at=false"],
+                                   ["perception.source=camera"]])
+def test_a_scan_with_no_map_to_scan_for_or_no_head_to_look_with_is_refused_in_one_line(extra):
+    from nextage_qp.errors import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        Runner(load_config("configs/push_cube.yaml", ["perception.scan=true", *extra]), "push_cube")
+    message = str(err.value)
+    assert "perception.scan" in message and "perception.map: true" in message and "\n" not in message

@@ -50,6 +50,14 @@ from nextage_qp.sensing.setup import attach_camera, log_estimates, perception_of
 
 TickCallback = Callable[["Runner", Phase | None], None]
 SEARCH_S = 3.0
+SCAN_GRID = 3
+"""The head's scan of the mapped space looks at a ``SCAN_GRID`` x ``SCAN_GRID`` grid of points over it."""
+SCAN_AIM = 0.05
+"""A scan's point is looked at once the camera's optical axis is within this [rad] of it..."""
+SCAN_DWELL_S = 0.3
+"""...and stays there this long [s] (the map takes the frames of that time)."""
+SCAN_POINT_S = 2.0
+"""The longest a scan waits for the head to turn to one point [s] (one the head cannot turn to is left)."""
 """With a camera, how long [s] the run waits, still, for every object to be seen before its first phase."""
 HELD_SLACK = 1e-3
 """A timed-out phase names the collision pairs within this [m] of their minimum distance (what may have held it)."""
@@ -353,7 +361,12 @@ class Runner:
         if self.camera is not None and cfg.perception.look_at:
             self.servo.look = watch(self.ik, cfg.perception.camera, cfg.perception.look_cost)
         self.view = SimView(self.controlled, self.sim, self.servo, planning=self.cfg.planning, seen=self.seen)
+        mapper = getattr(self.camera, "mapper", None)
+        if self.seen is not None and mapper is not None:
+            self.view.coverage = mapper.seen_share
         self._map_frames = 0  # the camera map's frames the controller's obstacles were last taken from
+        self._scan_at: np.ndarray | None = None  # where the head looks while it scans the mapped space
+        self.scan: dict[str, Any] | None = None  # the scan's report
         self.records = [PhaseRecord(cfg.phase_name(i), p.kind) for i, p in enumerate(cfg.phases)]
         self.monitor = OutcomeMonitor(self.robot, cfg.object)
         self.monitor.attach(self.sim)
@@ -375,7 +388,7 @@ class Runner:
             self.shoves.update(self.sim.data, self.sim.time, self._phase)
         objects = {name: (pose.pos, pose.quat) for name, pose in self.sim.measured.objects.items()}
         if self.servo.look is not None:
-            self.servo.look.point = self._look_point()
+            self.servo.look.point = self._scan_at if self._scan_at is not None else self._look_point()
         if self.sensors is not None:  # a held object is estimated relative to the first pad, a pushed one the tool
             grip = self.view.grip
             carried = (grip.object, partial(self.view.frame_pose, grip.frames[0])) if grip is not None else (
@@ -396,7 +409,8 @@ class Runner:
             return
         self._map_frames = mapper.map.frames
         assert self.seen is not None
-        if self.seen.set(mapper.boxes()):
+        unseen = mapper.unknown_boxes() if self.cfg.perception.unknown == "occupied" else []
+        if self.seen.set(mapper.boxes(), unseen):
             self.seen.sync(self.ik.model)
             self.ik.world_changed()
             self.view.world_changed()
@@ -435,6 +449,7 @@ class Runner:
         view = self.view
         try:
             self._find_objects()
+            self._scan()
             for i, spec in enumerate(self.cfg.phases):
                 rec = self.records[i]
                 phase = build(spec, rec.name)
@@ -526,6 +541,38 @@ class Runner:
                                  f"in {SEARCH_S:g} s (frames by outcome: {lost})")
             self.tick(HOLD)
 
+    def _scan(self) -> None:
+        """With camera obstacles, look over the mapped space before the first phase (``perception.scan``).
+
+        The head turns to each point of a grid over the map's space at the table top (from the nearest corner, row
+        by row), holding each ``SCAN_DWELL_S`` once the camera points within ``SCAN_AIM`` of it (``SCAN_POINT_S``
+        at most); the arms hold still.
+        """
+        p = self.cfg.perception
+        mapper = getattr(self.camera, "mapper", None)
+        look = self.servo.look
+        if not (p.scan if p.scan is not None else p.obstacles == "camera") or mapper is None or look is None:
+            return
+        lo, hi = mapper.region()
+        xs = np.linspace(lo[0], hi[0], SCAN_GRID + 2)[1:-1]
+        ys = np.linspace(lo[1], hi[1], SCAN_GRID + 2)[1:-1]
+        points = [np.array([x, y, mapper.table]) for i, x in enumerate(xs) for y in (ys if i % 2 == 0 else ys[::-1])]
+        t0, before, aimed_at = self.sim.time, mapper.seen_share(), 0
+        for point in points:
+            self._scan_at, start, since = point, self.sim.time, None
+            while self.sim.time - start < SCAN_POINT_S:
+                self.tick(HOLD)
+                pos, rot = look.pose(self.sim.data)
+                u = (point - pos) / max(float(np.linalg.norm(point - pos)), 1e-9)
+                on = float(np.arccos(np.clip(-rot[:, 2] @ u, -1.0, 1.0))) <= SCAN_AIM
+                since = (since if since is not None else self.sim.time) if on else None
+                if since is not None and self.sim.time - since >= SCAN_DWELL_S:
+                    aimed_at += 1
+                    break
+        self._scan_at = None
+        self.scan = {"points": len(points), "looked_at": aimed_at, "time_s": round(self.sim.time - t0, 3),
+                     "seen_share_before": round(before, 4), "seen_share_after": round(mapper.seen_share(), 4)}
+
     @property
     def handled(self) -> frozenset[str]:
         """The free objects some phase names (as its object, target or placement): not bystanders."""
@@ -546,6 +593,9 @@ class Runner:
                                     self.shoves.windows(SHOVE_SETTLE_S) if self.shoves is not None else ()),
                                 "shoves": self.shoves.applied if self.shoves is not None else [],
                                 "planning": plan_report(self.view.plans),
+                                **({"scan": self.scan} if self.scan is not None else {}),
+                                **({"swept_seen": swept_report(self.view.swept_seen)}
+                                   if self.view.coverage is not None else {}),
                                 "planning_time_s": round(sum(p.time_s for p in self.view.plans), 4),
                                 **({"base": base_report(self.sim.base.log, self.robot.base)}
                                    if self.sim.base is not None and self.robot.base is not None else {})})
@@ -554,6 +604,12 @@ class Runner:
             out["error"] += (f" [{c.object}'s pose as estimated ({where} perception); it truly ends "
                              f"{true * 1e3:.1f} mm from {c.target} in the plane]")
         return out
+
+
+def swept_report(shares: Sequence[float]) -> dict[str, Any]:
+    """How much of the space the run's legs swept the camera had seen when each was planned (``coverage``)."""
+    return {"legs": len(shares), "min_share": round(min(shares), 4) if shares else None,
+            "median_share": round(float(np.median(shares)), 4) if shares else None}
 
 
 def plan_report(plans: Sequence[PathPlan]) -> dict[str, Any]:

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import itertools
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import mujoco
 import numpy as np
@@ -21,7 +22,7 @@ from nextage_qp.mobile.drive_models import Pose2
 from nextage_qp.mobile.odometry import to_odometry
 from nextage_qp.planning.rrt import PathPlan, PlanningConfig, plan_path
 from nextage_qp.planning.world import CHAIN_SLOP, SELF_SLOP, CollisionWorld, Held
-from nextage_qp.robots.model import Robot
+from nextage_qp.robots.model import Robot, robot_bodies
 from nextage_qp.scene.seen_obstacles import SeenBoxes
 from nextage_qp.sensing.sensors import Wrench
 
@@ -55,6 +56,11 @@ class SimView:
         self._parts: dict[str, list[GeomPart]] = {}
         self._planner: QPIK | None = None
         self._kinematics: Kinematics | None = None
+        self.coverage: Callable[[np.ndarray, np.ndarray], float] | None = None
+        """With obstacles from the camera: the share of a box (lo, hi) [m] the camera has seen."""
+        self.swept_seen: list[float] = []
+        """Per leg found (straight or planned) while ``coverage`` is set: the share of the space its moving links sweep
+        (:func:`swept_box`) the camera had seen when it was planned."""
 
     def world_changed(self) -> None:
         """The camera's obstacle boxes changed: the view's model and planner take them (the worlds as they are used)."""
@@ -197,6 +203,8 @@ class SimView:
             if plan.status in ("invalid_start", "invalid_goal") and plan.why is not None and plan.why.distance >= 0:
                 plan = planned(touch)  # near but not inside: planned without the clearance
         self.plans.append(plan)
+        if self.coverage is not None and plan.found:
+            self.swept_seen.append(self.coverage(*swept_box(self.robot, plan.path)))
         return plan
 
     def base(self) -> MobileBase | None:  # noqa: D102
@@ -300,3 +308,30 @@ class SimView:
         if parts is None:
             parts = self._parts[obj] = geom_parts(self.robot.model, obj)
         return parts
+
+
+SWEPT_PAD = 0.08
+"""The space a leg sweeps: the box of its moving bodies' origins grown by this [m] (a link's reach past its origin)."""
+
+
+def swept_box(robot: Robot, path: Sequence[np.ndarray], steps: int = 5) -> tuple[np.ndarray, np.ndarray]:
+    """The box (lo, hi) [m] the robot bodies a joint path moves sweep.
+
+    It holds their origins at ``steps`` states per segment, grown by ``SWEPT_PAD``.
+    """
+    data = mujoco.MjData(robot.model)
+    bodies = np.array(sorted(robot_bodies(robot)), dtype=int)
+    points = []
+    for a, b in itertools.pairwise(path):
+        for t in np.linspace(0.0, 1.0, steps + 1):
+            robot.set_q(data, (1.0 - t) * a + t * b)
+            mujoco.mj_kinematics(robot.model, data)
+            points.append(data.xpos[bodies].copy())
+    if not points:
+        return np.zeros(3), np.zeros(3)
+    stack = np.stack(points)  # (states, bodies, 3)
+    moved = np.ptp(stack, axis=0).max(axis=1) > 1e-3
+    if not moved.any():
+        return np.zeros(3), np.zeros(3)
+    swept = stack[:, moved].reshape(-1, 3)
+    return swept.min(axis=0) - SWEPT_PAD, swept.max(axis=0) + SWEPT_PAD

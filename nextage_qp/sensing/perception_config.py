@@ -57,5 +57,13 @@ class PerceptionConfig(YamlModel):
         "(source: camera, rendered depth; implies map): its clusters become boxes that the planner's validity check "
         "and the IK's collision rows of the clutter group use in place of the clutter, and free spots are chosen "
         "among them when a phase first names the target (nextage_qp.scene.seen_obstacles).")
+    unknown: Literal["occupied", "free"] = Field(
+        default="occupied", description="With obstacles: camera, what the space over the table the camera has never "
+        "seen is for the controller: occupied (boxes of it join the obstacles; the shadows of the robot's links and of "
+        "the tracked objects aside) or free.")
+    scan: bool | None = Field(
+        default=None, description="Before the first phase, the head looks over the mapped space (a grid of points "
+        "over the work region, each held until the camera has looked at it) so that the map has seen it before any "
+        "motion is planned (unset: on with obstacles: camera; needs look_at).")
     dump: str | None = Field(default=None, description="Folder for one frame's RGB, depth, clusters and fit (PNGs).")
     dump_at_s: float = Field(default=1.0, ge=0, description="Time of the dumped frame [s].")

@@ -36,7 +36,7 @@ def perception_of(cfg: Any, robot: Any, source: str) -> tuple[FaultySensors | No
     Raises:
         ConfigError: A shove names a phase the config does not have, or a sensor the scene does not have;
             ``perception.source: simulated`` without ``faults.object_pose``; a ``perception.dump`` that cannot be
-            written.
+            written; ``perception.scan`` without a camera map to scan for or a head to look with.
     """
     where, faults = source_of(cfg), cfg.faults
     check_dump(cfg.perception.dump, where, source)
@@ -45,6 +45,11 @@ def perception_of(cfg: Any, robot: Any, source: str) -> tuple[FaultySensors | No
                           f"but the poses come from {where}" + (" with stereo depth" if where == "camera" else "")
                           + "; set perception.source: camera and perception.depth: rendered, or perception.obstacles: "
                           "declared")
+    p = cfg.perception
+    if p.scan and not (where == "camera" and (p.map or p.obstacles == "camera") and p.look_at):
+        raise ConfigError(f"{source}: perception.scan: the head looks over the work region for the camera's map; it "
+                          "needs perception.source: camera, perception.map: true (or obstacles: camera) and "
+                          "perception.look_at: true; set those, or perception.scan: false")
     if where == "simulated" and (faults is None or faults.object_pose is None):
         raise ConfigError(f"{source}: perception.source: simulated needs faults.object_pose (the simulated camera's "
                           f"rate, latency, noise, dropout); valid sources without it: truth, camera")
