@@ -50,6 +50,7 @@ from nextage_qp.sensing.setup import attach_camera, log_estimates, perception_of
 
 TickCallback = Callable[["Runner", Phase | None], None]
 SEARCH_S = 3.0
+"""With a camera, how long [s] the run waits, still, for every object to be seen before its first phase."""
 SCAN_GRID = 3
 """The head's scan of the mapped space looks at a ``SCAN_GRID`` x ``SCAN_GRID`` grid of points over it."""
 SCAN_AIM = 0.05
@@ -58,7 +59,6 @@ SCAN_DWELL_S = 0.3
 """...and stays there this long [s] (the map takes the frames of that time)."""
 SCAN_POINT_S = 2.0
 """The longest a scan waits for the head to turn to one point [s] (one the head cannot turn to is left)."""
-"""With a camera, how long [s] the run waits, still, for every object to be seen before its first phase."""
 HELD_SLACK = 1e-3
 """A timed-out phase names the collision pairs within this [m] of their minimum distance (what may have held it)."""
 
@@ -544,8 +544,8 @@ class Runner:
     def _scan(self) -> None:
         """With camera obstacles, look over the mapped space before the first phase (``perception.scan``).
 
-        The head turns to each point of a grid over the map's space at the table top (from the nearest corner, row
-        by row), holding each ``SCAN_DWELL_S`` once the camera points within ``SCAN_AIM`` of it (``SCAN_POINT_S``
+        The head turns to each point of a grid over the map's space at the table top (row by row, the row nearest the
+        robot first), holding each ``SCAN_DWELL_S`` once the camera points within ``SCAN_AIM`` of it (``SCAN_POINT_S``
         at most); the arms hold still.
         """
         p = self.cfg.perception
