@@ -67,13 +67,9 @@ class VoxelMap:
         ``mask`` (H, W): the pixels whose points may be obstacles (default: every pixel with depth). Every pixel
         with depth counts for seeing through the voxels in front of it.
         """
-        h, w = depth.shape
-        rows, cols, z = project(self.centres, K, pos, rot)
-        view = (z > NEAR) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-        at = np.full(len(z), np.nan)
-        at[view] = depth[rows[view], cols[view]]
+        z, at = self._along_rays(depth, K, pos, rot)
         with np.errstate(invalid="ignore"):
-            free = view & (z < at - self.cell)  # in front of what the pixel sees, by more than a cell
+            free = z < at - self.cell  # in front of what the pixel sees, by more than a cell
         flat = self.logodds.reshape(-1)
         flat[free] -= MISS
         hits = np.isfinite(depth) if mask is None else (np.asarray(mask, dtype=bool) & np.isfinite(depth))
@@ -95,13 +91,22 @@ class VoxelMap:
 
         ``depth`` [m] (NaN: nothing there) is from a camera with intrinsics ``K`` at ``pos``, ``rot``.
         """
+        z, at = self._along_rays(depth, K, pos, rot)
+        with np.errstate(invalid="ignore"):
+            return (at <= z + self.cell).reshape(self.shape)
+
+    def _along_rays(self, depth: np.ndarray, K: np.ndarray, pos: np.ndarray,
+                    rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per voxel, its centre's depth along the camera's axis [m] and the depth its pixel shows.
+
+        The latter is NaN out of view, nearer than ``NEAR`` or where the pixel has no return.
+        """
         h, w = depth.shape
         rows, cols, z = project(self.centres, K, pos, rot)
         view = (z > NEAR) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
         at = np.full(len(z), np.nan)
         at[view] = depth[rows[view], cols[view]]
-        with np.errstate(invalid="ignore"):
-            return (at <= z + self.cell).reshape(self.shape)
+        return z, at
 
     def explain(self, centre: np.ndarray, radius: float) -> None:
         """The voxels whose centres lie within ``radius`` [m] of ``centre`` hold a known object, not an obstacle:
