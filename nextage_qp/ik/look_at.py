@@ -50,6 +50,11 @@ class LookAtTask(mink.Task):
         d = max(float(np.linalg.norm(rel)), 1e-6)
         return rel / d, d, rot, pos
 
+    def off_axis(self, data: mujoco.MjData) -> float:
+        """Angle [rad] between the camera's optical axis and the direction to :attr:`point`."""
+        u, _, rot, _ = self._u(data)
+        return float(np.arccos(np.clip(-rot[:, 2] @ u, -1.0, 1.0)))
+
     def compute_error(self, configuration: mink.Configuration) -> np.ndarray:  # noqa: D102
         if self.point is None:
             return np.zeros(2)

@@ -361,9 +361,10 @@ class Runner:
         if self.camera is not None and cfg.perception.look_at:
             self.servo.look = watch(self.ik, cfg.perception.camera, cfg.perception.look_cost)
         self.view = SimView(self.controlled, self.sim, self.servo, planning=self.cfg.planning, seen=self.seen)
-        mapper = getattr(self.camera, "mapper", None)
-        if self.seen is not None and mapper is not None:
-            self.view.coverage = mapper.seen_share
+        self.mapper = getattr(self.camera, "mapper", None)
+        """The camera's occupancy map of the obstacles (``perception.map`` or camera obstacles), or None."""
+        if self.seen is not None and self.mapper is not None:
+            self.view.coverage = self.mapper.seen_share
         self._map_frames = 0  # the camera map's frames the controller's obstacles were last taken from
         self._scan_at: np.ndarray | None = None  # where the head looks while it scans the mapped space
         self.scan: dict[str, Any] | None = None  # the scan's report
@@ -404,7 +405,7 @@ class Runner:
 
     def _take_seen(self) -> None:
         """Give the controller the camera map's obstacle boxes once a new whole frame is in it (when they changed)."""
-        mapper = getattr(self.camera, "mapper", None)
+        mapper = self.mapper
         if mapper is None or mapper.map.frames == self._map_frames:
             return
         self._map_frames = mapper.map.frames
@@ -548,9 +549,7 @@ class Runner:
         robot first), holding each ``SCAN_DWELL_S`` once the camera points within ``SCAN_AIM`` of it (``SCAN_POINT_S``
         at most); the arms hold still.
         """
-        p = self.cfg.perception
-        mapper = getattr(self.camera, "mapper", None)
-        look = self.servo.look
+        p, mapper, look = self.cfg.perception, self.mapper, self.servo.look
         if not (p.scan if p.scan is not None else p.obstacles == "camera") or mapper is None or look is None:
             return
         lo, hi = mapper.region()
@@ -562,9 +561,7 @@ class Runner:
             self._scan_at, start, since = point, self.sim.time, None
             while self.sim.time - start < SCAN_POINT_S:
                 self.tick(HOLD)
-                pos, rot = look.pose(self.sim.data)
-                u = (point - pos) / max(float(np.linalg.norm(point - pos)), 1e-9)
-                on = float(np.arccos(np.clip(-rot[:, 2] @ u, -1.0, 1.0))) <= SCAN_AIM
+                on = look.off_axis(self.sim.data) <= SCAN_AIM
                 since = (since if since is not None else self.sim.time) if on else None
                 if since is not None and self.sim.time - since >= SCAN_DWELL_S:
                     aimed_at += 1

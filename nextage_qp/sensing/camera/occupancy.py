@@ -237,13 +237,6 @@ class VoxelMap:
         half = np.array([(hi_u - lo_u) / 2, (hi_v - lo_v) / 2, (z1 - z0) / 2]) + pad
         return np.array([*xy, (z0 + z1) / 2]), half, yaw
 
-    def cells_of(self, points: np.ndarray) -> np.ndarray:
-        """A mask (the map's shape) of the voxels that hold any of the world points (n, 3) [m]."""
-        mask = np.zeros(self.shape, dtype=bool)
-        ijk, inside = self.index(points)
-        mask[tuple(ijk[inside].T)] = True
-        return mask
-
 
 SELF_PAD = 3
 """Pixels by which the robot's silhouette is grown for the self-filter: its rendered edges lag the measured image by a

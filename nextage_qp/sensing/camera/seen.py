@@ -96,14 +96,9 @@ class ObstacleMapper:
         left out of the clusters: the table's own points a plane's error lifts over its band fill them, and would join
         every piece on the table into one.
         """  # noqa: D205
-        out = []
         floor = float(self.map.lo[2])
-        for centre, half, yaw in self.map.oriented_boxes(pad=BOX_PAD, min_voxels=MIN_VOXELS, above=self.table + CELL):
-            top = centre[2] + half[2]
-            bottom = min(centre[2] - half[2], floor)
-            out.append((np.array([centre[0], centre[1], (top + bottom) / 2]),
-                        np.array([half[0], half[1], (top - bottom) / 2]), yaw))
-        return out
+        return [_down_to(box, floor) for box in self.map.oriented_boxes(pad=BOX_PAD, min_voxels=MIN_VOXELS,
+                                                                        above=self.table + CELL)]
 
     def unknown_boxes(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
         """The never-seen space over the work region as boxes: for planning, what the camera never saw is occupied.
@@ -112,15 +107,10 @@ class ObstacleMapper:
         ``FLOOR`` above the table up), reaching down to the table; the voxels a frame showed at or behind the robot's
         links or a tracked object are left out: space hidden by what the robot knows, seen once it moves.
         """
-        out = []
         lo, hi = self.region()
         lo[:2], hi[:2] = self.work
-        for cells in self.map.unknown_clusters(lo, hi, self.apart, MIN_VOXELS):
-            centre, half, yaw = self.map.oriented_box(cells)
-            top, bottom = centre[2] + half[2], self.table
-            out.append((np.array([centre[0], centre[1], (top + bottom) / 2]),
-                        np.array([half[0], half[1], (top - bottom) / 2]), yaw))
-        return out
+        return [_down_to(self.map.oriented_box(cells), self.table)
+                for cells in self.map.unknown_clusters(lo, hi, self.apart, MIN_VOXELS)]
 
     def update(self, frame: Frame, own: np.ndarray, plane: tuple[np.ndarray, float] | None,
                poses: Mapping[str, np.ndarray | None],
@@ -208,6 +198,14 @@ class ObstacleMapper:
                 "obstacles_unseen": len(obstacles) - len(present),
                 "false_occupied_cm3": round(float((occ & ~explained).sum()) * CELL**3 * 1e6, 1),
                 "occupied_cm3": round(float(occ.sum()) * CELL**3 * 1e6, 1), "obstacles": obstacles}
+
+
+def _down_to(box: tuple[np.ndarray, np.ndarray, float], floor: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """A box turned about the vertical (centre [m], half-sizes [m], yaw [rad]) grown down to ``floor`` [m]."""
+    centre, half, yaw = box
+    top, bottom = centre[2] + half[2], min(centre[2] - half[2], floor)
+    return (np.array([centre[0], centre[1], (top + bottom) / 2]), np.array([half[0], half[1], (top - bottom) / 2]),
+            yaw)
 
 
 def _table_top(robot: Any) -> float:
