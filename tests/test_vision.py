@@ -143,6 +143,41 @@ def test_an_object_the_robot_holds_is_fitted_with_the_tilt_it_has_in_the_grip(sh
 
 
 @needs_gl
+def test_a_tall_object_held_high_is_fitted_to_its_whole_view_not_slid_along_its_sides() -> None:
+    """A 24 cm tall box held 6 cm over the table: the points the estimator searches reach its top face, which pins its
+    height (its sides alone leave it free to slide up and down: the table does not pin a held object)."""
+    SHAPES["tall"] = "{shape: box, size: [0.03, 0.03, 0.12]}"
+    try:
+        _, robot, data, q = aimed_scene("tall", 0.45, 0.3)
+    finally:
+        del SHAPES["tall"]
+    body = robot.model.body("cube").id
+    adr = int(robot.model.jnt_qposadr[robot.model.body_jntadr[body]])
+    data.qpos[adr + 2] += 0.15
+    mujoco.mj_forward(robot.model, data)
+    frame, model = depth_frame(robot, data, q, DepthNoise(sigma_m=0.0, per_m2=0.0, edge_dropout=0.0))
+    truth = data.xpos[body].copy()
+    assert model.search_radius > model.reach > 0.12  # its top corners, from its centre
+    prior = np.r_[truth + np.array([0.004, -0.003, 0.01]), 0.0, 0.0, 0.3]
+    held = Estimator({"cube": model}, seed=1).estimate(frame, {"cube": prior}, held={"cube"})["cube"]
+    assert held.status == "ok", held
+    assert float(np.linalg.norm(held.pose[:3] - truth)) < 0.001, held.pose[:3] - truth
+
+
+def test_the_search_radius_grows_only_for_an_object_taller_than_it_is_wide() -> None:
+    flat = ShapeModel.of_body(*_body_model("{shape: box, size: [0.025, 0.025, 0.025]}"), 0.0)
+    tall = ShapeModel.of_body(*_body_model("{shape: box, size: [0.025, 0.025, 0.12]}"), 0.0)
+    assert flat.search_radius == pytest.approx(1.5 * flat.radius + 0.03)
+    assert tall.search_radius == pytest.approx(tall.reach + 0.03)
+    assert tall.reach == pytest.approx(float(np.linalg.norm([0.025, 0.025, 0.12])), abs=2e-3)
+
+
+def _body_model(shape: str) -> tuple[mujoco.MjModel, str]:
+    cfg = load_config(PUSH, [f"scene.objects.cube={shape}"])
+    return build_robot(cfg, str(PUSH)).model, "cube"
+
+
+@needs_gl
 def test_an_object_cut_by_the_image_edge_is_not_taken_until_it_is_seen_whole() -> None:
     """Half the object outside the image: not acquired (its yaw would be a guess), though tracked from a prior."""
     robot, data, frame, model = aimed_frame("compound", 0.45, 0.3)

@@ -63,11 +63,17 @@ class ShapeModel:
         self.normals = self._gradient(self.samples)
         self.bottom = float(self.samples[:, 2].min())  # lowest point below the origin [m] (< 0)
         self.radius = float(np.linalg.norm(self.samples[:, :2], axis=1).max())
+        self.reach = float(np.linalg.norm(self.samples, axis=1).max())  # from the origin in any direction [m]
 
     @property
     def search_radius(self) -> float:
-        """Distance [m] from a tracked object's predicted position within which the estimator looks for its points."""
-        return self.radius * 1.5 + 0.03
+        """Distance [m] from a tracked object's predicted position within which the estimator looks for its points.
+
+        One and a half times its planar radius (room for the prediction's error), or its farthest point where that is
+        farther (a tall object's top: a held object's top face pins its height, which the table does not), and 3 cm
+        more.
+        """
+        return max(self.radius * 1.5, self.reach) + 0.03
 
     @classmethod
     def of_body(cls, model: mujoco.MjModel, name: str, symmetry: float) -> ShapeModel:

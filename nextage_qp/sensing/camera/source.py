@@ -79,7 +79,7 @@ class CameraMeasurer:
         self.symmetry = {n: robot.yaw_symmetry(n) for n in robot.object_names}
         shapes = {n: ShapeModel.of_body(model, n, self.symmetry[n]) for n in robot.object_names}
         self.estimator = Estimator(shapes, seed, SELF_PAD if stereo else 0)  # stereo cannot measure the plain links
-        radii = {n: float(np.linalg.norm(s.samples, axis=1).max()) for n, s in shapes.items()}  # each shape's [m]
+        radii = {n: s.reach for n, s in shapes.items()}  # each shape's farthest point from its origin [m]
         self.reach = {n: max(s.search_radius, radii[n]) + MARGIN
                       for n, s in shapes.items()}  # the radius of each object's stereo window [m]
         self.windowed = 0  # frames rendered (or matched) in a window around the tracked objects
