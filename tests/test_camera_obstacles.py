@@ -201,6 +201,34 @@ def test_before_the_first_phase_the_head_looks_over_the_work_region_and_plans_se
     goal = runner.q0 + np.where(np.isin(np.arange(len(runner.q0)), right), -0.2, 0.0)
     plan = runner.view.plan_path(runner.q0, goal, escape=True)  # (the map's boxes may graze a hand at home)
     assert plan.found and len(runner.view.swept_seen) == 1 and 0.0 < runner.view.swept_seen[0] <= 1.0
+    assert len(runner.view.swept_met) == 1  # the obstacles in that space, scored for the report
+    report = runner.summary()["swept_seen"]
+    assert report["obstacles_met"] == len(runner.view.swept_met[0]) and report["legs"] == 1
+    # A swept space holding one tall obstacle: met and detected once the map holds it; standing in never-seen space
+    # over the work region, unknown (planned around as occupied); in seen free space, missed.
+    model, data = runner.camera.world
+    tall = max((b for b in range(model.nbody) if model.body(b).name.startswith("clutter_")),
+               key=lambda b: float(data.xpos[b][2]))
+    name, centre = model.body(tall).name, data.xpos[tall].copy()
+    lo, hi = centre - 0.01, centre + 0.01
+    [met] = [o for o in mapper.met(model, data, lo, hi) if o["name"] == name]
+    assert met == {"name": name, "detected": True, "unknown": False}
+    assert mapper.met(model, data, np.array([0.0, 0.0, -1.0]), np.array([0.1, 0.1, -0.9])) == []  # nothing there
+    geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == tall]
+    inside = np.zeros(len(mapper.map.centres), dtype=bool)
+    for g in geoms:
+        local = (mapper.map.centres - data.geom_xpos[g]) @ data.geom_xmat[g].reshape(3, 3)
+        inside |= np.all(np.abs(local - model.geom_aabb[g, :3]) <= model.geom_aabb[g, 3:] + 0.015, axis=1)
+    mapper.map.logodds.reshape(-1)[inside] = -1.0  # seen free: missed
+    [met] = [o for o in mapper.met(model, data, lo, hi) if o["name"] == name]
+    assert not met["detected"] and not met["unknown"]
+    mapper.map.seen.reshape(-1)[inside] = False  # never seen: unknown in the work region, missed beyond it
+    mapper.work = (centre[:2] + 0.2, centre[:2] + 0.4)
+    [met] = [o for o in mapper.met(model, data, lo, hi) if o["name"] == name]
+    assert not met["detected"] and not met["unknown"]
+    mapper.work = (centre[:2] - 0.2, centre[:2] + 0.2)
+    [met] = [o for o in mapper.met(model, data, lo, hi) if o["name"] == name]
+    assert met == {"name": name, "detected": False, "unknown": True}
     runner.camera.close()
 
 

@@ -365,6 +365,8 @@ class Runner:
         """The camera's occupancy map of the obstacles (``perception.map`` or camera obstacles), or None."""
         if self.seen is not None and self.mapper is not None:
             self.view.coverage = self.mapper.seen_share
+            assert self.camera is not None  # (the map is the camera's)
+            self.view.meets = partial(self.mapper.met, *self.camera.world)  # scored with the scene: the report's
         self._map_frames = 0  # the camera map's frames the controller's obstacles were last taken from
         self._scan_at: np.ndarray | None = None  # where the head looks while it scans the mapped space
         self.scan: dict[str, Any] | None = None  # the scan's report
@@ -591,7 +593,7 @@ class Runner:
                                 "shoves": self.shoves.applied if self.shoves is not None else [],
                                 "planning": plan_report(self.view.plans),
                                 **({"scan": self.scan} if self.scan is not None else {}),
-                                **({"swept_seen": swept_report(self.view.swept_seen)}
+                                **({"swept_seen": swept_report(self.view.swept_seen, self.view.swept_met)}
                                    if self.view.coverage is not None else {}),
                                 "planning_time_s": round(sum(p.time_s for p in self.view.plans), 4),
                                 **({"base": base_report(self.sim.base.log, self.robot.base)}
@@ -603,10 +605,19 @@ class Runner:
         return out
 
 
-def swept_report(shares: Sequence[float]) -> dict[str, Any]:
-    """How much of the space the run's legs swept the camera had seen when each was planned (``coverage``)."""
+def swept_report(shares: Sequence[float], met: Sequence[Sequence[dict[str, Any]]] = ()) -> dict[str, Any]:
+    """How much of the space the run's legs swept the camera had seen when each was planned, and what stood in it.
+
+    ``shares``: per leg, the share seen (``coverage``); ``met``: per leg, the obstacles at least 3 cm tall reaching
+    into that space, counted once per leg: those the map held (``detected``), those standing wholly in never-seen
+    space (planned around as occupied) and the others, by leg and name (``missed``).
+    """
+    pairs = [(k, o) for k, leg in enumerate(met) for o in leg]
     return {"legs": len(shares), "min_share": round(min(shares), 4) if shares else None,
-            "median_share": round(float(np.median(shares)), 4) if shares else None}
+            "median_share": round(float(np.median(shares)), 4) if shares else None,
+            "obstacles_met": len(pairs), "obstacles_detected": sum(o["detected"] for _, o in pairs),
+            "obstacles_unknown": sum(o["unknown"] for _, o in pairs),
+            "missed": [f"leg {k}: {o['name']}" for k, o in pairs if not (o["detected"] or o["unknown"])]}
 
 
 def plan_report(plans: Sequence[PathPlan]) -> dict[str, Any]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import time
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -61,6 +62,11 @@ class SimView:
         self.swept_seen: list[float] = []
         """Per leg found (straight or planned) while ``coverage`` is set: the share of the space its moving links sweep
         (:func:`swept_box`) the camera had seen when it was planned."""
+        self.meets: Callable[[np.ndarray, np.ndarray], list[dict[str, Any]]] | None = None
+        """With obstacles from the camera: the scene's obstacles reaching into a box, each whether the map holds it
+        (scored with the scene, for the report alone: :meth:`~nextage_qp.sensing.camera.seen.ObstacleMapper.met`)."""
+        self.swept_met: list[list[dict[str, Any]]] = []
+        """Per leg of ``swept_seen``: the obstacles reaching into its swept space when it was planned (``meets``)."""
 
     def world_changed(self) -> None:
         """The camera's obstacle boxes changed: the view's model and planner take them (the worlds as they are used)."""
@@ -204,7 +210,10 @@ class SimView:
                 plan = planned(touch)  # near but not inside: planned without the clearance
         self.plans.append(plan)
         if self.coverage is not None and plan.found:
-            self.swept_seen.append(self.coverage(*swept_box(self.robot, plan.path)))
+            swept = swept_box(self.robot, plan.path)
+            self.swept_seen.append(self.coverage(*swept))
+            if self.meets is not None:
+                self.swept_met.append(self.meets(*swept))
         return plan
 
     def base(self) -> MobileBase | None:  # noqa: D102

@@ -163,15 +163,17 @@ class ObstacleMapper:
                     if np.any(np.abs(frame.depth[rows[ok], cols[ok]] - z[ok]) < 0.01):
                         self.visible.add(body)
 
-    def report(self, model: mujoco.MjModel, data: mujoco.MjData) -> dict[str, Any]:
-        """The map scored against the scene as it is in ``data`` (see the module docstring)."""
+    def _obstacles(self, model: mujoco.MjModel, data: mujoco.MjData) -> list[tuple[str, int, float, np.ndarray,
+                                                                                     np.ndarray]]:
+        """Per obstacle body of the scene: its name, id, height over the map's first layer [m], and its voxels.
+
+        Its voxels: those in its geoms' bounding boxes, and those within a voxel of them (for the score alone: the map
+        never reads the scene).
+        """
         groups = self.robot.collision_geoms()
-        occupied = self.map.state() == OCCUPIED_STATE
         centres = self.map.centres
-        occ = occupied.reshape(-1)
-        explained = np.zeros(len(centres), dtype=bool)
         top = float(self.map.lo[2] + CELL)
-        obstacles = []
+        out = []
         for group in self.robot.obstacle_groups():
             for body in sorted({int(model.geom_bodyid[g]) for g in groups.get(group, ())}):
                 geoms = [g for g in groups[group] if int(model.geom_bodyid[g]) == body]
@@ -182,12 +184,22 @@ class ObstacleMapper:
                     inside |= _in_geom(model, data, g, centres, 0.0)
                     near |= _in_geom(model, data, g, centres, CELL)
                     height = max(height, _geom_top(model, data, g) - top)
-                explained |= near
-                if height < TALL or not inside.any():
-                    continue
-                obstacles.append({"name": model.body(body).name, "height_m": round(height, 3),
-                                  "seen": body in self.visible,
-                                  "detected": bool(occ[near].any())})
+                out.append((model.body(body).name, body, height, inside, near))
+        return out
+
+    def report(self, model: mujoco.MjModel, data: mujoco.MjData) -> dict[str, Any]:
+        """The map scored against the scene as it is in ``data`` (see the module docstring)."""
+        groups = self.robot.collision_geoms()
+        centres = self.map.centres
+        occ = (self.map.state() == OCCUPIED_STATE).reshape(-1)
+        explained = np.zeros(len(centres), dtype=bool)
+        obstacles = []
+        for name, body, height, inside, near in self._obstacles(model, data):
+            explained |= near
+            if height < TALL or not inside.any():
+                continue
+            obstacles.append({"name": name, "height_m": round(height, 3), "seen": body in self.visible,
+                              "detected": bool(occ[near].any())})
         for name in self.robot.object_names:  # the objects, and the things they stand on, explain voxels too
             for g in groups.get(name, ()):
                 explained |= _in_geom(model, data, g, centres, 2 * CELL)
@@ -198,6 +210,31 @@ class ObstacleMapper:
                 "obstacles_unseen": len(obstacles) - len(present),
                 "false_occupied_cm3": round(float((occ & ~explained).sum()) * CELL**3 * 1e6, 1),
                 "occupied_cm3": round(float(occ.sum()) * CELL**3 * 1e6, 1), "obstacles": obstacles}
+
+    def met(self, model: mujoco.MjModel, data: mujoco.MjData, lo: np.ndarray, hi: np.ndarray) -> list[dict[str, Any]]:
+        """The obstacles at least ``TALL`` high reaching into the box ``lo``-``hi`` [m], and whether the map holds them.
+
+        The box: a motion's swept space. Each obstacle says whether the map holds it now (``detected``: an occupied
+        voxel in it or within a voxel of it) or, not detected, whether it stands wholly in never-seen space over the
+        work region (``unknown``: planned around as occupied with ``perception.unknown: occupied``). Scored with the
+        scene in ``data``, for the report alone.
+        """
+        centres = self.map.centres
+        box = np.all((centres >= lo) & (centres <= hi), axis=1)
+        if not box.any():
+            return []
+        occ = (self.map.state() == OCCUPIED_STATE).reshape(-1)
+        seen = self.map.seen.reshape(-1)
+        (x0, y0), (x1, y1) = self.work
+        work = (centres[:, 0] >= x0) & (centres[:, 0] <= x1) & (centres[:, 1] >= y0) & (centres[:, 1] <= y1)
+        out = []
+        for name, _, height, inside, near in self._obstacles(model, data):
+            if height < TALL or not (inside & box).any():
+                continue
+            detected = bool(occ[near].any())
+            out.append({"name": name, "detected": detected,
+                        "unknown": not detected and bool(np.all(~seen[inside] & work[inside]))})
+        return out
 
 
 def _down_to(box: tuple[np.ndarray, np.ndarray, float], floor: float) -> tuple[np.ndarray, np.ndarray, float]:
