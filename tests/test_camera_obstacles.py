@@ -223,10 +223,10 @@ def test_before_the_first_phase_the_head_looks_over_the_work_region_and_plans_se
     [met] = [o for o in mapper.met(model, data, lo, hi) if o["name"] == name]
     assert not met["detected"] and not met["unknown"]
     mapper.map.seen.reshape(-1)[inside] = False  # never seen: unknown in the work region, missed beyond it
-    mapper.work = (centre[:2] + 0.2, centre[:2] + 0.4)
+    mapper.places = [(centre[:2] + 0.2, centre[:2] + 0.4)]
     [met] = [o for o in mapper.met(model, data, lo, hi) if o["name"] == name]
     assert not met["detected"] and not met["unknown"]
-    mapper.work = (centre[:2] - 0.2, centre[:2] + 0.2)
+    mapper.places = [(centre[:2] - 0.2, centre[:2] + 0.2)]
     [met] = [o for o in mapper.met(model, data, lo, hi) if o["name"] == name]
     assert met == {"name": name, "detected": False, "unknown": True}
     runner.camera.close()
@@ -241,3 +241,23 @@ def test_a_scan_with_no_map_to_scan_for_or_no_head_to_look_with_is_refused_in_on
         Runner(load_config("configs/push_cube.yaml", ["perception.scan=true", *extra]), "push_cube")
     message = str(err.value)
     assert "perception.scan" in message and "perception.map: true" in message and "\n" not in message
+
+
+def test_a_free_spots_region_beyond_the_work_region_is_mapped_and_its_unseen_space_occupied():
+    """The free-spot task's region reaches past the work region (and the map's margin round it): the map covers it,
+    and before anything is seen its space is occupied for the free-spot choice and the planner, as the work region's."""
+    try:
+        runner = Runner(load_config("configs/place_free_spot.yaml", CAMERA), "place_free_spot")
+    except Exception as exc:  # no offscreen rendering on this machine
+        if "offscreen rendering unavailable" in str(exc):
+            pytest.skip(str(exc))
+        raise
+    mapper = runner.camera.mapper
+    (x0, y0), (x1, y1) = runner.cfg.scene.poses["box_target"].free_spot.region
+    top = mapper.map.lo + np.array(mapper.map.shape) * mapper.map.cell
+    assert y1 > mapper.work[1][1] + 0.15  # beyond the work region and the margin a map has round it
+    assert mapper.map.lo[0] <= x0 and mapper.map.lo[1] <= y0 and top[0] >= x1 and top[1] >= y1
+    unseen = mapper.unknown_boxes()  # nothing seen yet: over the work region and the spot's region
+    for x, y in ((x0 + 0.01, y1 - 0.01), (x1 - 0.01, y1 - 0.01), (0.5 * (x0 + x1), 0.5 * (y0 + y1))):
+        assert any(np.all(np.abs(np.array([x, y]) - c[:2]) <= h[:2] + 1e-6) for c, h, _ in unseen), (x, y)
+    runner.camera.close()

@@ -212,7 +212,7 @@ def test_never_seen_space_comes_as_clusters_but_for_the_shadow_of_what_the_mask_
     def holds(clusters) -> bool:
         return any(np.all(cells == ijk[0], axis=1).any() for cells in clusters)
 
-    assert holds(vmap.unknown_clusters(lo, hi, np.zeros(vmap.shape, dtype=bool)))
+    assert holds(vmap.unknown_clusters(vmap.region(lo, hi), np.zeros(vmap.shape, dtype=bool)))
     rows, cols = np.nonzero(np.isfinite(depth))
     points = backproject(depth, K, pos, rot, rows, cols)
     front = np.full(depth.shape, np.nan)  # the pixels that show the front box: its shadow is the mask
@@ -220,8 +220,8 @@ def test_never_seen_space_comes_as_clusters_but_for_the_shadow_of_what_the_mask_
     front[rows[on], cols[on]] = depth[rows[on], cols[on]]
     shadow = vmap.behind(K, pos, rot, front)
     assert shadow[tuple(ijk[0])]
-    assert not holds(vmap.unknown_clusters(lo, hi, shadow))
-    box = vmap.oriented_box(next(c for c in vmap.unknown_clusters(lo, hi, np.zeros(vmap.shape, dtype=bool))
+    assert not holds(vmap.unknown_clusters(vmap.region(lo, hi), shadow))
+    box = vmap.oriented_box(next(c for c in vmap.unknown_clusters(vmap.region(lo, hi), np.zeros(vmap.shape, dtype=bool))
                                  if np.all(c == ijk[0], axis=1).any()))
     centre, half, yaw = box
     local = np.array(hidden) - centre

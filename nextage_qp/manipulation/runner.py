@@ -345,7 +345,8 @@ class Runner:
         self.sensors, self.shoves = perception_of(cfg, self.robot, source)
         self.sim = Simulation(self.robot, gains, cfg.trajectory, timing=cfg.timing, frames=frames, sensors=self.sensors)
         if self.sensors is not None:
-            attach_camera(cfg, self.sensors, self.robot, self.sim.data, source)
+            places = [spot.region for *_, spot in self._unplaced]  # mapped too: spots are chosen among what it sees
+            attach_camera(cfg, self.sensors, self.robot, self.sim.data, source, places)
         q0 = start_q(cfg, self.robot)
         if self.robot.base is not None and cfg.object == BASE_BODY:  # a base that parks: nothing to place
             self.placement = Placement(np.zeros(3), None)

@@ -6,6 +6,7 @@ camera).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -90,8 +91,12 @@ def check_dump(dump: str | None, where: str, source: str) -> None:
         raise ConfigError(f"{source}: perception.dump: {dump!r}: {problem}; give a folder that can be written")
 
 
-def attach_camera(cfg: Any, sensors: FaultySensors, robot: Any, data: mujoco.MjData, source: str) -> None:
-    """Give ``sensors`` the robot camera of ``cfg.perception`` rendering the world ``data`` (camera source only)."""
+def attach_camera(cfg: Any, sensors: FaultySensors, robot: Any, data: mujoco.MjData, source: str,
+                  places: Sequence[tuple[tuple[float, float], tuple[float, float]]] = ()) -> None:
+    """Give ``sensors`` the robot camera of ``cfg.perception`` rendering the world ``data`` (camera source only).
+
+    ``places``: rectangles of the table [m] the task puts objects in, which its obstacle map covers too.
+    """
     if source_of(cfg) != "camera":
         return
     from nextage_qp.sensing.camera.source import CameraMeasurer
@@ -100,7 +105,8 @@ def attach_camera(cfg: Any, sensors: FaultySensors, robot: Any, data: mujoco.MjD
         return sensors.joints(t, robot.get_q(data), robot.get_qd(data))[0]
 
     pc = cfg.perception
-    sensors.use_camera(CameraMeasurer(pc, robot, data, joints, cfg.seed, source), pc.noise_pos_m, pc.noise_rot_rad)
+    sensors.use_camera(CameraMeasurer(pc, robot, data, joints, cfg.seed, source, places), pc.noise_pos_m,
+                       pc.noise_rot_rad)
 
 
 def log_estimates(sensors: FaultySensors, recorder: Any) -> None:

@@ -136,14 +136,14 @@ class VoxelMap:
         """Centres (n, 3) of the occupied voxels [m]."""
         return self.centres[(self.state() == OCCUPIED_STATE).reshape(-1)]
 
-    def _region(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    def region(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """Voxels whose centre lies in the box ``lo``-``hi`` [m]."""
         inside = np.all((self.centres >= np.asarray(lo)) & (self.centres <= np.asarray(hi)), axis=1)
         return inside.reshape(self.shape)
 
     def seen_share(self, lo: np.ndarray, hi: np.ndarray) -> float:
         """Share of the voxels in the box ``lo``-``hi`` [m] the map has observed (1 for an empty box)."""
-        region = self._region(lo, hi)
+        region = self.region(lo, hi)
         n = int(region.sum())
         return float(self.seen[region].sum()) / n if n else 1.0
 
@@ -156,7 +156,7 @@ class VoxelMap:
         """
         solid = self.state() == OCCUPIED_STATE
         if unknown_in is not None:
-            solid |= ~self.seen & self._region(*unknown_in)
+            solid |= ~self.seen & self.region(*unknown_in)
         return self._clusters_of(solid, min_voxels)
 
     def _clusters_of(self, solid: np.ndarray, min_voxels: int) -> list[np.ndarray]:
@@ -204,13 +204,12 @@ class VoxelMap:
         self._oriented = (solid, key, out)
         return list(out)
 
-    def unknown_clusters(self, lo: np.ndarray, hi: np.ndarray, apart: np.ndarray,
-                         min_voxels: int = 1) -> list[np.ndarray]:
-        """The voxel indices (n, 3) of each connected cluster of never-seen voxels whose centres lie in the box
-        ``lo``-``hi`` [m] and outside the mask ``apart`` (the map's shape; e.g. the space hidden behind the robot's
-        own links, which the camera sees once they move).
+    def unknown_clusters(self, within: np.ndarray, apart: np.ndarray, min_voxels: int = 1) -> list[np.ndarray]:
+        """The voxel indices (n, 3) of each connected cluster of never-seen voxels in the mask ``within`` and outside
+        the mask ``apart`` (both of the map's shape; ``within`` e.g. :meth:`region`'s, ``apart`` e.g. the space hidden
+        behind the robot's own links, which the camera sees once they move).
         """  # noqa: D205
-        return self._clusters_of(~self.seen & self._region(lo, hi) & ~apart, min_voxels)
+        return self._clusters_of(~self.seen & within & ~apart, min_voxels)
 
     def oriented_box(self, cells: np.ndarray, pad: float = 0.0,
                      step: float = np.radians(3.0)) -> tuple[np.ndarray, np.ndarray, float]:

@@ -1,8 +1,8 @@
 """``perception.map``: the obstacles the head camera sees, as an occupancy map built over a run, and how good it is.
 
 :class:`ObstacleMapper` takes the camera's whole frames (a windowed frame shows only the tracked objects) and adds
-each to a :class:`~.occupancy.VoxelMap` of the space over the work region: the pixels the robot's
-own model explains are dropped (:func:`~.occupancy.self_filter`, the model rendered alone at the
+each to a :class:`~.occupancy.VoxelMap` of the space over the work region and the places the task puts objects in:
+the pixels the robot's own model explains are dropped (:func:`~.occupancy.self_filter`, the model rendered alone at the
 measured joints), and so are the table's (within ``TABLE_BAND`` of the plane the estimator found) and the tracked
 objects' (within their shape's radius and ``OBJECT_PAD`` of the pose fitted in that frame). What is left is what the
 robot was not told about: obstacles.
@@ -15,7 +15,7 @@ in nothing (false occupied).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import mujoco
@@ -34,7 +34,8 @@ OBJECT_PAD = 0.015
 TALL = 0.03
 """Obstacles at least this tall [m] are scored."""
 REACH = 0.15
-"""The map reaches this far [m] beyond the work region on each side, and ``HEIGHT`` above the table."""
+"""The map reaches this far [m] beyond the work region (and the task's places) on each side, and ``HEIGHT`` above the
+table."""
 HEIGHT = 0.35
 BOX_PAD = 0.0
 """The controller's obstacle boxes are each cluster's voxels grown by this [m]: none, a voxel that holds a point of a
@@ -52,20 +53,25 @@ class ObstacleMapper:
     Args:
         robot: The :class:`~nextage_qp.robots.model.Robot` (its workspace, objects and obstacle groups).
         radii: Each tracked object's radius [m] (its shape model's).
+        places: More rectangles of the table ((x0, y0), (x1, y1)) [m] the task puts objects in (a ``free_spot``
+            target's region): mapped, and never-seen space there is occupied, as over the work region.
     """
 
-    def __init__(self, robot: Any, radii: Mapping[str, float]) -> None:
+    def __init__(self, robot: Any, radii: Mapping[str, float],
+                 places: Sequence[tuple[tuple[float, float], tuple[float, float]]] = ()) -> None:
         table = _table_top(robot)
         ws = robot.description.workspace if robot.description is not None else None
         if ws is not None:
             centre, half = np.array(ws.centre, dtype=float), np.array(ws.size, dtype=float)
         else:  # a robot file without a workspace: the space in front of the robot
             centre, half = np.array([0.5, 0.0]), np.array([0.35, 0.5])
-        lo = np.array([*(centre - half - REACH), table - CELL])
-        hi = np.array([*(centre + half + REACH), table + HEIGHT])
+        self.work = (centre - half, centre + half)  # the work region's footprint (x-y) [m]
+        self.places = [self.work, *((np.array(a, dtype=float), np.array(b, dtype=float)) for a, b in places)]
+        """The footprints (x-y lo, hi) [m] over which never-seen space is occupied: the work region, then ``places``."""
+        lo = np.array([*(np.min([a for a, _ in self.places], axis=0) - REACH), table - CELL])
+        hi = np.array([*(np.max([b for _, b in self.places], axis=0) + REACH), table + HEIGHT])
         self.map = VoxelMap(lo, hi, CELL)
         self.table = table
-        self.work = (centre - half, centre + half)  # the work region's footprint (x-y) [m]
         self.radii = dict(radii)
         self.robot = robot
         self.apart = np.zeros(self.map.shape, dtype=bool)
@@ -101,16 +107,22 @@ class ObstacleMapper:
                                                                         above=self.table + CELL)]
 
     def unknown_boxes(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
-        """The never-seen space over the work region as boxes: for planning, what the camera never saw is occupied.
+        """The never-seen space over ``places`` as boxes: for planning, what the camera never saw is occupied.
 
         One box turned about the vertical per connected cluster of never-seen voxels (of ``MIN_VOXELS`` or more, from
         ``FLOOR`` above the table up), reaching down to the table; the voxels a frame showed at or behind the robot's
         links or a tracked object are left out: space hidden by what the robot knows, seen once it moves.
         """
-        lo, hi = self.region()
-        lo[:2], hi[:2] = self.work
         return [_down_to(self.map.oriented_box(cells), self.table)
-                for cells in self.map.unknown_clusters(lo, hi, self.apart, MIN_VOXELS)]
+                for cells in self.map.unknown_clusters(self._unknown_in(), self.apart, MIN_VOXELS)]
+
+    def _unknown_in(self) -> np.ndarray:
+        """The voxels over ``places`` (from ``FLOOR`` above the table up): never seen there, space is occupied."""
+        lo, hi = self.region()
+        within = np.zeros(self.map.shape, dtype=bool)
+        for a, b in self.places:
+            within |= self.map.region(np.r_[a, lo[2]], np.r_[b, hi[2]])
+        return within
 
     def update(self, frame: Frame, own: np.ndarray, plane: tuple[np.ndarray, float] | None,
                poses: Mapping[str, np.ndarray | None],
@@ -215,8 +227,8 @@ class ObstacleMapper:
         """The obstacles at least ``TALL`` high reaching into the box ``lo``-``hi`` [m], and whether the map holds them.
 
         The box: a motion's swept space. Each obstacle says whether the map holds it now (``detected``: an occupied
-        voxel in it or within a voxel of it) or, not detected, whether it stands wholly in never-seen space over the
-        work region (``unknown``: planned around as occupied with ``perception.unknown: occupied``). Scored with the
+        voxel in it or within a voxel of it) or, not detected, whether it stands wholly in never-seen space over
+        ``places`` (``unknown``: planned around as occupied with ``perception.unknown: occupied``). Scored with the
         scene in ``data``, for the report alone.
         """
         centres = self.map.centres
@@ -224,16 +236,15 @@ class ObstacleMapper:
         if not box.any():
             return []
         occ = (self.map.state() == OCCUPIED_STATE).reshape(-1)
-        seen = self.map.seen.reshape(-1)
-        (x0, y0), (x1, y1) = self.work
-        work = (centres[:, 0] >= x0) & (centres[:, 0] <= x1) & (centres[:, 1] >= y0) & (centres[:, 1] <= y1)
+        unknown = (~self.map.seen & self._unknown_in()).reshape(-1)
+        over = centres[:, 2] >= self.table + FLOOR  # (the space a ray ending on the table never carves is the table's)
         out = []
         for name, _, height, inside, near in self._obstacles(model, data):
             if height < TALL or not (inside & box).any():
                 continue
-            detected = bool(occ[near].any())
+            detected, high = bool(occ[near].any()), inside & over
             out.append({"name": name, "detected": detected,
-                        "unknown": not detected and bool(np.all(~seen[inside] & work[inside]))})
+                        "unknown": not detected and bool(high.any() and np.all(unknown[high]))})
         return out
 
 

@@ -17,7 +17,7 @@ no missed detection; one the estimator thinks hidden, but in plain view, is).
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -55,10 +55,13 @@ class CameraMeasurer:
         joints: The measured joint positions at a time [s].
         seed: The run's seed.
         source: Where the config came from (for messages).
+        places: Rectangles of the table [m] the task puts objects in, which the obstacle map covers too
+            (:class:`~nextage_qp.sensing.camera.seen.ObstacleMapper`).
     """
 
     def __init__(self, cfg: PerceptionConfig, robot: Any, data: mujoco.MjData, joints: Callable[[float], np.ndarray],
-                 seed: int, source: str = "<config>") -> None:
+                 seed: int, source: str = "<config>",
+                 places: Sequence[tuple[tuple[float, float], tuple[float, float]]] = ()) -> None:
         cams = dict(robot.description.cameras) if robot.description is not None else {}
         stereo = cfg.depth == "stereo"
         for key, name in ((("stereo", n) for n in cfg.stereo) if stereo else [("camera", cfg.camera)]):
@@ -102,7 +105,7 @@ class CameraMeasurer:
         self.spread: dict[str, float] = {}
         """The latest frame's fits' noise relative to a clear view's (``perception.cover_spread``)."""
         self.cover_spread = COVER_SPREAD[cfg.depth] if cfg.cover_spread is None else cfg.cover_spread
-        self.mapper = ObstacleMapper(robot, radii) if cfg.map or cfg.obstacles == "camera" else None
+        self.mapper = ObstacleMapper(robot, radii, places) if cfg.map or cfg.obstacles == "camera" else None
         self.world = (model, data)  # for the map's score alone
 
     @property
