@@ -491,6 +491,18 @@ def test_the_default_push_from_the_head_camera_reaches_its_target() -> None:
     assert errors["estimate_unoccluded_rms_m"] < 0.005
 
 
+@needs_gl
+@pytest.mark.slow
+def test_the_default_pick_and_place_from_the_head_camera_keeps_the_held_box_in_view_and_sets_it_down() -> None:
+    """The 24 cm box clamped, lifted over the wall and set down: the head sees it throughout the carry."""
+    config = ROOT / "configs" / "pick_place_box.yaml"
+    result = Runner(load_config(config, ["perception.source=camera"]), config).run()
+    assert result["success"], result["error"]
+    frames = result["estimation"]["camera"]["objects"]["box"]
+    assert frames["detected_of_unoccluded"] > 0.95, frames
+    assert result["estimation"]["objects"]["box"]["estimate_max_m"] < 0.01  # (the filter's, against the truth)
+
+
 def test_a_frame_dump_asked_for_after_the_run_ended_is_reported_not_silently_dropped() -> None:
     from types import SimpleNamespace
 
