@@ -68,25 +68,22 @@ def test_later_spots_keep_the_clearance_and_lie_apart(runner):
     assert dists == sorted(dists)  # nearest first
 
 
-def test_with_a_margin_for_obstacles_known_only_from_a_map_the_spots_with_that_much_more_room_come_first(runner):
-    """The asked 90 mm and a map's 15 mm cell: the spots keeping both (their clearance measured beyond the usual 0.1 m
-    cap) come first, nearest ``near`` first, then those keeping the asked clearance only (all of them where none keeps
-    the margin); all lie apart."""
-    robot, near = runner.robot, np.array([0.35, 0.38])
-    plain = list(free_spots(robot, "box", 0.785398, REGION, tuple(near), ASKED, "test"))
-    spots = list(free_spots(robot, "box", 0.785398, REGION, tuple(near), ASKED, "test", margin=0.015))
-    roomy = [room >= ASKED + FREE_SPOT_MARGIN + 0.015 for _, room in spots]
-    assert roomy[0] and roomy == sorted(roomy, reverse=True)  # the roomy ones first
-    unreachable = list(free_spots(robot, "box", 0.785398, REGION, tuple(near), ASKED, "test", margin=0.5))
-    assert [tuple(xy) for xy, _ in unreachable] == [tuple(xy) for xy, _ in plain]  # none that roomy: the others
+def test_a_margin_for_obstacles_known_only_from_a_map_keeps_that_much_more_room_past_the_usual_cap(runner):
+    """The asked 90 mm and a map's 15 mm cell: each spot keeps both (its clearance measured beyond 0.1 m), the first one
+    farther from ``near`` than without the margin; a region with no such room is refused naming the margin."""
+    robot = runner.robot
+    plain = next(free_spots(robot, "box", 0.785398, REGION, (0.35, 0.38), ASKED, "test"))
+    spots = list(free_spots(robot, "box", 0.785398, REGION, (0.35, 0.38), ASKED, "test", margin=0.015))
+    assert spots
     for xy, room in spots:
-        assert room >= ASKED + FREE_SPOT_MARGIN
-        assert _box_at(robot, xy, 0.785398) >= min(room, 0.1) - 1e-6  # (the criterion's measure stops at 0.1 m)
-    first = [xy for (xy, _), r in zip(spots, roomy, strict=True) if r]
-    dists = [np.linalg.norm(xy - near) for xy in first]
-    assert dists == sorted(dists) and dists[0] >= np.linalg.norm(plain[0][0] - near)
-    assert all(np.linalg.norm(a - b) >= FREE_SPOT_APART - 1e-9 for i, (a, _) in enumerate(spots)
-               for b, _ in spots[:i])
+        assert room >= ASKED + FREE_SPOT_MARGIN + 0.015 > 0.1
+        assert _box_at(robot, xy, 0.785398) >= 0.1 - 1e-6  # (the criterion's measure stops at 0.1 m)
+    near = np.array([0.35, 0.38])
+    assert np.linalg.norm(spots[0][0] - near) >= np.linalg.norm(plain[0] - near)
+    x, y = robot.model.body("clutter_0").pos[:2]
+    around = ((x - 0.01, y - 0.01), (x + 0.01, y + 0.01))
+    with pytest.raises(InfeasibleError, match=r"keeps box 30 mm \(and 15 mm more, the map's cell\) from the obstacles"):
+        next(free_spots(robot, "box", 0.0, around, (x, y), 0.03, "test", margin=0.015))
 
 
 def test_a_spot_the_first_phase_refuses_is_replaced_by_the_next(runner):

@@ -199,13 +199,12 @@ def free_spots(robot: Robot, obj: str, yaw: float, region: tuple[tuple[float, fl
                near: tuple[float, float], clearance: float, where: str,
                margin: float = 0.0) -> Iterator[tuple[np.ndarray, float]]:
     """Spots [x, y] in ``region``, nearest ``near`` first and ``FREE_SPOT_APART`` apart, where ``obj`` standing on the
-    table at ``yaw`` keeps ``clearance`` [m] and ``FREE_SPOT_MARGIN`` from every obstacle beside it, each with its
-    clearance (capped at 0.1 m, or at what is asked where that is more).
+    table at ``yaw`` keeps ``clearance`` [m], ``FREE_SPOT_MARGIN`` and ``margin`` [m] from every obstacle beside it,
+    each with its clearance (capped at 0.1 m, or at what is asked where that is more). ``margin``: how far the
+    obstacles may reach beyond what is known of them (a camera map's boxes grow by up to a voxel as more of an obstacle
+    is seen).
 
-    With a ``margin`` [m] (how far the obstacles may reach beyond what is known of them: a camera map's boxes grow by up
-    to a voxel as more of an obstacle is seen), the spots that keep that much more come first, nearest ``near`` first,
-    then the others. Searched on a ``FREE_SPOT_STEP`` grid; the next spot is there for a first one the robot cannot
-    use.
+    Searched on a ``FREE_SPOT_STEP`` grid; the next spot is there for a first one the robot cannot use.
 
     Raises:
         InfeasibleError: No spot of the region keeps the clearance (``where`` names the config key); the message
@@ -220,25 +219,24 @@ def free_spots(robot: Robot, obj: str, yaw: float, region: tuple[tuple[float, fl
     mujoco.mj_forward(robot.model, data)
     z = rest_height(robot, data, obj)
     groups = robot.obstacle_groups()
-    need = clearance + FREE_SPOT_MARGIN
-    cap = max(0.1, need + margin + 0.005)
-    dists: dict[int, float] = {}  # each grid point's clearance [m], measured once
+    best, roomiest = -np.inf, grid[0]
+    need = clearance + FREE_SPOT_MARGIN + margin
+    cap = max(0.1, need + 0.005)
     found: list[np.ndarray] = []
-    for more in dict.fromkeys((margin, 0.0)):
-        for k, p in enumerate(grid):
-            if any(float(np.linalg.norm(p - f)) < FREE_SPOT_APART for f in found):
-                continue
-            if k not in dists:
-                dists[k] = clearance_at(robot, data, obj, np.array([p[0], p[1], z]), yaw, groups, beside=True,
-                                        cap=cap)[0]
-            if dists[k] >= need + more:
-                found.append(p)
-                yield p.copy(), dists[k]
+    for p in grid:
+        if any(float(np.linalg.norm(p - f)) < FREE_SPOT_APART for f in found):
+            continue
+        dist = clearance_at(robot, data, obj, np.array([p[0], p[1], z]), yaw, groups, beside=True, cap=cap)[0]
+        if dist >= need:
+            found.append(p)
+            yield p.copy(), dist
+        elif dist > best:
+            best, roomiest = dist, p
     if not found:
-        k = max(dists, key=lambda i: dists[i])
+        more = f" (and {margin * 1e3:.0f} mm more, the map's cell)" if margin else ""
         raise InfeasibleError(f"{where}: no spot of the region {[list(region[0]), list(region[1])]} keeps {obj} "
-                              f"{clearance * 1e3:.0f} mm from the obstacles (the roomiest, ({grid[k][0]:.3f}, "
-                              f"{grid[k][1]:.3f}), keeps {dists[k] * 1e3:.0f} mm); enlarge the region or lower the "
+                              f"{clearance * 1e3:.0f} mm{more} from the obstacles (the roomiest, ({roomiest[0]:.3f}, "
+                              f"{roomiest[1]:.3f}), keeps {best * 1e3:.0f} mm); enlarge the region or lower the "
                               "clearance")
 
 
