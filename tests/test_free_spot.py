@@ -68,24 +68,6 @@ def test_later_spots_keep_the_clearance_and_lie_apart(runner):
     assert dists == sorted(dists)  # nearest first
 
 
-def test_a_margin_for_obstacles_known_only_from_a_map_keeps_that_much_more_room_past_the_usual_cap(runner):
-    """The asked 90 mm and a map's 15 mm cell: each spot keeps both (its clearance measured beyond 0.1 m), the first one
-    farther from ``near`` than without the margin; a region with no such room is refused naming the margin."""
-    robot = runner.robot
-    plain = next(free_spots(robot, "box", 0.785398, REGION, (0.35, 0.38), ASKED, "test"))
-    spots = list(free_spots(robot, "box", 0.785398, REGION, (0.35, 0.38), ASKED, "test", margin=0.015))
-    assert spots
-    for xy, room in spots:
-        assert room >= ASKED + FREE_SPOT_MARGIN + 0.015 > 0.1
-        assert _box_at(robot, xy, 0.785398) >= 0.1 - 1e-6  # (the criterion's measure stops at 0.1 m)
-    near = np.array([0.35, 0.38])
-    assert np.linalg.norm(spots[0][0] - near) >= np.linalg.norm(plain[0] - near)
-    x, y = robot.model.body("clutter_0").pos[:2]
-    around = ((x - 0.01, y - 0.01), (x + 0.01, y + 0.01))
-    with pytest.raises(InfeasibleError, match=r"keeps box 30 mm \(and 15 mm more, the map's cell\) from the obstacles"):
-        next(free_spots(robot, "box", 0.0, around, (x, y), 0.03, "test", margin=0.015))
-
-
 def test_a_spot_the_first_phase_refuses_is_replaced_by_the_next(runner):
     spot = runner.free_spots["box_target"]
     first = spot.pos.copy()

@@ -117,16 +117,16 @@ def _over_table(robot: Robot, data: mujoco.MjData, geoms: list[int], xy: np.ndar
 
 
 def _closest(robot: Robot, data: mujoco.MjData, obj_geoms: Sequence[int], others: Sequence[int],
-             beside: bool = False, cap: float = 0.1) -> tuple[float, int, np.ndarray]:
-    """Smallest signed distance [m] between two geom sets (capped at ``cap``), the other geom and the way out.
+             beside: bool = False) -> tuple[float, int, np.ndarray]:
+    """Smallest signed distance [m] between two geom sets (capped at 0.1 m), the other geom and the way out.
 
     The other geom is -1 and the unit direction away from it zero beyond the cap. ``beside``: only pairs whose
     direction is within 45 deg of level count (not a geom the object stands on or under).
     """
-    best, which, away, fromto = cap, -1, np.zeros(3), np.zeros(6)
+    best, which, away, fromto = 0.1, -1, np.zeros(3), np.zeros(6)
     for a in obj_geoms:
         for b in others:
-            dist = float(mujoco.mj_geomDistance(robot.model, data, a, b, cap, fromto))
+            dist = float(mujoco.mj_geomDistance(robot.model, data, a, b, 0.1, fromto))
             if dist < best:
                 gap = fromto[:3] - fromto[3:]  # from the other's point to the object's (reversed when inside)
                 norm = float(np.linalg.norm(gap))
@@ -196,13 +196,10 @@ FREE_SPOT_APART = 0.05
 
 
 def free_spots(robot: Robot, obj: str, yaw: float, region: tuple[tuple[float, float], tuple[float, float]],
-               near: tuple[float, float], clearance: float, where: str,
-               margin: float = 0.0) -> Iterator[tuple[np.ndarray, float]]:
+               near: tuple[float, float], clearance: float, where: str) -> Iterator[tuple[np.ndarray, float]]:
     """Spots [x, y] in ``region``, nearest ``near`` first and ``FREE_SPOT_APART`` apart, where ``obj`` standing on the
-    table at ``yaw`` keeps ``clearance`` [m], ``FREE_SPOT_MARGIN`` and ``margin`` [m] from every obstacle beside it,
-    each with its clearance (capped at 0.1 m, or at what is asked where that is more). ``margin``: how far the
-    obstacles may reach beyond what is known of them (a camera map's boxes grow by up to a voxel as more of an obstacle
-    is seen).
+    table at ``yaw`` keeps ``clearance`` [m] and ``FREE_SPOT_MARGIN`` from every obstacle beside it, each with its
+    clearance (capped at 0.1 m).
 
     Searched on a ``FREE_SPOT_STEP`` grid; the next spot is there for a first one the robot cannot use.
 
@@ -220,22 +217,19 @@ def free_spots(robot: Robot, obj: str, yaw: float, region: tuple[tuple[float, fl
     z = rest_height(robot, data, obj)
     groups = robot.obstacle_groups()
     best, roomiest = -np.inf, grid[0]
-    need = clearance + FREE_SPOT_MARGIN + margin
-    cap = max(0.1, need + 0.005)
     found: list[np.ndarray] = []
     for p in grid:
         if any(float(np.linalg.norm(p - f)) < FREE_SPOT_APART for f in found):
             continue
-        dist = clearance_at(robot, data, obj, np.array([p[0], p[1], z]), yaw, groups, beside=True, cap=cap)[0]
-        if dist >= need:
+        dist = clearance_at(robot, data, obj, np.array([p[0], p[1], z]), yaw, groups, beside=True)[0]
+        if dist >= clearance + FREE_SPOT_MARGIN:
             found.append(p)
             yield p.copy(), dist
         elif dist > best:
             best, roomiest = dist, p
     if not found:
-        more = f" (and {margin * 1e3:.0f} mm more, the map's cell)" if margin else ""
         raise InfeasibleError(f"{where}: no spot of the region {[list(region[0]), list(region[1])]} keeps {obj} "
-                              f"{clearance * 1e3:.0f} mm{more} from the obstacles (the roomiest, ({roomiest[0]:.3f}, "
+                              f"{clearance * 1e3:.0f} mm from the obstacles (the roomiest, ({roomiest[0]:.3f}, "
                               f"{roomiest[1]:.3f}), keeps {best * 1e3:.0f} mm); enlarge the region or lower the "
                               "clearance")
 
@@ -248,8 +242,8 @@ def obstacle_clearance(robot: Robot, data: mujoco.MjData, obj: str) -> float:
 
 
 def clearance_at(robot: Robot, data: mujoco.MjData, obj: str, pos: np.ndarray, yaw: float,
-                 groups: Sequence[str], beside: bool = False, cap: float = 0.1) -> tuple[float, np.ndarray]:
-    """Smallest distance [m] from ``obj`` upright at ``pos`` and ``yaw`` to the geoms of ``groups`` (capped at ``cap``).
+                 groups: Sequence[str], beside: bool = False) -> tuple[float, np.ndarray]:
+    """Smallest distance [m] from ``obj`` upright at ``pos`` and ``yaw`` to the geoms of ``groups`` (capped at 0.1 m).
 
     With it, the unit direction away from the nearest one (zero beyond the cap). ``data`` holds the rest of the
     scene and is changed: the object's pose is set in it. ``beside``: only obstacles beside the object count (the
@@ -259,7 +253,7 @@ def clearance_at(robot: Robot, data: mujoco.MjData, obj: str, pos: np.ndarray, y
     data.qpos[robot.object_qpos_slice(obj)] = [*pos, np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
     mujoco.mj_kinematics(robot.model, data)
     others = [g for group in groups for g in geoms.get(group, ())]
-    dist, _, away = _closest(robot, data, geoms.get(obj, ()), others, beside, cap)
+    dist, _, away = _closest(robot, data, geoms.get(obj, ()), others, beside)
     return dist, away
 
 

@@ -180,18 +180,15 @@ def free_spot_requests(cfg: ManipulationConfig, robot: Robot, source: str) -> li
     return out
 
 
-def place_spot(robot: Robot, request: FreeSpotRequest, models: Sequence[mujoco.MjModel], source: str,
-               margin: float = 0.0) -> PlacedSpot:
+def place_spot(robot: Robot, request: FreeSpotRequest, models: Sequence[mujoco.MjModel], source: str) -> PlacedSpot:
     """Place one target where its object fits among ``robot``'s obstacles, in each of ``models``.
-
-    ``margin`` [m]: more room beyond the asked clearance (the obstacles known only from a camera's map).
 
     Raises:
         InfeasibleError: No spot of the region keeps the clearance.
     """
     name, obj, yaw, spot = request
     spots = free_spots(robot, obj, yaw, spot.region, spot.centre(), spot.clearance,
-                       f"{source}: scene.poses.{name}.free_spot", margin)
+                       f"{source}: scene.poses.{name}.free_spot")
     xy, room = next(spots)
     placed = PlacedSpot(robot.model.body(name).id, spots, xy, room)
     placed.put(models)
@@ -431,8 +428,7 @@ class Runner:
         for request in [r for r in self._unplaced if r[0] in named]:  # among the obstacles the camera has seen
             self._unplaced.remove(request)
             try:
-                self.free_spots[request[0]] = place_spot(self.controlled, request, self._target_models, self.source,
-                                                         margin=self.mapper.map.cell if self.mapper else 0.0)
+                self.free_spots[request[0]] = place_spot(self.controlled, request, self._target_models, self.source)
             except InfeasibleError as exc:
                 raise PhaseError(f"{exc} (among the obstacles the camera has seen)") from None
             self._moved_target()
