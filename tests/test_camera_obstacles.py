@@ -261,3 +261,17 @@ def test_a_free_spots_region_beyond_the_work_region_is_mapped_and_its_unseen_spa
     for x, y in ((x0 + 0.01, y1 - 0.01), (x1 - 0.01, y1 - 0.01), (0.5 * (x0 + x1), 0.5 * (y0 + y1))):
         assert any(np.all(np.abs(np.array([x, y]) - c[:2]) <= h[:2] + 1e-6) for c, h, _ in unseen), (x, y)
     runner.camera.close()
+
+
+def test_the_map_covers_the_table_within_the_arms_reach_not_only_the_work_region(runner):
+    """An elbow swings past the work region: a piece of clutter it may meet there is mapped (an obstacle the map does
+    not cover is never in the controller's world). The map covers the table as far as the arms' reach spheres go."""
+    from nextage_qp.kinematics.frames import Kinematics
+
+    mapper = runner.camera.mapper
+    lo, top = mapper.map.lo, mapper.map.lo + np.array(mapper.map.shape) * mapper.map.cell
+    kin, q = Kinematics(runner.robot), runner.robot.keyframe_q("zero")
+    centre, radius, _ = kin.reach("left_wrist", q)
+    assert top[1] >= min(centre[1] + radius, 1.0) and lo[1] <= max(centre[1] - radius, -1.0)
+    assert mapper.work[1][1] + 0.15 < 0.55 < top[1]  # where such an elbow met a piece the old bounds left out
+    assert lo[0] >= 0.1 - 1e-9  # not beyond the table's near edge

@@ -68,8 +68,12 @@ class ObstacleMapper:
         self.work = (centre - half, centre + half)  # the work region's footprint (x-y) [m]
         self.places = [self.work, *((np.array(a, dtype=float), np.array(b, dtype=float)) for a, b in places)]
         """The footprints (x-y lo, hi) [m] over which never-seen space is occupied: the work region, then ``places``."""
-        lo = np.array([*(np.min([a for a, _ in self.places], axis=0) - REACH), table - CELL])
-        hi = np.array([*(np.max([b for _, b in self.places], axis=0) + REACH), table + HEIGHT])
+        lo_xy = np.min([a for a, _ in self.places], axis=0) - REACH
+        hi_xy = np.max([b for _, b in self.places], axis=0) + REACH
+        reach = _reachable_table(robot)  # an arm's elbow swings past the work region: whatever it may meet is mapped
+        if reach is not None:
+            lo_xy, hi_xy = np.minimum(lo_xy, reach[0]), np.maximum(hi_xy, reach[1])
+        lo, hi = np.array([*lo_xy, table - CELL]), np.array([*hi_xy, table + HEIGHT])
         self.map = VoxelMap(lo, hi, CELL)
         self.table = table
         self.radii = dict(radii)
@@ -254,6 +258,44 @@ def _down_to(box: tuple[np.ndarray, np.ndarray, float], floor: float) -> tuple[n
     top, bottom = centre[2] + half[2], min(centre[2] - half[2], floor)
     return (np.array([centre[0], centre[1], (top + bottom) / 2]), np.array([half[0], half[1], (top - bottom) / 2]),
             yaw)
+
+
+def _reachable_table(robot: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """The footprint (x-y lo, hi) [m] of the table top within reach of the robot's arms, or None (no table).
+
+    Each arm's wrist and tool stay in a sphere (:meth:`~nextage_qp.kinematics.frames.Kinematics.reach`, which bounds
+    every link between them and the first joint too); the spheres' x-y extent, within the table's (a base on wheels
+    reaches the whole table).
+    """
+    from nextage_qp.kinematics.frames import Kinematics
+
+    model = robot.model
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    tables = robot.collision_geoms().get("table", ())
+    if not tables:
+        return None
+    corners = np.concatenate([_box_corners(model, data, g) for g in tables])
+    t_lo, t_hi = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
+    kin, q = Kinematics(robot), robot.keyframe_q("zero")  # (a sphere's centre is its first joint's anchor)
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    for arm in robot.arms:
+        for frame in dict.fromkeys((arm.wrist, arm.tool)):
+            centre, radius, _ = kin.reach(frame, q)
+            if not np.isfinite(radius):
+                return t_lo, t_hi
+            lo, hi = np.minimum(lo, centre[:2] - radius), np.maximum(hi, centre[:2] + radius)
+    if not np.all(hi > lo):
+        return None
+    return np.maximum(lo, t_lo), np.minimum(hi, t_hi)
+
+
+def _box_corners(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> np.ndarray:
+    """The eight corners [m] of geom ``g``'s bounding box (its own frame) in the world."""
+    rot = data.geom_xmat[g].reshape(3, 3)
+    centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    return data.geom_xpos[g] + (centre + signs * half) @ rot.T
 
 
 def _table_top(robot: Any) -> float:
