@@ -1,11 +1,11 @@
 """``perception.map``: the obstacles the head camera sees, as an occupancy map built over a run, and how good it is.
 
-:class:`ObstacleMapper` takes the camera's whole frames (a windowed frame shows only the tracked objects) and adds
-each to a :class:`~.occupancy.VoxelMap` of the space over the work region and the places the task puts objects in:
-the pixels the robot's own model explains are dropped (:func:`~.occupancy.self_filter`, the model rendered alone at the
-measured joints), and so are the table's (within ``TABLE_BAND`` of the plane the estimator found) and the tracked
-objects' (within their shape's radius and ``OBJECT_PAD`` of the pose fitted in that frame). What is left is what the
-robot was not told about: obstacles.
+:class:`ObstacleMapper` takes the camera's whole frames (a windowed frame shows only the tracked objects) and adds each
+to a :class:`~.occupancy.VoxelMap` of the space over the table within the arms' reach, the work region and the places
+the task puts objects in: the pixels the robot's own model explains are dropped (:func:`~.occupancy.self_filter`, the
+model rendered alone at the measured joints), and so are the table's (within ``TABLE_BAND`` of the plane the estimator
+found) and the tracked objects' (within their shape's radius and ``OBJECT_PAD`` of the pose fitted in that frame). What
+is left is what the robot was not told about: obstacles.
 
 Its report scores the map against the scene, after the run (the map never reads the scene): per obstacle at least
 ``TALL`` high, whether a whole frame showed it (present: a point of its faces where the frame's depth is) and
