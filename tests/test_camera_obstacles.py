@@ -15,15 +15,20 @@ from nextage_qp.sensing.camera.occupancy import OCCUPIED_STATE, VoxelMap
 CAMERA = ["perception.source=camera", "perception.obstacles=camera"]
 
 
-@pytest.fixture(scope="module")
-def runner() -> Runner:
-    pytest.importorskip("mujoco")
+def _camera_runner(task: str) -> Runner:
+    """A run of ``configs/TASK.yaml`` with camera obstacles, or the test skipped without offscreen rendering."""
     try:
-        return Runner(load_config("configs/push_clutter.yaml", CAMERA), "push_clutter")
+        return Runner(load_config(f"configs/{task}.yaml", CAMERA), task)
     except Exception as exc:  # no offscreen rendering on this machine
         if "offscreen rendering unavailable" in str(exc):
             pytest.skip(str(exc))
         raise
+
+
+@pytest.fixture(scope="module")
+def runner() -> Runner:
+    pytest.importorskip("mujoco")
+    return _camera_runner("push_clutter")
 
 
 def _wrist(robot, qpos: np.ndarray) -> np.ndarray:
@@ -177,12 +182,7 @@ def test_the_controller_keeps_what_it_saw_before_the_space_it_never_saw():
 def test_before_the_first_phase_the_head_looks_over_the_work_region_and_plans_see_what_they_sweep():
     """The scan turns the head to each of its points and leaves the map seeing more of the space over the table;
     never-seen space in the work region joins the controller's obstacles (unless ``perception.unknown: free``)."""
-    try:
-        runner = Runner(load_config("configs/push_clutter.yaml", CAMERA), "push_clutter")
-    except Exception as exc:  # no offscreen rendering on this machine
-        if "offscreen rendering unavailable" in str(exc):
-            pytest.skip(str(exc))
-        raise
+    runner = _camera_runner("push_clutter")
     runner._find_objects()
     q0 = runner.sim.data.qpos[runner.robot.qpos_idx].copy()
     runner._scan()
@@ -246,12 +246,7 @@ def test_a_scan_with_no_map_to_scan_for_or_no_head_to_look_with_is_refused_in_on
 def test_a_free_spots_region_beyond_the_work_region_is_mapped_and_its_unseen_space_occupied():
     """The free-spot task's region reaches past the work region (and the map's margin round it): the map covers it,
     and before anything is seen its space is occupied for the free-spot choice and the planner, as the work region's."""
-    try:
-        runner = Runner(load_config("configs/place_free_spot.yaml", CAMERA), "place_free_spot")
-    except Exception as exc:  # no offscreen rendering on this machine
-        if "offscreen rendering unavailable" in str(exc):
-            pytest.skip(str(exc))
-        raise
+    runner = _camera_runner("place_free_spot")
     mapper = runner.camera.mapper
     (x0, y0), (x1, y1) = runner.cfg.scene.poses["box_target"].free_spot.region
     top = mapper.map.lo + np.array(mapper.map.shape) * mapper.map.cell
