@@ -472,9 +472,10 @@ def test_a_partial_view_that_leaves_the_box_free_to_slide_is_not_a_measurement()
 
 @needs_gl
 @pytest.mark.slow
-def test_the_default_push_from_the_head_camera_reaches_its_target() -> None:
-    """The hand hides the cube from the head for much of the push: the contact carries it (push docs)."""
-    result = Runner(load_config(PUSH, ["perception.source=camera"]), PUSH).run()
+def test_the_default_push_from_the_head_camera_alone_reaches_its_target() -> None:
+    """Without hand cameras the hand hides the cube from the head for much of the push: the contact carries it, and
+    the push stops to look (push docs)."""
+    result = Runner(load_config(PUSH, ["perception.source=camera", "perception.hand_cameras=[]"]), PUSH).run()
     frames = result["estimation"]["camera"]["objects"]["cube"]
     assert result["success"], result["error"]
     assert frames["occluded"] > 0.3 * (frames["occluded"] + frames["ok"])  # much of the push blind
@@ -513,7 +514,7 @@ def test_a_frame_dump_asked_for_after_the_run_ended_is_reported_not_silently_dro
     source = object.__new__(CameraMeasurer)  # the report's state only: no renderer needed
     source.cfg, source.camera, source.counts = cfg, SimpleNamespace(name="head_rgbd"), {}
     source.ms, source.dumped, source.dump_error = {"render": [], "estimate": []}, False, None
-    source.windowed, source.mapper = 0, None
+    source.windowed, source.mapper, source.hands = 0, None, None
     source.last = (16.68, np.zeros((2, 2)))
     report = source.report()
     assert report["dump_error"] == ("perception.dump_at_s 50 s: the camera's last frame was at 16.68 s; nothing "

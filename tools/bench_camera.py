@@ -1,17 +1,19 @@
 """Wall time of a default task run from the head camera against the same run from the truth, alternately.
 
     python tools/bench_camera.py [--runs 5] [--task push_cube --task dock_dumbbell] [--against COMMIT]
-                                 [--depth rendered|stereo] [--window]
+                                 [--depth rendered|stereo] [--window] [--no-hands]
 
 Each run is a fresh ``nextage-qp run configs/TASK.yaml --json`` (``MUJOCO_GL=egl`` unless set), from the truth
 (``perception.source=truth``, the config's default) and from the camera (``--set perception.source=camera``),
 alternating so that the machine's drift affects both alike; with ``--against``, camera runs of that commit
 (exported with ``git archive``) alternate with them too; ``--depth stereo`` makes every camera run's depth block
 matching on the head's RGB pair (the vision extra); ``--window`` adds camera runs with
-``perception.window=true`` (a tracked object's frames rendered in a window around it), alternately too. Prints
+``perception.window=true`` (a tracked object's frames rendered in a window around it), ``--no-hands`` camera runs
+without the hand cameras (``perception.hand_cameras=[]``), alternately too. Prints
 every run's wall and simulated time, then per task and arm the median and p99 of the wall time and of the wall
-time per simulated second (a run from the camera simulates longer: it stops to look), the camera's median render and
-estimate time per frame, and the ratios of the medians, with the machine and the versions. No test asserts any of it.
+time per simulated second (a run from the camera may simulate longer: it stops to look where nothing sees the
+object), the head camera's median render and estimate time per frame, its frames, the hand cameras' frames and
+median time per frame, and the ratios of the medians, with the machine and the versions. No test asserts any of it.
 """
 
 from __future__ import annotations
@@ -44,9 +46,12 @@ def run(tree: Path, task: str, sets: list[str]) -> dict[str, float]:
         raise SystemExit(f"{tree}: run {task} {' '.join(sets)} printed nothing: {out.stderr.strip()[-300:]}")
     r = json.loads(out.stdout)
     cam = (r.get("estimation") or {}).get("camera") or {}
+    hands = cam.get("hand_cameras") or {}
     return {"wall": float(r["wall_time_s"]), "sim": float(r["sim_time_s"]), "success": float(bool(r["success"])),
             "render_ms": float(cam.get("render_ms_median") or np.nan),
-            "estimate_ms": float(cam.get("estimate_ms_median") or np.nan)}
+            "estimate_ms": float(cam.get("estimate_ms_median") or np.nan), "frames": float(cam.get("frames") or 0),
+            "hand_frames": float(sum((hands.get("frames") or {}).values())),
+            "hand_ms": float(hands.get("ms_median") or np.nan)}
 
 
 def _stat(values: list[float]) -> str:
@@ -61,6 +66,7 @@ def main() -> None:
     ap.add_argument("--depth", choices=("rendered", "stereo"), default="rendered",
                     help="the camera runs' perception.depth (default rendered)")
     ap.add_argument("--window", action="store_true", help="also time camera runs with perception.window=true")
+    ap.add_argument("--no-hands", action="store_true", help="also time camera runs without the hand cameras")
     args = ap.parse_args()
     camera = [*CAMERA, "--set", f"perception.depth={args.depth}"]
     tasks = args.task or ["push_cube", "dock_dumbbell"]
@@ -69,6 +75,8 @@ def main() -> None:
         arms = {"truth": (ROOT, []), "camera": (ROOT, camera)}
         if args.window:
             arms["camera windowed"] = (ROOT, [*camera, "--set", "perception.window=true"])
+        if args.no_hands:
+            arms["camera no hands"] = (ROOT, [*camera, "--set", "perception.hand_cameras=[]"])
         if args.against:
             arms[f"camera@{export(args.against, Path(old_dir))}"] = (Path(old_dir), camera)
         results: dict[tuple[str, str], list[dict[str, float]]] = {}
@@ -77,8 +85,11 @@ def main() -> None:
                 for arm, (tree, sets) in arms.items():
                     r = run(tree, task, sets)
                     results.setdefault((task, arm), []).append(r)
-                    frame = "" if np.isnan(r["render_ms"]) else \
-                        f", frame: render {r['render_ms']:.1f} ms, estimate {r['estimate_ms']:.1f} ms"
+                    frame = "" if np.isnan(r["render_ms"]) else (
+                        f", {r['frames']:.0f} frames: render {r['render_ms']:.1f} ms, "
+                        f"estimate {r['estimate_ms']:.1f} ms")
+                    if r["hand_frames"]:
+                        frame += f"; {r['hand_frames']:.0f} hand frames, {r['hand_ms']:.1f} ms"
                     print(f"run {i + 1}: {task} {arm}: wall {r['wall']:.2f} s for {r['sim']:.1f} s simulated "
                           f"(success {bool(r['success'])}){frame}", flush=True)
         print()
@@ -87,9 +98,12 @@ def main() -> None:
             per = {arm: [r["wall"] / r["sim"] for r in results[(task, arm)]] for arm in arms}
             for arm in arms:
                 rs = results[(task, arm)]
-                ms = {k: np.median([r[k] for r in rs]) for k in ("render_ms", "estimate_ms")}
+                ms = {k: np.median([r[k] for r in rs]) for k in ("render_ms", "estimate_ms", "frames", "hand_frames",
+                                                                   "hand_ms")}
                 frame = "" if arm == "truth" else \
-                    f"; per frame render {ms['render_ms']:.1f} ms, estimate {ms['estimate_ms']:.1f} ms"
+                    f"; {ms['frames']:.0f} head frames, render {ms['render_ms']:.1f} ms, estimate " \
+                    f"{ms['estimate_ms']:.1f} ms" + (f"; {ms['hand_frames']:.0f} hand frames, {ms['hand_ms']:.1f} ms"
+                                                    if ms["hand_frames"] else "")
                 print(f"{task:14s} {arm:16s} wall [s] {_stat(wall[arm])}; wall per simulated s {_stat(per[arm])}"
                       f"{frame}; {int(sum(r['success'] for r in rs))}/{len(rs)} succeeded")
             for arm in arms:

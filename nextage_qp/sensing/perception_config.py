@@ -8,6 +8,7 @@
       depth: rendered        # rendered (an RGB-D sensor) | stereo (block matching on the two RGB cameras below)
       stereo: [head_left, head_right]
       look_at: true          # the head keeps the task's object and target in view (a low-weight IK task)
+      hand_cameras: null     # cameras on the hands that see what the head cannot (null: the robot file's wrist ones)
       obstacles: camera      # declared (the scene's) | camera (the clutter as the camera's occupancy map shows it)
       dump: runs/frame       # write one frame's RGB, depth, clusters and fitted pose as PNGs
 """
@@ -48,6 +49,11 @@ class PerceptionConfig(YamlModel):
         "it, the whole frame every 15th and while one is untracked: fewer pixels to render and estimate. Default: on "
         "with stereo depth, off with rendered depth (windowed, the default push from the camera succeeds less often: "
         "docs/perception.md).")
+    hand_cameras: tuple[str, ...] | None = Field(
+        default=None, description="Cameras on the hands (robot-file names) that look at an object the head's frame "
+        "does not fit cleanly (hidden by a hand, covered, a partial fit), rendered only then and only where their "
+        "view holds the object (nextage_qp.sensing.camera.hands). Default: every robot-file camera on an arm's wrist "
+        "or tool body with rendered depth, none with stereo depth; []: none.")
     map: bool = Field(default=False, description="Build an occupancy map of the obstacles from the camera's whole "
                       "frames (source: camera) and report it, scored against the scene "
                       "(nextage_qp.sensing.camera.seen); the phases plan with the declared obstacles.")

@@ -27,6 +27,8 @@ import numpy as np
 from nextage_qp.errors import ConfigError
 from nextage_qp.geometry import Pose, pose_vector
 from nextage_qp.sensing.camera.estimate import MIN_SUPPORT, PARTLY, SELF_PAD, Estimator, Frame
+from nextage_qp.sensing.camera.frame import Detection
+from nextage_qp.sensing.camera.hands import UNSEEN, HandCameras, clear, hand_camera_names
 from nextage_qp.sensing.camera.render import RobotCamera, render_problem
 from nextage_qp.sensing.camera.seen import ObstacleMapper
 from nextage_qp.sensing.camera.shapes import ShapeModel
@@ -106,6 +108,11 @@ class CameraMeasurer:
         """The latest frame's fits' noise relative to a clear view's (``perception.cover_spread``)."""
         self.cover_spread = COVER_SPREAD[cfg.depth] if cfg.cover_spread is None else cfg.cover_spread
         self.mapper = ObstacleMapper(robot, radii, places) if cfg.map or cfg.obstacles == "camera" else None
+        names = hand_camera_names(robot, cfg.hand_cameras, source) if cfg.hand_cameras is not None or not stereo else ()
+        self.hands = HandCameras(names, robot, shapes, seed) if names else None
+        self.periods = 0  # frame periods
+        self.by_hand = False  # the last period's every object came from a hand camera's clean view
+        self.hand_only = 0  # periods whose objects the hand cameras alone saw (no head frame)
         self.world = (model, data)  # for the map's score alone
 
     @property
@@ -126,8 +133,41 @@ class CameraMeasurer:
         ``truth``: the objects' true poses, for the detection count alone (see the module doc); without them a frame is
         unoccluded where the estimator's prediction was in view and uncovered.
         """
+        q = self.joints(t)
+        self.periods += 1
+        hands: dict[str, Detection] | None = None  # the hand cameras' clean views, once asked
+        if (self.hands is not None and self.by_hand and self.periods % WHOLE_EVERY and priors
+                and all(p is not None for p in priors.values())):
+            hands = self.hands.measure(self.data, q, priors, dict.fromkeys(priors, UNSEEN), held,
+                                       self.estimator.plane)
+            if len(hands) == len(priors):  # every object in a hand camera's clean view: no head frame this period
+                self.hand_only += 1
+                self.partial, self.spread = set(), dict.fromkeys(hands, 1.0)
+                self.poses = {name: det.pose for name, det in hands.items()}
+                self.lost = False
+                return dict(self.poses)
+        detections, frame, win = self._head(t, q, priors, held, truth)
+        if self.hands is not None:  # a hand camera's clean view of what the head missed stands in for the head's
+            if hands is None:
+                hands = self.hands.measure(self.data, q, priors, detections, held, self.estimator.plane)
+            hands = {name: det for name, det in hands.items() if not clear(detections[name])}
+            for name, det in hands.items():
+                detections[name] = det
+                self.partial.discard(name)
+                self.spread[name] = 1.0
+        self.by_hand = hands is not None and 0 < len(hands) == len(priors)
+        self.poses = {name: det.pose for name, det in detections.items()}
+        if self.mapper is not None and win is None and self.matcher is None:  # a whole frame: the map takes it
+            self.mapper.update(frame, self.camera.own(), self.estimator.plane, self.poses, truth=self.world,
+                               priors=priors)
+        self.lost = any(det.status in ("out_of_view", "missing") for det in detections.values())
+        return dict(self.poses)
+
+    def _head(self, t: float, q: np.ndarray, priors: Mapping[str, np.ndarray | None], held: Collection[str],
+              truth: Mapping[str, Pose] | None) -> tuple[dict[str, Detection], Frame, tuple[int, int, int, int] | None]:
+        """The head camera's frame at ``t`` [s] (joints ``q``): its detections (counted), the frame and its window."""
         t0 = time.perf_counter()
-        pos, rot = self.camera.pose(self.joints(t))
+        pos, rot = self.camera.pose(q)
         win = self.window(priors, pos, rot) if self.windows else None
         self.windowed += win is not None
         if self.matcher is not None and self.right is not None:
@@ -159,24 +199,19 @@ class CameraMeasurer:
                 self.spread[name] = 1.0 + self.cover_spread * (1.0 - (1.0 - det.occluded) * det.support)
             if truth is not None and name in truth:  # after the estimate: the estimator never sees it
                 share = occlusion(frame, self.estimator.shapes[name], pose_vector(truth[name]), tilt=True)
-                clear = share is not None and share <= PARTLY
+                sighted = share is not None and share <= PARTLY
             else:
-                clear = det.status in IN_VIEW and det.occluded <= PARTLY
-            counts["unoccluded"] += int(clear)
-            self.views[name].append((t, clear))
-            counts["unoccluded_ok"] += int(clear and det.status == "ok")
+                sighted = det.status in IN_VIEW and det.occluded <= PARTLY
+            counts["unoccluded"] += int(sighted)
+            self.views[name].append((t, sighted))
+            counts["unoccluded_ok"] += int(sighted and det.status == "ok")
         if not self.dumped and t + 1e-9 >= self.cfg.dump_at_s:
             self.dumped = True
             try:
                 self.dump(Path(str(self.cfg.dump)), frame, detections)
             except OSError as exc:  # a lost frame dump is not a failed run: reported with the camera's figures
                 self.dump_error = f"perception.dump {self.cfg.dump}: cannot write: {exc.strerror or exc}"
-        self.poses = {name: det.pose for name, det in detections.items()}
-        if self.mapper is not None and win is None and self.matcher is None:  # a whole frame: the map takes it
-            self.mapper.update(frame, self.camera.own(), self.estimator.plane, self.poses, truth=self.world,
-                               priors=priors)
-        self.lost = any(det.status in ("out_of_view", "missing") for det in detections.values())
-        return dict(self.poses)
+        return detections, frame, win
 
     def window(self, priors: Mapping[str, np.ndarray | None], pos: np.ndarray,
                rot: np.ndarray) -> tuple[int, int, int, int] | None:
@@ -233,11 +268,15 @@ class CameraMeasurer:
         return {"camera": self.camera.name, "depth": self.cfg.depth, "frames": len(self.ms["render"]), **med,
                 "windowed_frames": self.windowed,
                 **({"map": self.mapper.report(*self.world)} if self.mapper is not None else {}),
+                **({"hand_cameras": {**self.hands.report(), "head_skipped": self.hand_only}}
+                   if self.hands is not None else {}),
                 "objects": objects, **({"dump_error": self.dump_error} if self.dump_error else {})}
 
     def close(self) -> None:
         """Free the renderers."""
         self.camera.close()
+        if self.hands is not None:
+            self.hands.close()
         if self.right is not None:
             self.right.close()
 
