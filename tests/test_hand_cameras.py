@@ -102,3 +102,22 @@ def test_the_default_push_from_the_cameras_sees_the_cube_past_the_hand_and_never
     assert all(p.get("looks", 0) == 0 for p in result["phases"])
     errors = result["estimation"]["objects"]["cube"]
     assert errors["estimate_max_m"] < 0.01
+
+
+@needs_gl
+def test_while_every_object_is_held_the_head_takes_every_held_every_th_frame() -> None:
+    from nextage_qp.sensing.camera.source import CameraMeasurer
+    from nextage_qp.sensing.perception_config import PerceptionConfig
+
+    robot, data, q = _scene(0.25)
+    prior = _truth(robot, data)
+    source = CameraMeasurer(PerceptionConfig(source="camera", held_every=3), robot, data, lambda t: q, seed=0)
+    try:
+        taken = [bool(source(0.1 * k, {"cube": prior}, held={"cube"})) for k in range(6)]
+        # the first frame: nothing seen yet; then every third (no frame: nothing measured, and no dropout)
+        assert taken == [True, False, True, False, False, True]
+        assert source.report()["frames"] == 3 and source.report()["held_skipped"] == 3
+        assert all(source(0.7 + 0.1 * k, {"cube": prior}) for k in range(3))  # not held: every period
+        assert source.report()["frames"] == 6
+    finally:
+        source.close()

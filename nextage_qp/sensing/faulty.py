@@ -160,6 +160,8 @@ class FaultySensors:
         seen = camera(t, {n: self._prior(n, t) for n in true},  # the objects clamped in the hands, fitted tilted
                       {n for n, tr in self._tracks.items() if tr.carried is not None and not tr.carried.pushed},
                       true) if camera is not None and sample else {}
+        if sample and camera is not None and camera.skipped:  # a period the camera took no frame in
+            sample = False
         out: dict[str, Pose] = {}
         for name, pose in true.items():
             tr, true_yaw = self._track(name), yaw_of(pose.rot)

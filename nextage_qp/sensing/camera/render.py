@@ -228,8 +228,7 @@ class RobotCamera:
         n = self.spec.depth_noise
         if n.sigma_m == 0 and n.per_m2 == 0 and n.edge_dropout == 0:
             return z
-        sigma = np.float32(n.sigma_m) + np.float32(n.per_m2) * z * z
-        out = z + self.rng.standard_normal(z.shape, dtype=np.float32) * sigma
+        out = z + self.rng.standard_normal(z.shape).astype(np.float32) * (n.sigma_m + n.per_m2 * z * z)
         if n.edge_dropout > 0:
             step = np.zeros(z.shape, dtype=bool)
             with np.errstate(invalid="ignore"):
@@ -238,8 +237,7 @@ class RobotCamera:
             step[:-1] |= dy
             step[:, 1:] |= dx
             step[:, :-1] |= dx
-            edges = np.flatnonzero(step)  # a draw per edge pixel alone
-            out.flat[edges[self.rng.random(len(edges)) < n.edge_dropout]] = np.nan
+            out[step & (self.rng.random(z.shape) < n.edge_dropout)] = np.nan
         return out
 
     def rgb(self, data: mujoco.MjData, cut: tuple[int, int, int, int] | None = None) -> np.ndarray:

@@ -113,6 +113,8 @@ class CameraMeasurer:
         self.periods = 0  # frame periods
         self.by_hand = False  # the last period's every object came from a hand camera's clean view
         self.hand_only = 0  # periods whose objects the hand cameras alone saw (no head frame)
+        self.skipped = False  # the last period took no frame (``perception.held_every``): no dropout
+        self.held_skipped = 0  # periods without a frame as every object was held
         self.world = (model, data)  # for the map's score alone
 
     @property
@@ -133,8 +135,13 @@ class CameraMeasurer:
         ``truth``: the objects' true poses, for the detection count alone (see the module doc); without them a frame is
         unoccluded where the estimator's prediction was in view and uncovered.
         """
-        q = self.joints(t)
         self.periods += 1
+        self.skipped = (self.periods % self.cfg.held_every != 0 and not self.lost and bool(priors)
+                        and all(p is not None for p in priors.values()) and set(priors) <= set(held))
+        if self.skipped:  # every object held: its estimate follows the hands until the next frame
+            self.held_skipped += 1
+            return {}
+        q = self.joints(t)
         hands: dict[str, Detection] | None = None  # the hand cameras' clean views, once asked
         if (self.hands is not None and self.by_hand and self.periods % WHOLE_EVERY and priors
                 and all(p is not None for p in priors.values())):
@@ -266,7 +273,7 @@ class CameraMeasurer:
                                f"{last}; nothing written to {self.cfg.dump} (set a time within the run)")
         med = {f"{k}_ms_median": float(np.median(v)) if v else None for k, v in self.ms.items()}
         return {"camera": self.camera.name, "depth": self.cfg.depth, "frames": len(self.ms["render"]), **med,
-                "windowed_frames": self.windowed,
+                "windowed_frames": self.windowed, "held_skipped": self.held_skipped,
                 **({"map": self.mapper.report(*self.world)} if self.mapper is not None else {}),
                 **({"hand_cameras": {**self.hands.report(), "head_skipped": self.hand_only}}
                    if self.hands is not None else {}),
