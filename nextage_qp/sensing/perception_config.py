@@ -9,7 +9,7 @@
       stereo: [head_left, head_right]
       look_at: true          # the head keeps the task's object and target in view (a low-weight IK task)
       hand_cameras: null     # cameras on the hands that see what the head cannot (null: the robot file's wrist ones)
-      held_every: 3          # while every object is held, a frame every 3rd camera period
+      held_every: 3          # while every object is held aloft, a frame every 3rd camera period
       obstacles: camera      # declared (the scene's) | camera (the clutter as the camera's occupancy map shows it)
       dump: runs/frame       # write one frame's RGB, depth, clusters and fitted pose as PNGs
 """
@@ -56,9 +56,9 @@ class PerceptionConfig(YamlModel):
         "view holds the object (nextage_qp.sensing.camera.hands). Default: every robot-file camera on an arm's wrist "
         "or tool body with rendered depth, none with stereo depth; []: none.")
     held_every: int = Field(
-        default=3, ge=1, le=100, description="While the robot holds every tracked object (clamped, not pushed), the "
-        "head takes a frame every this many camera periods [count]: a held object's estimate follows the hands "
-        "between frames (nextage_qp.estimation.held); 1: every period.")
+        default=3, ge=1, le=100, description="While the robot holds every tracked object (clamped, not pushed) 3 cm "
+        "or more over the table, the head takes a frame every this many camera periods [count]: a held object's "
+        "estimate follows the hands between frames (nextage_qp.estimation.held); 1: every period.")
     map: bool = Field(default=False, description="Build an occupancy map of the obstacles from the camera's whole "
                       "frames (source: camera) and report it, scored against the scene "
                       "(nextage_qp.sensing.camera.seen); the phases plan with the declared obstacles.")

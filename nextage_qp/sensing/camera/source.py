@@ -42,6 +42,10 @@ of the object a fit does not see. Stereo fits degrade fast as the hand covers an
 hand's depth into the object's); rendered depth degrades slowly, which the partial views' gate absorbs
 (docs/perception.md)."""
 
+ALOFT = 0.03
+"""A held object's predicted bottom this high [m] over the table plane or more is in the air (``perception.held_every``
+applies); lower, it may be meeting the table or what stands on it."""
+
 STATUSES = ("ok", "out_of_view", "occluded", "missing", "bad_fit")
 IN_VIEW = ("ok", "missing", "bad_fit")
 """The outcomes of a frame in which an object was in view and not hidden behind the robot (a detection is due)."""
@@ -136,9 +140,8 @@ class CameraMeasurer:
         unoccluded where the estimator's prediction was in view and uncovered.
         """
         self.periods += 1
-        self.skipped = (self.periods % self.cfg.held_every != 0 and not self.lost and bool(priors)
-                        and all(p is not None for p in priors.values()) and set(priors) <= set(held))
-        if self.skipped:  # every object held: its estimate follows the hands until the next frame
+        self.skipped = self.periods % self.cfg.held_every != 0 and self._aloft(priors, held)
+        if self.skipped:  # every object held aloft: its estimate follows the hands until the next frame
             self.held_skipped += 1
             return {}
         q = self.joints(t)
@@ -169,6 +172,21 @@ class CameraMeasurer:
                                priors=priors)
         self.lost = any(det.status in ("out_of_view", "missing") for det in detections.values())
         return dict(self.poses)
+
+    def _aloft(self, priors: Mapping[str, np.ndarray | None], held: Collection[str]) -> bool:
+        """Whether every object is tracked, held, and predicted at least ``ALOFT`` over the table plane.
+
+        Set down, or lowered onto the table, a held object meets the world and may turn in the grip: it gets every
+        frame.
+        """
+        plane = self.estimator.plane
+        if self.lost or plane is None or not priors or not set(priors) <= set(held):
+            return False
+        normal, offset = plane
+        for name, prior in priors.items():
+            if prior is None or float(normal @ prior[:3]) - offset + self.estimator.shapes[name].bottom < ALOFT:
+                return False
+        return True
 
     def _head(self, t: float, q: np.ndarray, priors: Mapping[str, np.ndarray | None], held: Collection[str],
               truth: Mapping[str, Pose] | None) -> tuple[dict[str, Detection], Frame, tuple[int, int, int, int] | None]:
