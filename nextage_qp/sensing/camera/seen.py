@@ -59,7 +59,8 @@ class ObstacleMapper:
 
     def __init__(self, robot: Any, radii: Mapping[str, float],
                  places: Sequence[tuple[tuple[float, float], tuple[float, float]]] = ()) -> None:
-        table = _table_top(robot)
+        corners = _table_corners(robot)
+        table = float(corners[:, 2].max()) if len(corners) else 0.0  # the table top's height [m] (0: no table)
         ws = robot.description.workspace if robot.description is not None else None
         if ws is not None:
             centre, half = np.array(ws.centre, dtype=float), np.array(ws.size, dtype=float)
@@ -70,7 +71,8 @@ class ObstacleMapper:
         """The footprints (x-y lo, hi) [m] over which never-seen space is occupied: the work region, then ``places``."""
         lo_xy = np.min([a for a, _ in self.places], axis=0) - REACH
         hi_xy = np.max([b for _, b in self.places], axis=0) + REACH
-        reach = _reachable_table(robot)  # an arm's elbow swings past the work region: whatever it may meet is mapped
+        # an arm's elbow swings past the work region: whatever it may meet is mapped
+        reach = _reachable_table(robot, corners)
         if reach is not None:
             lo_xy, hi_xy = np.minimum(lo_xy, reach[0]), np.maximum(hi_xy, reach[1])
         lo, hi = np.array([*lo_xy, table - CELL]), np.array([*hi_xy, table + HEIGHT])
@@ -260,22 +262,26 @@ def _down_to(box: tuple[np.ndarray, np.ndarray, float], floor: float) -> tuple[n
             yaw)
 
 
-def _reachable_table(robot: Any) -> tuple[np.ndarray, np.ndarray] | None:
-    """The footprint (x-y lo, hi) [m] of the table top within reach of the robot's arms, or None (no table).
-
-    Each arm's wrist and tool stay in a sphere (:meth:`~nextage_qp.kinematics.frames.Kinematics.reach`, which bounds
-    every link between them and the first joint too); the spheres' x-y extent, within the table's (a base on wheels
-    reaches the whole table).
-    """
-    from nextage_qp.kinematics.frames import Kinematics
-
+def _table_corners(robot: Any) -> np.ndarray:
+    """The corners [m] (k, 3) of the bounding boxes of the scene's table geoms, in the world (none: no table)."""
     model = robot.model
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
     tables = robot.collision_geoms().get("table", ())
-    if not tables:
+    return np.concatenate([_box_points(model, data, g, CORNERS) for g in tables]) if tables else np.zeros((0, 3))
+
+
+def _reachable_table(robot: Any, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The footprint (x-y lo, hi) [m] of the table top within reach of the robot's arms, or None (no table).
+
+    ``corners``: the table's (:func:`_table_corners`). Each arm's wrist and tool stay in a sphere
+    (:meth:`~nextage_qp.kinematics.frames.Kinematics.reach`, which bounds every link between them and the first joint
+    too); the spheres' x-y extent, within the table's (a base on wheels reaches the whole table).
+    """
+    from nextage_qp.kinematics.frames import Kinematics
+
+    if not len(corners):
         return None
-    corners = np.concatenate([_box_corners(model, data, g) for g in tables])
     t_lo, t_hi = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
     kin, q = Kinematics(robot), robot.keyframe_q("zero")  # (a sphere's centre is its first joint's anchor)
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
@@ -290,38 +296,36 @@ def _reachable_table(robot: Any) -> tuple[np.ndarray, np.ndarray] | None:
     return np.maximum(lo, t_lo), np.minimum(hi, t_hi)
 
 
-def _box_corners(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> np.ndarray:
-    """The eight corners [m] of geom ``g``'s bounding box (its own frame) in the world."""
-    rot = data.geom_xmat[g].reshape(3, 3)
-    centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
-    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
-    return data.geom_xpos[g] + (centre + signs * half) @ rot.T
+CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+"""A box's eight corners in half-sizes along its axes."""
 
 
-def _table_top(robot: Any) -> float:
-    """Height [m] of the top of the scene's table (its geoms' highest point; 0 without a table)."""
-    model = robot.model
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
-    tops = [_geom_top(model, data, g) for g in robot.collision_geoms().get("table", ())]
-    return max(tops) if tops else 0.0
-
-
-def _face_points(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> np.ndarray:
-    """Points [m] on geom ``g``'s bounding box's faces in the world: each face's centre and four points halfway out."""
-    rot = data.geom_xmat[g].reshape(3, 3)
-    centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
-    local = []
+def _face_fractions() -> np.ndarray:
+    """Each face of a box, in half-sizes along its axes: its centre and four points halfway out."""
+    out = []
     for axis in range(3):
         u, v = [k for k in range(3) if k != axis]
         for sign in (1.0, -1.0):
             for a, b in ((0.0, 0.0), (0.5, 0.5), (0.5, -0.5), (-0.5, 0.5), (-0.5, -0.5)):
-                p = centre.copy()
-                p[axis] += sign * half[axis]
-                p[u] += a * half[u]
-                p[v] += b * half[v]
-                local.append(p)
-    return data.geom_xpos[g] + np.array(local) @ rot.T
+                p = np.zeros(3)
+                p[axis], p[u], p[v] = sign, a, b
+                out.append(p)
+    return np.array(out)
+
+
+FACES = _face_fractions()
+
+
+def _box_points(model: mujoco.MjModel, data: mujoco.MjData, g: int, fractions: np.ndarray) -> np.ndarray:
+    """Points [m] of geom ``g``'s bounding box (its own frame) at ``fractions`` of its half-sizes, in the world."""
+    rot = data.geom_xmat[g].reshape(3, 3)
+    centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+    return data.geom_xpos[g] + (centre + fractions * half) @ rot.T
+
+
+def _face_points(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> np.ndarray:
+    """Points [m] on geom ``g``'s bounding box's faces in the world: each face's centre and four points halfway out."""
+    return _box_points(model, data, g, FACES)
 
 
 def _in_geom(model: mujoco.MjModel, data: mujoco.MjData, g: int, points: np.ndarray, margin: float) -> np.ndarray:
