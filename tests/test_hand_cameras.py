@@ -110,14 +110,17 @@ def test_while_every_object_is_held_the_head_takes_every_held_every_th_frame() -
     from nextage_qp.sensing.perception_config import PerceptionConfig
 
     robot, data, q = _scene(0.25)
-    prior = _truth(robot, data)
-    source = CameraMeasurer(PerceptionConfig(source="camera", held_every=3), robot, data, lambda t: q, seed=0)
+    resting = _truth(robot, data)
+    aloft = resting + np.array([0.0, 0.0, 0.05, 0.0, 0.0, 0.0])  # predicted 5 cm up: held in the air
+    cfg = PerceptionConfig(source="camera", held_every=3, hand_cameras=())  # the head alone
+    source = CameraMeasurer(cfg, robot, data, lambda t: q, seed=0)
     try:
-        taken = [bool(source(0.1 * k, {"cube": prior}, held={"cube"})) for k in range(6)]
-        # the first frame: nothing seen yet; then every third (no frame: nothing measured, and no dropout)
+        taken = [bool(source(0.1 * k, {"cube": aloft}, held={"cube"})) for k in range(6)]
+        # the first frame: nothing seen yet (nor the table); then every third (no frame: nothing measured, no dropout)
         assert taken == [True, False, True, False, False, True]
         assert source.report()["frames"] == 3 and source.report()["held_skipped"] == 3
-        assert all(source(0.7 + 0.1 * k, {"cube": prior}) for k in range(3))  # not held: every period
-        assert source.report()["frames"] == 6
+        assert all(source(0.7 + 0.1 * k, {"cube": aloft}) for k in range(3))  # not held: every period
+        assert all(source(1.0 + 0.1 * k, {"cube": resting}, held={"cube"}) for k in range(3))  # on the table: every
+        assert source.report()["frames"] == 9
     finally:
         source.close()
