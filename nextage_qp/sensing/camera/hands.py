@@ -82,8 +82,12 @@ class HandCameras:
         self.used = dict.fromkeys(names, 0)  # frames whose measurement stood in for the head's
         self.ms: list[float] = []  # per frame rendered: render and estimate [ms]
 
-    def wanted(self, q: np.ndarray, centres: Mapping[str, np.ndarray]) -> list[tuple[int, list[str]]]:
-        """Per hand camera (index) whose view holds a predicted centre of ``centres``: the objects it holds."""
+    def wanted(self, q: np.ndarray,
+               centres: Mapping[str, np.ndarray]) -> list[tuple[int, list[str], np.ndarray, np.ndarray]]:
+        """Per hand camera whose view holds a predicted centre of ``centres``: index, objects, pose (pos, rot).
+
+        The pose is the camera's at the joints ``q``, which :meth:`measure` renders from.
+        """
         out = []
         for i, cam in enumerate(self.cameras):
             pos, rot = cam.pose(q)
@@ -94,7 +98,7 @@ class HandCameras:
                 if NEAREST <= z[0] <= FARTHEST and 0 <= rows[0] < h and 0 <= cols[0] < w:
                     names.append(name)
             if names:
-                out.append((i, names))
+                out.append((i, names, pos, rot))
         return out
 
     def measure(self, data: mujoco.MjData, q: np.ndarray, priors: Mapping[str, np.ndarray | None],
@@ -110,10 +114,9 @@ class HandCameras:
             return {}
         out: dict[str, Detection] = {}
         by: dict[str, str] = {}  # the camera each detection of ``out`` came from
-        for i, names in self.wanted(q, centres):
+        for i, names, pos, rot in self.wanted(q, centres):
             t0 = time.perf_counter()
             cam, est = self.cameras[i], self.estimators[i]
-            pos, rot = cam.pose(q)
             frame = Frame(cam.depth(data), cam.expected(), cam.K, pos, rot, whole=False)
             est.plane = plane
             dets = est.estimate(frame, {n: priors[n] for n in names}, held)
