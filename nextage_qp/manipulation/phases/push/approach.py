@@ -60,16 +60,12 @@ class Approach(NamedTuple):
     raised: float = 0.0
 
 
-def routes(view: View, spec, tool: np.ndarray, d: np.ndarray, raise_by: float = 0.0,
-           at: np.ndarray | None = None) -> list[list[np.ndarray]]:
+def routes(view: View, spec, tool: np.ndarray, d: np.ndarray, raise_by: float = 0.0) -> list[list[np.ndarray]]:
     """Transit routes (lift point first) from ``tool`` to behind ``spec.object`` for push direction ``d``.
 
-    The tool goes to ``spec.height`` + ``raise_by`` over the object's centre; ``at``: the object's planar position
-    is taken to be there (where it is not yet).
+    The tool goes to ``spec.height`` + ``raise_by`` over the object's centre.
     """
     obj = view.body_pose(spec.object).pos.copy()
-    if at is not None:
-        obj[:2] = at[:2]
     obj[2] = view.rest_height(spec.object)  # a pushed object stands on the table: its height is known, not seen
     d3, n3 = np.array([*d, 0.0]), np.array([-d[1], d[0], 0.0])
     behind = obj - d3 * (view.extent(spec.object, -d3) + spec.approach)  # off the face pushed (any shape)
@@ -85,20 +81,18 @@ def routes(view: View, spec, tool: np.ndarray, d: np.ndarray, raise_by: float = 
 
 def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: Sequence[float],
                   target: Callable[[np.ndarray, float], FrameTarget], higher: bool | float = False,
-                  extra: Sequence[tuple[FrameTarget, ...]] = (), blocked: list[str] | None = None,
-                  at: np.ndarray | None = None) -> Approach | None:
+                  extra: Sequence[tuple[FrameTarget, ...]] = (), blocked: list[str] | None = None) -> Approach | None:
     """The approach closest to the planar direction ``wanted`` within ``fan`` [rad] that the arm reaches, or None.
 
     ``spec`` is the push's spec (frame, object, approach, height, clearance, yaw); ``target(pos, yaw)`` the tool
     target at ``pos`` for a push at ``yaw``. With ``higher`` True, a push out of reach at its height is tried higher
     (:func:`raises`); a number: the push goes that much higher (as an earlier approach found it had to). ``extra``
     targets join the route's waypoints (the k-th of them the k-th waypoint, the last all later ones): another frame
-    going home. ``blocked`` gathers why routes the arm reaches had no collision-free leg. ``at``: the approach to
-    the object as if it stood there (planar position), its push line not checked.
+    going home. ``blocked`` gathers why routes the arm reaches had no collision-free leg.
     """
     tried = 0
     heights = raises(view, spec) if higher is True else [float(higher)]  # a number: that raise only
-    check_line = at is None and bool(view.obstacle_groups())  # obstacles beside the push: its line must keep clear
+    check_line = bool(view.obstacle_groups())  # obstacles beside the push: its line must keep the arm clear of them
     first: Approach | None = None  # the first reachable approach, whose line the arm may not keep clear along
     for raise_by in heights:
         for restarts in (False, True):  # continuous routes first (see the module doc)
@@ -106,7 +100,7 @@ def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: S
                 d = rotate2(wanted, deviation)
                 yaw = float(np.arctan2(d[1], d[0])) + spec.yaw
                 tried += 1
-                for route in routes(view, spec, tool, d, raise_by, at):
+                for route in routes(view, spec, tool, d, raise_by):
                     planned = PlannedRoute([(target(p, yaw), *(extra[min(k, len(extra) - 1)] if extra else ()))
                                             for k, p in enumerate(route[1:])], plan=spec.plan, near=(spec.object,))
                     if planned.plan(view, restarts=restarts):
@@ -117,16 +111,6 @@ def plan_approach(view: View, spec, tool: np.ndarray, wanted: np.ndarray, fan: S
                     if planned.blocked is not None and blocked is not None:
                         blocked.append(planned.blocked)
     return first._replace(tried=tried) if first is not None else None
-
-
-def reachable_sides(view: View, spec, frames: Sequence[str], directions: Sequence[np.ndarray], at: np.ndarray,
-                    target: Callable[..., FrameTarget], higher: bool | float) -> list[bool]:
-    """For each of ``directions``, whether one of the tools ``frames`` reaches the object's side for a push along it.
-
-    The object as if it stood at ``at`` (planar; :mod:`.sides`); ``target(pos, yaw, frame)`` is a tool's target.
-    """
-    return [any(plan_approach(view, spec, view.commanded_pose(f).pos, d, (0.0,), functools.partial(target, frame=f),
-                              higher=higher, at=at) is not None for f in frames) for d in directions]
 
 
 def line_clear(view: View, spec, found: Approach, start: np.ndarray,

@@ -8,9 +8,7 @@ A small state machine, every step driven by the live object pose:
   over the last ``slow_down``, never more than ``preload`` into the face, at a fixed height. Once in contact the
   direction :math:`\hat d` turns (at most ``turn_rate``) towards the object's bearing to the target plus an integral
   bias that makes the object's own motion point at the target; inside ``freeze`` it is kept. A tilting object gets
-  no push until it is flat. The first push stops ``standoff`` short. Where obstacles leave an arm only some sides of
-  the target to push from (:mod:`.sides`), it stops ``correction_room`` short along the middle of them instead, and a
-  correction from a side off its error's direction stops where the rest lies along another reachable side.
+  no push until it is flat. The first push stops ``standoff`` short.
 * **hold**: the object comes to rest and the error is judged: within ``tolerance`` the tool retreats and the phase
   is done; short on the same line, the push resumes (up to ``nudges``); otherwise the tool retreats and approaches
   again along the error (within ``correction_fan``), up to ``attempts`` approaches. When nothing is left to try,
@@ -47,9 +45,8 @@ from nextage_qp.ik import FrameTarget
 from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import Poses, RunState, Setpoint, View
 from nextage_qp.manipulation.phases.base import Phase
-from nextage_qp.manipulation.phases.push.approach import plan_approach, plan_handover, reachable_sides
+from nextage_qp.manipulation.phases.push.approach import plan_approach, plan_handover
 from nextage_qp.manipulation.phases.push.contact import PushContact
-from nextage_qp.manipulation.phases.push.sides import CLEAR_STEPS, middle, side_directions, split
 from nextage_qp.manipulation.phases.push.spec import (
     ASIDE,
     BLIND_S,
@@ -152,8 +149,6 @@ class Push(Phase):
     nudges: int  # nudges on this approach
     full: bool  # the next approach may use the whole fan, not only spec.correction_fan
     plan_failed: bool  # the last approach found no reachable direction
-    sides: list[np.ndarray] | None  # the push directions reachable at the target (None: all that matter, or unknown)
-    aim: np.ndarray  # this push stops this far short of the target (planar) to leave a correctable error [m]
     blocked: str | None  # why the last route the arm reached had no collision-free leg, when no approach was found
     planned_at: np.ndarray  # the object's planar position the approach was planned for [m]
     raised: float  # the first approach's raise over the push height, which later ones keep [m]
@@ -194,31 +189,10 @@ class Push(Phase):
         self.approaches, self.recoveries, self.full, self.contact = 0, 0, False, PushContact(self.frame)
         self.info.update(attempts=0, nudges=0, contact_onsets=0, contact_losses=0)
         self.raised, self.looking, self.pressed = 0.0, False, False
-        self.sides, self.aim = None, np.zeros(2)
         obj, tgt, _ = self._planar(view)
         self._approach(view, unit2((tgt - obj)[:2]))
         if self.plan_failed:
             raise self._no_approach(view)
-        if view.obstacle_groups():
-            self._find_sides(view, unit2((tgt - obj)[:2]))
-
-    def _find_sides(self, view: View, line: np.ndarray) -> None:
-        """Find the sides reachable at the target; where obstacles leave only some, aim the first push short.
-
-        See :mod:`.sides`. The first approach stands planned: its tool's commanded pose is where it is now.
-        """
-        c = self.spec
-        directions = side_directions(line)
-        reach = reachable_sides(view, c, (c.frame, *c.other_frames), directions,
-                                view.body_pose(c.target).pos[:2], self._target, self.raised)
-        k0 = len(directions) // 2
-        if all(reach[k0 - CLEAR_STEPS: k0 + CLEAR_STEPS + 1]):
-            return
-        self.sides = [d for d, r in zip(directions, reach, strict=True) if r]
-        found = middle(directions, reach)
-        self.info["reachable_sides"] = len(self.sides)
-        if found is not None:
-            self.aim = c.correction_room * found[0]
 
     def stalled(self, view: View) -> str | None:  # noqa: D102
         tilted_s = self.info.get("tilt_pauses", 0) * view.dt  # ticks the push paused for a tipping object
@@ -275,11 +249,6 @@ class Push(Phase):
         self.d, self.lift, self.goal_yaw, self.planned, self.push_z = plan[:5]
         if self.approaches == 1:
             self.raised = plan.raised
-        elif self.sides is not None:  # from a side off the error's direction: leave the rest along another side
-            obj, tgt, _ = self._planar(view)
-            rest = split((tgt - obj)[:2], self.d, self.sides)
-            self.aim = np.zeros(2) if rest is None else rest
-            self.info["split_corrections"] = self.info.get("split_corrections", 0) + int(rest is not None)
         self.info["direction"] = self.d.round(4).tolist()
         self.stage, self.lifting = Stage.TRANSIT, True
 
@@ -365,14 +334,13 @@ class Push(Phase):
         c = self.spec
         obj_pose = view.body_pose(c.object)
         obj, tgt = self._felt(view, obj_pose.pos), view.body_pose(c.target).pos
-        goal = tgt[:2] - self.aim  # where this push stops (:mod:`.sides`)
-        dist = float(np.linalg.norm(goal - obj[:2]))
+        dist = float(np.linalg.norm((tgt - obj)[:2]))
         moved = float(np.linalg.norm(obj[:2] - self.last_obj)) if self.last_obj is not None else 0.0
         unseen = view.unseen_s(c.object)
         self.blind_m = self.blind_m + moved if unseen > HIDDEN_S else 0.0  # pushed unseen [m]
         self._track(view, obj[:2])
         if dist > c.freeze and self.touched:  # turn only once in contact: the approach side was chosen to reach
-            bearing = unit2(goal - obj[:2])
+            bearing = unit2((tgt - obj)[:2])
             speed = float(np.linalg.norm(self.obj_v))
             if speed > MIN_STEER_SPEED:  # integral steering: aim the push so the object moves at the target
                 moving = self.obj_v / speed
@@ -382,7 +350,7 @@ class Push(Phase):
             self.goal_yaw = float(np.arctan2(self.d[1], self.d[0])) + c.yaw
         self._turn_tool(view)
         d, n = self.d, np.array([-self.d[1], self.d[0]])
-        remaining = float((goal - obj[:2]) @ d)
+        remaining = float((tgt - obj)[:2] @ d)
         stop = remaining <= (c.standoff if self.approaches == 1 and self.nudges == 0 else 0.2 * c.tolerance)
         blind = self.blind_m > c.blind or unseen > BLIND_S  # pushed unseen too far or long
         self.blind_stop = not stop and self.touched and blind  # stop and look
@@ -450,7 +418,7 @@ class Push(Phase):
         if verdict is Verdict.DONE:
             return self._start_retreat(final=True)
         if verdict is Verdict.NUDGE:
-            self.nudges, self.aim = self.nudges + 1, np.zeros(2)
+            self.nudges += 1
             self.info["nudges"] += 1
             self._begin_push(touched=True)
             return self._command(allow=True)

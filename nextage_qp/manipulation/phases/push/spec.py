@@ -115,10 +115,6 @@ class PushSpec(Spec):
         default=False, description="Judge every push only after backing off and seeing the object clear of the hand "
                                    "(as a push the hand hid is judged): for a camera whose view of the object is "
                                    "unreliable beside the hand (stereo depth smears the hand's edge into it).")
-    correction_room: float = Field(
-        default=0.008, ge=0, le=0.1,
-        description="Where obstacles leave only some sides of the target reachable, the first push stops this far "
-                    "short of it along the middle of them, so that its error stays correctable [m].")
     correction_fan: float = Field(default=0.53, ge=0, le=1.6,
                                   description="Largest deviation from the error's direction for a correction [rad].")
     fan: tuple[float, ...] = Field(
