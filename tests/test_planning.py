@@ -233,10 +233,15 @@ def test_touching_the_clutter_is_counted_per_physics_step_and_judged(cluttered):
     finally:
         robot.model.body_pos[piece.id] = where  # the fixture's model is shared
     assert monitor.clutter_contacts == 1
+    touches = monitor.clutter_report()  # which body touched which piece, when and how deep
+    assert touches[0]["clutter"] == "clutter_0" and touches[0]["steps"] == 1 and touches[0]["depth_m"] > 0
+    assert "LARM_JOINT5_Link" in {t["body"] for t in touches}
     state = ObjectState(np.zeros(3), np.zeros(3), 0.0, 0.0, 0.0, 0.0, True)
     verdict = judge(SuccessCriteria(clutter_contacts=0), state, completed=True, dropped=False, limit_violations=0,
-                    obstacle_contacts=0, clutter_contacts=monitor.clutter_contacts)
-    assert verdict["clutter_contacts"] == {"value": 1, "limit": 0, "ok": False}
+                    obstacle_contacts=0, clutter_contacts=monitor.clutter_contacts, clutter_touches=touches)
+    assert verdict["clutter_contacts"]["value"] == 1 and not verdict["clutter_contacts"]["ok"]
+    detail = verdict["clutter_contacts"]["detail"]
+    assert detail.startswith(f"{touches[0]['body']} on clutter_0 at 0.00-0.00 s, 1 step, "), detail
 
 
 def test_a_shelf_is_reached_by_a_route_between_its_boards_not_over_them():

@@ -5,7 +5,8 @@ Metrics are measured on the simulator's truth (contacts, true poses), never on w
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+import functools
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -85,6 +86,8 @@ class OutcomeMonitor:
         clutter = groups.get(CLUTTER_GROUP, ())
         self.clutter_contacts = 0
         """Physics steps in which the robot or the object it holds touched the clutter."""
+        self.clutter_touches: dict[tuple[int, int], list[float]] = {}
+        """Per (body of the robot or held object, clutter body) touching: [first, last time [s], steps, deepest [m]]."""
         self._is_clutter = np.zeros(m.ngeom, dtype=bool)
         self._is_clutter[list(clutter)] = True
         self._robot_geom = np.zeros(m.ngeom, dtype=bool)
@@ -127,8 +130,26 @@ class OutcomeMonitor:
             held = self.model.geom_bodyid[geoms] == self.model.body(self.grip.object).id
             mine = mine | held
         clutter = self._is_clutter[geoms]
-        if np.any(((mine[:, 0] & clutter[:, 1]) | (mine[:, 1] & clutter[:, 0])) & (d.contact.dist[: d.ncon] < 0)):
-            self.clutter_contacts += 1
+        dist = d.contact.dist[: d.ncon]
+        touching = ((mine[:, 0] & clutter[:, 1]) | (mine[:, 1] & clutter[:, 0])) & (dist < 0)
+        if not np.any(touching):
+            return
+        self.clutter_contacts += 1
+        pairs: dict[tuple[int, int], float] = {}
+        for k in np.flatnonzero(touching):  # which body touched which piece, and how deep
+            a, b = self.model.geom_bodyid[geoms[k]]
+            pair = (int(a), int(b)) if clutter[k, 1] else (int(b), int(a))
+            pairs[pair] = min(pairs.get(pair, 0.0), float(dist[k]))
+        for pair, depth in pairs.items():
+            touch = self.clutter_touches.setdefault(pair, [d.time, d.time, 0, 0.0])
+            touch[1], touch[2], touch[3] = d.time, touch[2] + 1, min(touch[3], depth)
+
+    def clutter_report(self) -> list[dict[str, Any]]:
+        """Each body that touched the clutter, with the piece, when, for how many steps and how deep; most first."""
+        name = functools.partial(mujoco.mj_id2name, self.model, mujoco.mjtObj.mjOBJ_BODY)
+        return [{"body": name(a), "clutter": name(b), "from_s": round(t0, 3), "to_s": round(t1, 3),
+                 "steps": int(n), "depth_m": round(-depth, 5)}
+                for (a, b), (t0, t1, n, depth) in sorted(self.clutter_touches.items(), key=lambda kv: -kv[1][2])]
 
     def on_substep(self, sim: Simulation) -> None:
         """Hook run at every physics step: count the steps in which anything touches the obstacle.
@@ -236,13 +257,15 @@ def object_state(robot: Robot, sim: Simulation, obj: str, target: str) -> Object
 
 def judge(criteria: SuccessCriteria, state: ObjectState, *, completed: bool, dropped: bool, limit_violations: int,
           obstacle_contacts: int, limit_detail: str | None = None, clutter_contacts: int = 0,
+          clutter_touches: Sequence[Mapping[str, Any]] = (),
           others: Mapping[str, ObjectState] | None = None,
           knocked: Mapping[str, float] | None = None, clearance: float | None = None) -> dict[str, dict[str, Any]]:
     """Every success criterion with its value, limit and verdict (``ok``); a violated joint limit's ``detail``.
 
-    ``others``: the states of ``criteria.objects``, judged as the task's object is (criteria ``NAME:object_error``
-    and so on); ``knocked``: how far [m] each bystander ended from its start; ``clearance``: the object's distance
-    [m] to the obstacles beside it at the end.
+    ``clutter_touches``: which bodies touched the clutter (:meth:`OutcomeMonitor.clutter_report`), named in the
+    criterion's detail. ``others``: the states of ``criteria.objects``, judged as the task's object is (criteria
+    ``NAME:object_error`` and so on); ``knocked``: how far [m] each bystander ended from its start; ``clearance``:
+    the object's distance [m] to the obstacles beside it at the end.
     """
     out: dict[str, dict[str, Any]] = {
         "completed": {"ok": completed},
@@ -263,6 +286,8 @@ def judge(criteria: SuccessCriteria, state: ObjectState, *, completed: bool, dro
     if criteria.clutter_contacts is not None:
         out["clutter_contacts"] = {"value": clutter_contacts, "limit": criteria.clutter_contacts,
                                    "ok": clutter_contacts <= criteria.clutter_contacts}
+        if clutter_touches:
+            out["clutter_contacts"]["detail"] = touch_text(clutter_touches)
     if criteria.obstacle_clearance is not None:
         value = 0.0 if clearance is None else clearance
         out["obstacle_clearance"] = {"value": value, "limit": criteria.obstacle_clearance,
@@ -321,9 +346,11 @@ def summarize(
               if viol else None)
     tau = np.abs(rec["tau"]).max() if len(q) else 0.0
     contacts = monitor.obstacle_contacts if monitor.obstacle is not None else 0
+    touches = monitor.clutter_report() if monitor.has_clutter else []
     clearance = obstacle_clearance(robot, sim.data, obj) if obj in robot.object_names else None
     verdict = judge(criteria, state, completed=error is None, dropped=monitor.dropped, limit_violations=viol,
                     obstacle_contacts=contacts, limit_detail=detail, clutter_contacts=monitor.clutter_contacts,
+                    clutter_touches=touches,
                     others=others, knocked=knocked, clearance=clearance)
     sim_t = sim.time
     return {
@@ -345,6 +372,7 @@ def summarize(
         "obstacle_contacts": contacts,
         **({"object_obstacle_clearance_m": clearance} if clearance is not None and robot.obstacle_groups() else {}),
         **({"clutter_contacts": monitor.clutter_contacts} if monitor.has_clutter else {}),
+        **({"clutter_touches": touches} if touches else {}),
         **({"objects": {n: {"error_xy_m": o.error_xy_m, "yaw_error_rad": o.yaw_error_rad, "tilt_rad": o.tilt_rad,
                             "resting": o.resting} for n, o in others.items()}} if others else {}),
         **({"knocked_m": {n: round(v, 5) for n, v in knocked.items()}} if knocked else {}),
@@ -432,6 +460,15 @@ class RunResult(Mapping[str, Any]):
 
     def __len__(self) -> int:
         return len(self.record)
+
+
+def touch_text(touches: Sequence[Mapping[str, Any]]) -> str:
+    """The bodies that touched the clutter, most steps first: ``LARM_JOINT5_Link on clutter_2 at 7.41-33.80 s, ...``."""
+    first = touches[0]
+    text = (f"{first['body']} on {first['clutter']} at {first['from_s']:.2f}-{first['to_s']:.2f} s, "
+            f"{first['steps']} step{'' if first['steps'] == 1 else 's'}, {first['depth_m'] * 1e3:.1f} mm deep")
+    more = len(touches) - 1
+    return text + (f"; {more} more {'pair' if more == 1 else 'pairs'} touching" if more else "")
 
 
 def unmet_criteria(record: Mapping[str, Any]) -> str:
