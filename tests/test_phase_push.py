@@ -198,6 +198,26 @@ def test_a_pushed_object_is_carried_only_by_the_tool_s_advance_along_the_push():
     np.testing.assert_allclose(contact.carrier(view, np.array([1.0, 0.0]))().pos, [0.52, 0.005, 0.92])
 
 
+def test_a_tool_backing_off_in_contact_leaves_the_pushed_object_where_it_is():
+    """An arm pressed into the object springs back once the push stops: the tool cannot pull, so its carrier stays
+    (a camera push was judged from an estimate taken 7 mm back with the tool); forward again, the object moves only
+    once the tool is past its furthest advance, so jitter does not ratchet it on."""
+    from nextage_qp.manipulation.phases.push.contact import PushContact
+
+    view = ScriptedView(bodies={}, commanded={}, frames={"left_tool": pose(0.5, 0.0, 0.92)})
+    carrier = PushContact("left_tool").carrier(view, np.array([1.0, 0.0]))
+    assert carrier is not None
+    start = carrier().pos.copy()
+    view.frames["left_tool"] = pose(0.51, 0.0, 0.92)  # pushes 1 cm
+    np.testing.assert_allclose(carrier().pos, start + [0.01, 0.0, 0.0], atol=1e-12)
+    view.frames["left_tool"] = pose(0.503, 0.0, 0.92)  # springs back 7 mm: the object stays
+    np.testing.assert_allclose(carrier().pos, start + [0.01, 0.0, 0.0], atol=1e-12)
+    view.frames["left_tool"] = pose(0.508, 0.0, 0.92)  # forward again, not yet as far as before
+    np.testing.assert_allclose(carrier().pos, start + [0.01, 0.0, 0.0], atol=1e-12)
+    view.frames["left_tool"] = pose(0.513, 0.0, 0.92)  # 3 mm past its furthest advance: carried 3 mm
+    np.testing.assert_allclose(carrier().pos, start + [0.013, 0.0, 0.0], atol=1e-12)
+
+
 @dataclass
 class SettlingCubeView(HiddenCubeView):
     """The estimate of a cube seen again after the hand hid it stays ``lag`` [m] along the push where the hand left it

@@ -32,15 +32,17 @@ class PushContact:
         self.force, self.in_contact = 0.0, False
         self.onsets = self.losses = 0
         self._last_t: float | None = None
-        self._carried: tuple[np.ndarray, np.ndarray] | None = None  # (carrier position, tool position it moved with)
+        # (carrier position, tool position it last moved with, how far the tool is back from its furthest advance)
+        self._carried: tuple[np.ndarray, np.ndarray, float] | None = None
 
     def carrier(self, view: View, direction: np.ndarray | None) -> Callable[[], Pose] | None:
         """The pose that carries a pushed object while the tool pushes along ``direction`` (None: it does not).
 
         The tool takes the object only as far as it advances along the push: sliding along the object's face or
         turning, it does not move it (else a tool recentred sideways in contact drags the estimate off an object that
-        stays put). The pose moves by the tool's advance along ``direction`` since it was last asked, level, never
-        turning.
+        stays put), and backing off it leaves it where it is (a tool cannot pull: an arm pressed into the object
+        springs back a few millimetres once the push stops, while the object stays). The pose moves by the tool's
+        advance along ``direction`` beyond the furthest it had come, level, never turning.
         """
         if direction is None:
             self._carried = None
@@ -49,8 +51,10 @@ class PushContact:
 
         def pose() -> Pose:
             now = view.frame_pose(self.frame).pos
-            at, last = self._carried if self._carried is not None else (now, now)
-            self._carried = (at + float((now - last) @ d) * d, now)
+            at, last, back = self._carried if self._carried is not None else (now, now, 0.0)
+            step = float((now - last) @ d)
+            ahead = max(step - back, 0.0)  # beyond the furthest advance: the object moves with the tool
+            self._carried = (at + ahead * d, now, max(back - step, 0.0))
             return Pose(self._carried[0].copy(), np.eye(3))
 
         return pose
