@@ -209,13 +209,13 @@ def test_a_tool_backing_off_in_contact_leaves_the_pushed_object_where_it_is():
     assert carrier is not None
     start = carrier().pos.copy()
     view.frames["left_tool"] = pose(0.51, 0.0, 0.92)  # pushes 1 cm
-    np.testing.assert_allclose(carrier().pos, start + [0.01, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(carrier().pos, start + np.array([0.01, 0.0, 0.0]), atol=1e-12)
     view.frames["left_tool"] = pose(0.503, 0.0, 0.92)  # springs back 7 mm: the object stays
-    np.testing.assert_allclose(carrier().pos, start + [0.01, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(carrier().pos, start + np.array([0.01, 0.0, 0.0]), atol=1e-12)
     view.frames["left_tool"] = pose(0.508, 0.0, 0.92)  # forward again, not yet as far as before
-    np.testing.assert_allclose(carrier().pos, start + [0.01, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(carrier().pos, start + np.array([0.01, 0.0, 0.0]), atol=1e-12)
     view.frames["left_tool"] = pose(0.513, 0.0, 0.92)  # 3 mm past its furthest advance: carried 3 mm
-    np.testing.assert_allclose(carrier().pos, start + [0.013, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(carrier().pos, start + np.array([0.013, 0.0, 0.0]), atol=1e-12)
 
 
 @dataclass
