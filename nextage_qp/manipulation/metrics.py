@@ -463,7 +463,7 @@ class RunResult(Mapping[str, Any]):
 
 
 def touch_text(touches: Sequence[Mapping[str, Any]]) -> str:
-    """The bodies that touched the clutter, most steps first: ``LARM_JOINT5_Link on clutter_2 at 7.41-33.80 s, ...``."""
+    """The bodies that touched the clutter, most steps first: ``WRIST on clutter_2 at 7.41-33.80 s, ...``."""
     first = touches[0]
     text = (f"{first['body']} on {first['clutter']} at {first['from_s']:.2f}-{first['to_s']:.2f} s, "
             f"{first['steps']} step{'' if first['steps'] == 1 else 's'}, {first['depth_m'] * 1e3:.1f} mm deep")
