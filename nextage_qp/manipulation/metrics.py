@@ -287,7 +287,7 @@ def judge(criteria: SuccessCriteria, state: ObjectState, *, completed: bool, dro
         out["clutter_contacts"] = {"value": clutter_contacts, "limit": criteria.clutter_contacts,
                                    "ok": clutter_contacts <= criteria.clutter_contacts}
         if clutter_touches:
-            out["clutter_contacts"]["detail"] = touch_text(clutter_touches)
+            out["clutter_contacts"]["detail"] = _touch_text(clutter_touches)
     if criteria.obstacle_clearance is not None:
         value = 0.0 if clearance is None else clearance
         out["obstacle_clearance"] = {"value": value, "limit": criteria.obstacle_clearance,
@@ -462,7 +462,7 @@ class RunResult(Mapping[str, Any]):
         return len(self.record)
 
 
-def touch_text(touches: Sequence[Mapping[str, Any]]) -> str:
+def _touch_text(touches: Sequence[Mapping[str, Any]]) -> str:
     """The bodies that touched the clutter, most steps first: ``WRIST on clutter_2 at 7.41-33.80 s, ...``."""
     first = touches[0]
     text = (f"{first['body']} on {first['clutter']} at {first['from_s']:.2f}-{first['to_s']:.2f} s, "
