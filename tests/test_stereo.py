@@ -76,7 +76,8 @@ def test_a_tracked_object_is_matched_in_a_window_as_in_the_whole_image() -> None
     assert np.mean(np.abs(whole[both] - part[both]) < 0.002) > 0.97  # the same matches, but near the window's edges
     truth = data.xpos[robot.model.body("cube").id]
     assert second is not None and np.linalg.norm(second[:3] - truth) < 0.005
-    assert window([(pos + 0.2 * rot[:, 2], 0.05)], camera.camera.K, pos, rot, whole.shape) is None  # behind it
+    behind = pos + 0.2 * rot[:, 2] + 0.05 * np.array(list(np.ndindex(2, 2, 2))) - 0.025
+    assert window(behind, camera.camera.K, pos, rot, whole.shape) is None  # behind it
 
 
 def test_a_stereo_world_is_textured_beyond_the_robot_only() -> None:

@@ -514,7 +514,7 @@ def test_a_frame_dump_asked_for_after_the_run_ended_is_reported_not_silently_dro
     source = object.__new__(CameraMeasurer)  # the report's state only: no renderer needed
     source.cfg, source.camera, source.counts = cfg, SimpleNamespace(name="head_rgbd"), {}
     source.ms, source.dumped, source.dump_error = {"render": [], "estimate": []}, False, None
-    source.windowed, source.mapper, source.hands, source.held_skipped = 0, None, None, 0
+    source.windowed, source.mapper, source.hands, source.held_skipped, source.rest_skipped = 0, None, None, 0, 0
     source.last = (16.68, np.zeros((2, 2)))
     report = source.report()
     assert report["dump_error"] == ("perception.dump_at_s 50 s: the camera's last frame was at 16.68 s; nothing "

@@ -10,6 +10,7 @@
       look_at: true          # the head keeps the task's object and target in view (a low-weight IK task)
       hand_cameras: null     # cameras on the hands that see what the head cannot (null: the robot file's wrist ones)
       held_every: 3          # while every object is held aloft, a frame every 3rd camera period
+      rest_every: 3          # while every object rests untouched, far from the robot, a frame every 3rd period
       obstacles: camera      # declared (the scene's) | camera (the clutter as the camera's occupancy map shows it)
       dump: runs/frame       # write one frame's RGB, depth, clusters and fitted pose as PNGs
 """
@@ -47,9 +48,9 @@ class PerceptionConfig(YamlModel):
         "depth.")
     window: bool | None = Field(
         default=None, description="Render (and, with stereo, match) a tracked object's frames only in a window around "
-        "it, the whole frame every 15th and while one is untracked: fewer pixels to render and estimate. Default: on "
-        "with stereo depth, off with rendered depth (windowed, the default push from the camera succeeds less often: "
-        "docs/perception.md).")
+        "it (its bounding box grown by 5 cm), the whole frame every 15th and while one is untracked: fewer pixels to "
+        "render and estimate. Default: on, off with an obstacle map (map, obstacles: camera), which takes whole "
+        "frames.")
     hand_cameras: tuple[str, ...] | None = Field(
         default=None, description="Cameras on the hands (robot-file names) that look at an object the head's frame "
         "does not fit cleanly (hidden by a hand, covered, a partial fit), rendered only then and only where their "
@@ -59,6 +60,11 @@ class PerceptionConfig(YamlModel):
         default=3, ge=1, le=100, description="While the robot holds every tracked object (clamped, not pushed) 3 cm "
         "or more over the table, the head takes a frame every this many camera periods [count]: a held object's "
         "estimate follows the hands between frames (nextage_qp.estimation.held); 1: every period.")
+    rest_every: int = Field(
+        default=3, ge=1, le=100, description="While every tracked object rests on the table, still over its last two "
+        "fits, with no part of the robot within 10 cm of it, the head takes a frame every this many camera periods "
+        "[count]: nothing moves it between frames (nextage_qp.sensing.camera.source); never with an obstacle map; 1: "
+        "every period.")
     map: bool = Field(default=False, description="Build an occupancy map of the obstacles from the camera's whole "
                       "frames (source: camera) and report it, scored against the scene "
                       "(nextage_qp.sensing.camera.seen); the phases plan with the declared obstacles.")

@@ -65,6 +65,15 @@ class ShapeModel:
         self.radius = float(np.linalg.norm(self.samples[:, :2], axis=1).max())
         self.reach = float(np.linalg.norm(self.samples, axis=1).max())  # from the origin in any direction [m]
 
+    def box_corners(self, pos: np.ndarray, rot: np.ndarray, margin: float) -> np.ndarray:
+        """The eight world corners (8, 3) of the shape's bounding box in its own frame, grown by ``margin`` [m].
+
+        The box placed at ``pos`` and turned by ``rot``.
+        """
+        lo, hi = self.samples.min(axis=0) - margin, self.samples.max(axis=0) + margin
+        local = np.array([np.where(np.array(s, dtype=bool), hi, lo) for s in np.ndindex(2, 2, 2)])
+        return local @ np.asarray(rot, dtype=float).T + pos
+
     @property
     def search_radius(self) -> float:
         """Distance [m] from a tracked object's predicted position within which the estimator looks for its points.

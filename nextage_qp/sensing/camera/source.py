@@ -27,12 +27,13 @@ import numpy as np
 from nextage_qp.errors import ConfigError
 from nextage_qp.geometry import Pose, pose_vector
 from nextage_qp.sensing.camera.estimate import MIN_SUPPORT, PARTLY, SELF_PAD, Estimator, Frame
+from nextage_qp.sensing.camera.fit import pose_rot
 from nextage_qp.sensing.camera.frame import Detection
 from nextage_qp.sensing.camera.hands import UNSEEN, HandCameras, clear, hand_camera_names
 from nextage_qp.sensing.camera.render import RobotCamera, render_problem
 from nextage_qp.sensing.camera.seen import ObstacleMapper
 from nextage_qp.sensing.camera.shapes import ShapeModel
-from nextage_qp.sensing.camera.stereo import MARGIN, WHOLE_EVERY, StereoMatcher, check_pair, window
+from nextage_qp.sensing.camera.stereo import MARGIN, PAD, WHOLE_EVERY, StereoMatcher, check_pair, window
 from nextage_qp.sensing.camera.visible import occlusion
 from nextage_qp.sensing.perception_config import PerceptionConfig
 
@@ -42,6 +43,15 @@ of the object a fit does not see. Stereo fits degrade fast as the hand covers an
 hand's depth into the object's); rendered depth degrades slowly, which the partial views' gate absorbs
 (docs/perception.md)."""
 
+EDGE = 4
+"""Pixels around a rendered window beyond its objects' boxes (the estimator's neighbourhoods at its border)."""
+REST = 0.01
+"""An object's predicted bottom within this of the table plane [m] rests on it (``perception.rest_every``)."""
+STILL = 0.005
+"""An object whose last two fits lie at most this far apart [m] is still (``perception.rest_every``)."""
+NEAR = 0.05
+"""No part of the robot within this of an object [m] leaves it untouched until the next frame
+(``perception.rest_every``): farther than a hand travels in a few camera periods."""
 ALOFT = 0.03
 """A held object's predicted bottom this high [m] over the table plane or more is in the air (``perception.held_every``
 applies); lower, it may be meeting the table or what stands on it."""
@@ -89,10 +99,9 @@ class CameraMeasurer:
         shapes = {n: ShapeModel.of_body(model, n, self.symmetry[n]) for n in robot.object_names}
         self.estimator = Estimator(shapes, seed, SELF_PAD if stereo else 0)  # stereo cannot measure the plain links
         radii = {n: s.reach for n, s in shapes.items()}  # each shape's farthest point from its origin [m]
-        self.reach = {n: max(s.search_radius, radii[n]) + MARGIN
-                      for n, s in shapes.items()}  # the radius of each object's stereo window [m]
         self.windowed = 0  # frames rendered (or matched) in a window around the tracked objects
-        self.windows = cfg.window if cfg.window is not None else stereo  # perception.window's default
+        mapped = cfg.map or cfg.obstacles == "camera"  # the map takes whole frames
+        self.windows = cfg.window if cfg.window is not None else not mapped  # perception.window's default
         self.lost = True  # an object was out of view or missing in the last frame
         kinds = (*STATUSES, "partly_occluded", "part_fitted", "unoccluded", "unoccluded_ok")
         self.counts = {n: dict.fromkeys(kinds, 0) for n in robot.object_names}
@@ -119,6 +128,11 @@ class CameraMeasurer:
         self.hand_only = 0  # periods whose objects the hand cameras alone saw (no head frame)
         self.skipped = False  # the last period took no frame (``perception.held_every``): no dropout
         self.held_skipped = 0  # periods without a frame as every object was held
+        self.rest_skipped = 0  # periods without a frame as every object was at rest away from the robot
+        self.moved: dict[str, float | None] = {}  # per object, how far its last two fits lie apart [m]
+        from nextage_qp.robots.model import robot_bodies
+
+        self._robot_geoms = np.isin(model.geom_bodyid, list(robot_bodies(robot)))
         self.world = (model, data)  # for the map's score alone
 
     @property
@@ -145,6 +159,10 @@ class CameraMeasurer:
             self.held_skipped += 1
             return {}
         q = self.joints(t)
+        self.skipped = self.periods % self.cfg.rest_every != 0 and self._untouched(q, priors, held)
+        if self.skipped:  # every object at rest with the robot away from it: nothing moves it until the next frame
+            self.rest_skipped += 1
+            return {}
         hands: dict[str, Detection] | None = None  # the hand cameras' clean views, once asked
         if (self.hands is not None and self.by_hand and self.periods % WHOLE_EVERY and priors
                 and all(p is not None for p in priors.values())):
@@ -166,12 +184,41 @@ class CameraMeasurer:
                 self.partial.discard(name)
                 self.spread[name] = 1.0
         self.by_hand = hands is not None and 0 < len(hands) == len(priors)
+        for name, det in detections.items():  # how far each fit moved since the last (None: not fitted in both)
+            last = self.poses.get(name)
+            self.moved[name] = (float(np.linalg.norm(det.pose[:3] - last[:3]))
+                                if det.pose is not None and last is not None else None)
         self.poses = {name: det.pose for name, det in detections.items()}
         if self.mapper is not None and win is None and self.matcher is None:  # a whole frame: the map takes it
             self.mapper.update(frame, self.camera.own(), self.estimator.plane, self.poses, truth=self.world,
                                priors=priors)
         self.lost = any(det.status in ("out_of_view", "missing") for det in detections.values())
         return dict(self.poses)
+
+    def _untouched(self, q: np.ndarray, priors: Mapping[str, np.ndarray | None], held: Collection[str]) -> bool:
+        """Whether every object is tracked, resting on the table, still, and away from the robot at joints ``q``.
+
+        Resting: its predicted bottom within ``REST`` of the table plane; still: its last two fits ``STILL`` apart at
+        most; away: every geom of the robot's model at ``q`` (its bounding sphere) at least ``NEAR`` from the object's
+        shape at its prior (``perception.rest_every``). Never with an obstacle map (its frames are the map's).
+        """
+        plane = self.estimator.plane
+        if self.mapper is not None or self.lost or plane is None or not priors or held:
+            return False
+        normal, offset = plane
+        self.camera.pose(q)
+        kin, mine = self.camera.kin, self._robot_geoms
+        for name, prior in priors.items():
+            moved = self.moved.get(name)
+            if prior is None or moved is None or moved > STILL:
+                return False
+            if abs(float(normal @ prior[:3]) - offset + self.estimator.shapes[name].bottom) > REST:
+                return False
+            shape = self.estimator.shapes[name]
+            gap = shape.sdf_at(kin.geom_xpos[mine], prior[:3], pose_rot(prior)) - self.camera.model.geom_rbound[mine]
+            if float(gap.min()) < NEAR:
+                return False
+        return True
 
     def _aloft(self, priors: Mapping[str, np.ndarray | None], held: Collection[str]) -> bool:
         """Whether every object is tracked, held, and predicted at least ``ALOFT`` over the table plane.
@@ -242,15 +289,19 @@ class CameraMeasurer:
                rot: np.ndarray) -> tuple[int, int, int, int] | None:
         """The window rendered (and matched): around each tracked object, the region the estimator searches.
 
-        Grown by ``MARGIN``; the rest of the frame is no return.
+        Each object's bounding box (in its own frame, at its prior) grown by ``MARGIN``, and ``EDGE`` pixels (``PAD``
+        with stereo, whose matching paths start at the window's edges); the rest of the frame is no return.
 
         The whole image (None) every ``WHOLE_EVERY`` frames, while an object is not tracked, and after a frame that
         lost one (re-acquisition searches the whole view).
         """
         if self.lost or len(self.ms["render"]) % WHOLE_EVERY == 0 or any(p is None for p in priors.values()):
             return None
-        regions = [(p[:3], self.reach[n]) for n, p in priors.items() if p is not None]
-        return window(regions, self.camera.K, pos, rot, (self.spec.height, self.spec.width))
+        corners = [self.estimator.shapes[n].box_corners(p[:3], pose_rot(p), MARGIN)
+                   for n, p in priors.items() if p is not None]
+        points = np.concatenate(corners) if corners else np.empty((0, 3))
+        return window(points, self.camera.K, pos, rot, (self.spec.height, self.spec.width),
+                      PAD if self.matcher is not None else EDGE)
 
     def dump(self, folder: Path, frame: Frame, detections: Mapping[str, Any]) -> None:
         """Write the frame's RGB, depth, clusters and fitted poses (drawn over the RGB) as PNGs into ``folder``."""
@@ -292,6 +343,7 @@ class CameraMeasurer:
         med = {f"{k}_ms_median": float(np.median(v)) if v else None for k, v in self.ms.items()}
         return {"camera": self.camera.name, "depth": self.cfg.depth, "frames": len(self.ms["render"]), **med,
                 "windowed_frames": self.windowed, "held_skipped": self.held_skipped,
+                "rest_skipped": self.rest_skipped,
                 **({"map": self.mapper.report(*self.world)} if self.mapper is not None else {}),
                 **({"hand_cameras": {**self.hands.report(), "head_skipped": self.hand_only}}
                    if self.hands is not None else {}),

@@ -25,7 +25,7 @@ NEAREST = 0.3
 BLOCK = 5
 """Matching block size [px] (odd)."""
 MARGIN = 0.05
-"""Margin [m] beyond the region the estimator searches around a tracked object that its window shows."""
+"""Margin [m] around a tracked object's bounding box (in its own frame, at its predicted pose) that its window shows."""
 PAD = 16
 """Pixels around a window (the matcher's aggregation paths start at its edges) [px]."""
 WHOLE_EVERY = 15
@@ -120,24 +120,22 @@ class StereoMatcher:
         return depth
 
 
-def window(regions: list[tuple[np.ndarray, float]], K: np.ndarray, pos: np.ndarray, rot: np.ndarray,
-           size: tuple[int, int]) -> tuple[int, int, int, int] | None:
-    """Rows ``r0:r1`` and columns ``c0:c1`` of an image of ``size`` (H, W) that show every sphere of ``regions``.
+def window(corners: np.ndarray, K: np.ndarray, pos: np.ndarray, rot: np.ndarray,
+           size: tuple[int, int], pad: int = PAD) -> tuple[int, int, int, int] | None:
+    """Rows ``r0:r1`` and columns ``c0:c1`` of an image of ``size`` (H, W) that show every world point of ``corners``.
 
-    ``regions``: (centre [m], radius [m]) in the world; ``K``, ``pos``, ``rot``: the camera's intrinsics and pose.
-    Each sphere's bounding box is projected, the bounds padded by :data:`PAD` pixels and clipped to the image.
-    None (match the whole image): no regions, a sphere reaching behind the camera, or a window of
+    ``K``, ``pos``, ``rot``: the camera's intrinsics and pose. The points' bounds are padded by ``pad`` pixels and
+    clipped to the image. None (the whole image): no points, a point (nearly) behind the camera, or a window of
     :data:`WHOLE_SHARE` of the image or more.
     """
-    if not regions:
+    if len(corners) == 0:
         return None
-    corners = np.array([c + r * (2 * np.array(s) - 1) for c, r in regions for s in np.ndindex(2, 2, 2)], dtype=float)
-    rows, cols, z = project(corners, K, pos, rot)
+    rows, cols, z = project(np.asarray(corners, dtype=float).reshape(-1, 3), K, pos, rot)
     if np.any(z <= 0.05):
         return None
     h, w = size
-    r0, r1 = max(0, int(rows.min()) - PAD), min(h, int(rows.max()) + PAD + 1)
-    c0, c1 = max(0, int(cols.min()) - PAD), min(w, int(cols.max()) + PAD + 1)
+    r0, r1 = max(0, int(rows.min()) - pad), min(h, int(rows.max()) + pad + 1)
+    c0, c1 = max(0, int(cols.min()) - pad), min(w, int(cols.max()) + pad + 1)
     if r1 <= r0 or c1 <= c0 or (r1 - r0) * (c1 - c0) >= WHOLE_SHARE * h * w:
         return None
     return r0, r1, c0, c1
