@@ -124,3 +124,30 @@ def test_while_every_object_is_held_the_head_takes_every_held_every_th_frame() -
         assert source.report()["frames"] == 9
     finally:
         source.close()
+
+
+@needs_gl
+def test_while_every_object_rests_away_from_the_robot_the_head_takes_every_rest_every_th_frame() -> None:
+    from nextage_qp.sensing.camera.source import CameraMeasurer
+    from nextage_qp.sensing.perception_config import PerceptionConfig
+
+    cfg = PerceptionConfig(source="camera", rest_every=3, hand_cameras=())  # the head alone
+    robot, data, q = _scene(0.25)
+    resting = _truth(robot, data)
+    source = CameraMeasurer(cfg, robot, data, lambda t: q, seed=0)
+    try:
+        taken = [bool(source(0.1 * k, {"cube": resting})) for k in range(9)]
+        # two fits before it is known still, then every third period (no frame: nothing measured, no dropout)
+        assert taken == [True, True, True, False, False, True, False, False, True]
+        assert source.report()["rest_skipped"] == 4
+        assert all(source(1.0 + 0.1 * k, {"cube": resting}, held={"cube"}) for k in range(3))  # held: every period
+    finally:
+        source.close()
+    robot, data, q = _scene(0.03)  # a hand beside it
+    source = CameraMeasurer(cfg, robot, data, lambda t: q, seed=0)
+    try:
+        near = _truth(robot, data)
+        assert all(source(0.1 * k, {"cube": near}) for k in range(6))
+        assert source.report()["rest_skipped"] == 0
+    finally:
+        source.close()

@@ -27,6 +27,7 @@ from nextage_qp.sensing.camera.render import (
     MAX_RANGE,
     PLANE_HALF,
     RobotCamera,
+    depth_only,
     finite_planes,
     render_camera,
     render_problem,
@@ -218,6 +219,28 @@ def test_a_depth_camera_draws_infinite_planes_finite_and_sees_the_same_depth() -
     seen = images[0] < MAX_RANGE
     assert seen.mean() > 0.3
     np.testing.assert_allclose(images[1][seen], images[0][seen], rtol=1e-6, atol=1e-6)  # float32 rounding
+
+@needs_gl
+def test_a_depth_renderer_without_multisampling_sees_the_same_depth() -> None:
+    """The depth renderer's model (no multisampling, one quad per box face): the same depth but at silhouettes."""
+    _, robot, data, _ = aimed_scene("cylinder", 0.5, 0.3)
+    model = finite_planes(robot.model)
+    cam = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, "head_rgbd"))
+    images = []
+    for m in (model, depth_only(model)):
+        renderer = mujoco.Renderer(m, 240, 320)
+        renderer.enable_depth_rendering()
+        images.append(render_camera(renderer, data, cam, shown_option()))
+        renderer.close()
+    assert model.vis.quality.offsamples > 0 and depth_only(model).vis.quality.offsamples == 0
+    same = np.abs(images[1] - images[0]) < 1e-5
+    assert same.mean() > 0.999  # a few pixels on the robot's and the cube's silhouettes
+    edges = np.zeros_like(same)
+    jump = np.abs(np.diff(images[0], axis=1)) > 0.01
+    edges[:, 1:] |= jump
+    edges[:, :-1] |= jump
+    assert same[~edges].all()
+
 
 @needs_gl
 def test_a_tracked_object_is_rendered_in_a_window_with_the_whole_images_depth() -> None:
