@@ -61,6 +61,7 @@ class ShapeModel:
         self._packed = pack(parts)  # the parts as arrays, for the compiled signed distance
         self.samples = self._sample()
         self.normals = self._gradient(self.samples)
+        self.lean = np.einsum("ij,ij->i", self.normals, self.samples)  # each sample's normal . its position [m]
         self.bottom = float(self.samples[:, 2].min())  # lowest point below the origin [m] (< 0)
         self.radius = float(np.linalg.norm(self.samples[:, :2], axis=1).max())
         self.reach = float(np.linalg.norm(self.samples, axis=1).max())  # from the origin in any direction [m]

@@ -33,13 +33,13 @@ def facing(f: Frame, shape: ShapeModel, pos: np.ndarray, rot: np.ndarray) -> tup
 
     The cosine of a sample's normal to the line of sight is the area it shows the camera per unit of surface.
     """
-    pts = shape.samples @ rot.T + pos
-    sight = pts - f.cam_pos
-    lean = np.einsum("ij,ij->i", shape.normals @ rot.T, sight)
+    cam = (f.cam_pos - pos) @ rot  # the camera in the shape's frame
+    lean = shape.lean - shape.normals @ cam  # each normal along the line of sight to its sample
     front = lean < 0  # faces the camera
-    rows, cols, z = project(pts[front], f.K, f.cam_pos, f.cam_rot)
+    local = shape.samples[front]
+    rows, cols, z = project(local @ rot.T + pos, f.K, f.cam_pos, f.cam_rot)
     h, w = f.depth.shape
-    cos = -lean[front] / np.linalg.norm(sight[front], axis=1)
+    cos = -lean[front] / np.linalg.norm(local - cam, axis=1)
     return rows, cols, z, (z > 0) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w), cos
 
 
