@@ -1,7 +1,7 @@
 """Wall time of a default task run from the head camera against the same run from the truth, alternately.
 
     python tools/bench_camera.py [--runs 5] [--task push_cube --task dock_dumbbell] [--against COMMIT]
-                                 [--depth rendered|stereo] [--window] [--no-hands]
+                                 [--depth rendered|stereo] [--window] [--no-hands] [--scenes N]
 
 Each run is a fresh ``nextage-qp run configs/TASK.yaml --json`` (``MUJOCO_GL=egl`` unless set), from the truth
 (``perception.source=truth``, the config's default) and from the camera (``--set perception.source=camera``),
@@ -14,6 +14,12 @@ every run's wall and simulated time, then per task and arm the median and p99 of
 time per simulated second (a run from the camera may simulate longer: it stops to look where nothing sees the
 object), the head camera's median render and estimate time per frame, its frames, the hand cameras' frames and
 median time per frame, and the ratios of the medians, with the machine and the versions. No test asserts any of it.
+
+One default run is one scene and one draw of the camera's noise: where that draw costs the camera run an approach
+more than the truth's, its ratio is that approach's too. ``--scenes N`` times instead the first N episodes of each
+task's sweep (``configs/sweeps/TASK.yaml``, seed 0, one worker) from the truth and from the camera, alternately per
+run, and prints per episode's camera / truth ratios of wall time and of wall time per simulated second, their
+median, p10 and p90, and the ratio of the totals.
 """
 
 from __future__ import annotations
@@ -54,6 +60,45 @@ def run(tree: Path, task: str, sets: list[str]) -> dict[str, float]:
             "hand_ms": float(hands.get("ms_median") or np.nan)}
 
 
+def sweep(task: str, n: int, sets: list[str], out: Path) -> dict[int, tuple[float, float]]:
+    """Per episode of the first ``n`` of ``task``'s sweep (one worker): its wall and simulated time [s]."""
+    env = {**ENV, "PYTHONPATH": str(ROOT), "MUJOCO_GL": ENV.get("MUJOCO_GL", "egl")}
+    cmd = [sys.executable, "-m", "nextage_qp.cli", "sweep", f"configs/sweeps/{task}.yaml", "--n", str(n), "--seed",
+           "0", "--workers", "1", "--out", str(out), "--json", *sets]
+    done = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True)
+    if done.returncode not in (0, 1) or not (out / "episodes.jsonl").exists():
+        raise SystemExit(f"sweep {task} {' '.join(sets)} failed: {done.stderr.strip()[-300:]}")
+    times = {}
+    for line in (out / "episodes.jsonl").read_text().splitlines():
+        e = json.loads(line)
+        if e.get("result"):
+            times[int(e["index"])] = (float(e["result"]["wall_time_s"]), float(e["result"]["sim_time_s"]))
+    return times
+
+
+def scenes(tasks: list[str], n: int, runs: int, camera: list[str]) -> None:
+    """Time the first ``n`` episodes of each task's sweep from the truth and the camera (see the module doc)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        for task in tasks:
+            ratios: list[float] = []
+            per: list[float] = []
+            totals = [0.0, 0.0]
+            for i in range(runs):
+                truth = sweep(task, n, [], Path(tmp) / f"{task}-truth-{i}")
+                cam = sweep(task, n, camera, Path(tmp) / f"{task}-camera-{i}")
+                for k in sorted(set(truth) & set(cam)):
+                    (tw, ts), (cw, cs) = truth[k], cam[k]
+                    ratios.append(cw / tw)
+                    per.append((cw / cs) / (tw / ts))
+                    totals[0] += tw
+                    totals[1] += cw
+                print(f"run {i + 1}: {task}: {len(set(truth) & set(cam))} episodes from both", flush=True)
+            print(f"{task:14s} camera / truth over {len(ratios)} episodes: wall median {np.median(ratios):.2f} "
+                  f"(p10 {np.percentile(ratios, 10):.2f}, p90 {np.percentile(ratios, 90):.2f}); wall per simulated s "
+                  f"median {np.median(per):.2f}; totals {totals[1]:.0f} s / {totals[0]:.0f} s = "
+                  f"{totals[1] / totals[0]:.2f}")
+
+
 def _stat(values: list[float]) -> str:
     return f"median {np.median(values):.3f}, p99 {np.percentile(values, 99):.3f}"
 
@@ -67,10 +112,15 @@ def main() -> None:
                     help="the camera runs' perception.depth (default rendered)")
     ap.add_argument("--window", action="store_true", help="also time camera runs with perception.window=true")
     ap.add_argument("--no-hands", action="store_true", help="also time camera runs without the hand cameras")
+    ap.add_argument("--scenes", type=int, default=0,
+                    help="time the first N episodes of each task's sweep instead of its default run")
     args = ap.parse_args()
     camera = [*CAMERA, "--set", f"perception.depth={args.depth}"]
     tasks = args.task or ["push_cube", "dock_dumbbell"]
     print(f"machine: {json.dumps(machine())}; MUJOCO_GL={ENV.get('MUJOCO_GL', 'egl')}; depth {args.depth}")
+    if args.scenes > 0:
+        scenes(tasks, args.scenes, args.runs, camera)
+        return
     with tempfile.TemporaryDirectory() as old_dir:
         arms = {"truth": (ROOT, []), "camera": (ROOT, camera)}
         if args.window:

@@ -51,7 +51,9 @@ def residuals(shape: ShapeModel, points: np.ndarray, x: np.ndarray) -> np.ndarra
 
 def _both(shape: ShapeModel, points: np.ndarray, free: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Surface residuals of ``points``, then how deep the shape reaches into ``free`` space (seen through)."""
-    return np.concatenate([residuals(shape, points, x), np.minimum(residuals(shape, free, x), 0.0)])
+    r = residuals(shape, np.concatenate([points, free]) if len(free) else points, x)  # one call for both
+    r[len(points):] = np.minimum(r[len(points):], 0.0)
+    return r
 
 
 def fit(shape: ShapeModel, points: np.ndarray, x0: np.ndarray, free: np.ndarray | None = None,
