@@ -321,7 +321,15 @@ class Robot:
         Raises:
             UnknownNameError: A group names a body that is not in the scene.
         """
-        return collision_geoms(self, extra)
+        if extra:
+            return collision_geoms(self, extra)
+        m = self.model  # without extra groups, kept while the geoms' collision bits stay the same
+        key = m.geom_contype.tobytes() + m.geom_conaffinity.tobytes()
+        kept = self.__dict__.get("_collision_groups")
+        if kept is None or kept[0] != key:
+            kept = (key, collision_geoms(self))
+            self.__dict__["_collision_groups"] = kept
+        return dict(kept[1])
 
     @property
     def robot_groups(self) -> tuple[str, ...]:

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
-from nextage_qp.sensing.camera.pixels import backproject, project
+from nextage_qp.sensing.camera.pixels import backproject
 
 HIT = 0.85
 """Log-odds a voxel gains per frame in which a masked pixel's point falls in it."""
@@ -51,6 +51,9 @@ class VoxelMap:
         self.seen = np.zeros(self.shape, dtype=bool)
         idx = np.stack(np.meshgrid(*(np.arange(n) for n in self.shape), indexing="ij"), axis=-1).reshape(-1, 3)
         self.centres = self.lo + (idx + 0.5) * self.cell  # (N, 3), in the arrays' C order
+        self.axes = [self.lo[a] + (np.arange(n) + 0.5) * self.cell for a, n in enumerate(self.shape)]
+        """The centres' coordinates [m] along each axis of the grid."""
+        self._rays: tuple[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None  # _project's last answer
         self.frames = 0
         self._oriented: tuple[np.ndarray, tuple[Any, ...], list] | None = None  # oriented_boxes' last answer
 
@@ -101,12 +104,35 @@ class VoxelMap:
 
         The latter is NaN out of view, nearer than ``NEAR`` or where the pixel has no return.
         """
-        h, w = depth.shape
-        rows, cols, z = project(self.centres, K, pos, rot)
-        view = (z > NEAR) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        z, view, pixel = self._project(K, pos, rot, depth.shape)
         at = np.full(len(z), np.nan)
-        at[view] = depth[rows[view], cols[view]]
+        at[view] = depth.reshape(-1)[pixel]
         return z, at
+
+    def _project(self, K: np.ndarray, pos: np.ndarray, rot: np.ndarray,
+                 size: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per voxel its centre's depth along the camera's axis [m] and whether it is in view; the in-view ones' pixels.
+
+        As :func:`~nextage_qp.sensing.camera.pixels.project` of :attr:`centres`, by the grid's axes (a centre's camera
+        coordinates are a sum of one term per axis), and kept for the next frame from the same pose.
+        """
+        key = b"".join(np.ascontiguousarray(a, dtype=float).tobytes() for a in (K, pos, rot)) + str(size).encode()
+        if self._rays is not None and self._rays[0] == key:
+            return self._rays[1]
+        terms = [(x - pos[a])[:, None] * rot[a] for a, x in enumerate(self.axes)]  # (n_a, 3) each
+
+        def camera_axis(j: int) -> np.ndarray:  # every centre's camera coordinate j, in the arrays' C order
+            return (terms[0][:, None, None, j] + terms[1][None, :, None, j] + terms[2][None, None, :, j]).reshape(-1)
+
+        z = -camera_axis(2)
+        h, w = size
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cols = np.rint(K[0, 0] * camera_axis(0) / z + K[0, 2] - 0.5)
+            rows = np.rint(-K[1, 1] * camera_axis(1) / z + K[1, 2] - 0.5)
+            view = (z > NEAR) & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        pixel = rows[view].astype(int) * w + cols[view].astype(int)
+        self._rays = (key, (z, view, pixel))
+        return z, view, pixel
 
     def explain(self, centre: np.ndarray, radius: float) -> None:
         """The voxels whose centres lie within ``radius`` [m] of ``centre`` hold a known object, not an obstacle:
@@ -138,8 +164,9 @@ class VoxelMap:
 
     def region(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """Voxels whose centre lies in the box ``lo``-``hi`` [m]."""
-        inside = np.all((self.centres >= np.asarray(lo)) & (self.centres <= np.asarray(hi)), axis=1)
-        return inside.reshape(self.shape)
+        lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+        i, j, k = ((x >= lo[a]) & (x <= hi[a]) for a, x in enumerate(self.axes))
+        return i[:, None, None] & j[None, :, None] & k[None, None, :]
 
     def seen_share(self, lo: np.ndarray, hi: np.ndarray) -> float:
         """Share of the voxels in the box ``lo``-``hi`` [m] the map has observed (1 for an empty box)."""

@@ -330,9 +330,14 @@ def _face_points(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> np.ndarr
 
 def _in_geom(model: mujoco.MjModel, data: mujoco.MjData, g: int, points: np.ndarray, margin: float) -> np.ndarray:
     """Which points lie in geom ``g``'s bounding box (its own frame), grown by ``margin`` [m]."""
-    local = (points - data.geom_xpos[g]) @ data.geom_xmat[g].reshape(3, 3)
+    rot = data.geom_xmat[g].reshape(3, 3)
     centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
-    return np.all(np.abs(local - centre) <= half + margin, axis=1)
+    reach = np.abs(rot) @ (half + margin)  # the grown box's half-extents along the world's axes
+    mid = data.geom_xpos[g] + rot @ centre
+    out = np.all(np.abs(points - mid) <= reach + 1e-9, axis=1)  # within its world-aligned bounds: the candidates
+    local = (points[out] - data.geom_xpos[g]) @ rot
+    out[out] = np.all(np.abs(local - centre) <= half + margin, axis=1)
+    return out
 
 
 def _geom_top(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> float:
