@@ -1,7 +1,7 @@
 """Wall time of a default task run from the head camera against the same run from the truth, alternately.
 
     python tools/bench_camera.py [--runs 5] [--task push_cube --task dock_dumbbell] [--against COMMIT]
-                                 [--depth rendered|stereo] [--window] [--no-hands] [--scenes N]
+                                 [--depth rendered|stereo] [--window] [--no-hands] [--obstacles] [--scenes N]
 
 Each run is a fresh ``nextage-qp run configs/TASK.yaml --json`` (``MUJOCO_GL=egl`` unless set), from the truth
 (``perception.source=truth``, the config's default) and from the camera (``--set perception.source=camera``),
@@ -9,7 +9,8 @@ alternating so that the machine's drift affects both alike; with ``--against``, 
 (exported with ``git archive``) alternate with them too; ``--depth stereo`` makes every camera run's depth block
 matching on the head's RGB pair (the vision extra); ``--window`` adds camera runs with
 ``perception.window=true`` (a tracked object's frames rendered in a window around it), ``--no-hands`` camera runs
-without the hand cameras (``perception.hand_cameras=[]``), alternately too. Prints
+without the hand cameras (``perception.hand_cameras=[]``), alternately too; ``--obstacles`` gives every camera run
+the clutter only as the camera's map shows it (``perception.obstacles=camera``, for the clutter tasks). Prints
 every run's wall and simulated time, then per task and arm the median and p99 of the wall time and of the wall
 time per simulated second (a run from the camera may simulate longer: it stops to look where nothing sees the
 object), the head camera's median render and estimate time per frame, its frames, the hand cameras' frames and
@@ -112,12 +113,16 @@ def main() -> None:
                     help="the camera runs' perception.depth (default rendered)")
     ap.add_argument("--window", action="store_true", help="also time camera runs with perception.window=true")
     ap.add_argument("--no-hands", action="store_true", help="also time camera runs without the hand cameras")
+    ap.add_argument("--obstacles", action="store_true",
+                    help="camera runs plan with the camera's obstacle map (perception.obstacles=camera)")
     ap.add_argument("--scenes", type=int, default=0,
                     help="time the first N episodes of each task's sweep instead of its default run")
     args = ap.parse_args()
-    camera = [*CAMERA, "--set", f"perception.depth={args.depth}"]
+    camera = [*CAMERA, "--set", f"perception.depth={args.depth}",
+              *(["--set", "perception.obstacles=camera"] if args.obstacles else [])]
     tasks = args.task or ["push_cube", "dock_dumbbell"]
-    print(f"machine: {json.dumps(machine())}; MUJOCO_GL={ENV.get('MUJOCO_GL', 'egl')}; depth {args.depth}")
+    print(f"machine: {json.dumps(machine())}; MUJOCO_GL={ENV.get('MUJOCO_GL', 'egl')}; depth {args.depth}"
+          f"{'; obstacles from the camera' if args.obstacles else ''}")
     if args.scenes > 0:
         scenes(tasks, args.scenes, args.runs, camera)
         return
