@@ -53,6 +53,23 @@ def test_the_controllers_models_hold_no_clutter_the_physics_all_of_it(runner):
     assert set(runner.robot.collision_geoms()["clutter"]) == set(clutter.tolist())
 
 
+def test_a_robots_collision_groups_follow_its_geoms_collision_bits(runner):
+    """Kept between calls (a dict of its own each time), and made anew when a geom's collision bits change."""
+    physics, controlled = runner.robot, runner.controlled
+    first = physics.collision_geoms()
+    first["clutter"] = ()  # the caller's copy
+    assert physics.collision_geoms()["clutter"] and controlled.collision_geoms()["clutter"] != \
+        physics.collision_geoms()["clutter"]
+    g = physics.collision_geoms()["clutter"][0]
+    bits = physics.model.geom_contype[g], physics.model.geom_conaffinity[g]
+    physics.model.geom_contype[g] = physics.model.geom_conaffinity[g] = 0
+    try:
+        assert g not in physics.collision_geoms()["clutter"]
+    finally:
+        physics.model.geom_contype[g], physics.model.geom_conaffinity[g] = bits
+    assert g in physics.collision_geoms()["clutter"]
+
+
 def test_a_state_inside_a_clutter_piece_is_valid_for_the_controller_until_the_map_shows_it(runner):
     """The planner's validity check never reads a clutter body: only the boxes the camera gives block a state."""
     physics = runner.robot.model

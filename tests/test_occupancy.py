@@ -228,3 +228,28 @@ def test_never_seen_space_comes_as_clusters_but_for_the_shadow_of_what_the_mask_
     local = np.array(hidden) - centre
     turn = np.array([[np.cos(yaw), np.sin(yaw), 0.0], [-np.sin(yaw), np.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
     assert np.all(np.abs(turn @ local) <= half + 1e-9)
+
+
+def test_the_maps_voxels_land_on_the_pixels_a_pinhole_projection_gives_them() -> None:
+    """The map's projection by the grid's axes: each voxel centre's pixel and depth as pixels.project gives them."""
+    from nextage_qp.geometry import rot_of
+    from nextage_qp.sensing.camera.pixels import project
+
+    grid = VoxelMap(LO, HI, 0.02)
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        pos = np.array([0.0, 0.0, 0.1]) + rng.normal(0.0, 0.02, 3)
+        rot = _looking(np.array([1.0, 0.0, 0.0])) @ rot_of(rng.normal(0.0, 0.1, 3))
+        depth = rng.uniform(0.2, 1.5, (60, 80))
+        rows, cols, z = project(grid.centres, K, pos, rot)
+        view = (z > 0.05) & (rows >= 0) & (rows < 60) & (cols >= 0) & (cols < 80)
+        assert view.sum() > 100
+        want = np.full(len(z), np.nan)
+        want[view] = depth[rows[view], cols[view]]
+        got_z, got = grid._along_rays(depth, K, pos, rot)
+        np.testing.assert_allclose(got_z, z, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(got, want)
+        assert grid._along_rays(depth, K, pos, rot)[1] is not got  # the same pose again: a new frame's depths
+        lo, hi = LO + rng.uniform(0.0, 0.2, 3), HI - rng.uniform(0.0, 0.2, 3)
+        inside = np.all((grid.centres >= lo) & (grid.centres <= hi), axis=1).reshape(grid.shape)
+        np.testing.assert_array_equal(grid.region(lo, hi), inside)
