@@ -61,10 +61,10 @@ class PerceptionConfig(YamlModel):
         "or more over the table, the head takes a frame every this many camera periods [count]: a held object's "
         "estimate follows the hands between frames (nextage_qp.estimation.held); 1: every period.")
     rest_every: int = Field(
-        default=3, ge=1, le=100, description="While every tracked object rests on the table, still over its last two "
-        "fits, with no part of the robot within 10 cm of it, the head takes a frame every this many camera periods "
-        "[count]: nothing moves it between frames (nextage_qp.sensing.camera.source); never with an obstacle map; 1: "
-        "every period.")
+        default=3, ge=1, le=100, description="While every tracked object rests on the table, its last two fits at most "
+        "5 mm apart, with no geom of the robot (its bounding sphere) within 5 cm of it, the head takes a frame every "
+        "this many camera periods [count]: nothing moves it between frames (nextage_qp.sensing.camera.source); never "
+        "with an obstacle map; 1: every period.")
     map: bool = Field(default=False, description="Build an occupancy map of the obstacles from the camera's whole "
                       "frames (source: camera) and report it, scored against the scene "
                       "(nextage_qp.sensing.camera.seen); the phases plan with the declared obstacles.")

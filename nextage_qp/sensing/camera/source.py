@@ -50,8 +50,8 @@ REST = 0.01
 STILL = 0.005
 """An object whose last two fits lie at most this far apart [m] is still (``perception.rest_every``)."""
 NEAR = 0.05
-"""No part of the robot within this of an object [m] leaves it untouched until the next frame
-(``perception.rest_every``): farther than a hand travels in a few camera periods."""
+"""No geom of the robot (its bounding sphere) within this of an object [m] leaves it untouched until the next frame
+(``perception.rest_every``)."""
 ALOFT = 0.03
 """A held object's predicted bottom this high [m] over the table plane or more is in the air (``perception.held_every``
 applies); lower, it may be meeting the table or what stands on it."""
