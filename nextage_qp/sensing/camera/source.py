@@ -126,7 +126,7 @@ class CameraMeasurer:
         self.periods = 0  # frame periods
         self.by_hand = False  # the last period's every object came from a hand camera's clean view
         self.hand_only = 0  # periods whose objects the hand cameras alone saw (no head frame)
-        self.skipped = False  # the last period took no frame (``perception.held_every``): no dropout
+        self.skipped = False  # the last period took no frame (``held_every``, ``rest_every``): no dropout
         self.held_skipped = 0  # periods without a frame as every object was held
         self.rest_skipped = 0  # periods without a frame as every object was at rest away from the robot
         self.moved: dict[str, float | None] = {}  # per object, how far its last two fits lie apart [m]
@@ -209,12 +209,11 @@ class CameraMeasurer:
         self.camera.pose(q)
         kin, mine = self.camera.kin, self._robot_geoms
         for name, prior in priors.items():
-            moved = self.moved.get(name)
+            moved, shape = self.moved.get(name), self.estimator.shapes[name]
             if prior is None or moved is None or moved > STILL:
                 return False
-            if abs(float(normal @ prior[:3]) - offset + self.estimator.shapes[name].bottom) > REST:
+            if abs(float(normal @ prior[:3]) - offset + shape.bottom) > REST:
                 return False
-            shape = self.estimator.shapes[name]
             gap = shape.sdf_at(kin.geom_xpos[mine], prior[:3], pose_rot(prior)) - self.camera.model.geom_rbound[mine]
             if float(gap.min()) < NEAR:
                 return False
