@@ -120,7 +120,7 @@ class CameraMeasurer:
         self.spread: dict[str, float] = {}
         """The latest frame's fits' noise relative to a clear view's (``perception.cover_spread``)."""
         self.cover_spread = COVER_SPREAD[cfg.depth] if cfg.cover_spread is None else cfg.cover_spread
-        self.mapper = ObstacleMapper(robot, radii, places) if cfg.map or cfg.obstacles == "camera" else None
+        self.mapper = ObstacleMapper(robot, radii, places) if mapped else None
         names = hand_camera_names(robot, cfg.hand_cameras, source) if cfg.hand_cameras is not None or not stereo else ()
         self.hands = HandCameras(names, robot, shapes, seed) if names else None
         self.periods = 0  # frame periods
@@ -206,15 +206,18 @@ class CameraMeasurer:
         if self.mapper is not None or self.lost or plane is None or not priors or held:
             return False
         normal, offset = plane
-        self.camera.pose(q)
-        kin, mine = self.camera.kin, self._robot_geoms
         for name, prior in priors.items():
-            moved, shape = self.moved.get(name), self.estimator.shapes[name]
+            moved = self.moved.get(name)
             if prior is None or moved is None or moved > STILL:
                 return False
-            if abs(float(normal @ prior[:3]) - offset + shape.bottom) > REST:
+            if abs(float(normal @ prior[:3]) - offset + self.estimator.shapes[name].bottom) > REST:
                 return False
-            gap = shape.sdf_at(kin.geom_xpos[mine], prior[:3], pose_rot(prior)) - self.camera.model.geom_rbound[mine]
+        self.camera.pose(q)  # the robot's geoms at q: only once every object rests still
+        kin, mine = self.camera.kin, self._robot_geoms
+        for name, prior in priors.items():
+            assert prior is not None
+            gap = (self.estimator.shapes[name].sdf_at(kin.geom_xpos[mine], prior[:3], pose_rot(prior))
+                   - self.camera.model.geom_rbound[mine])
             if float(gap.min()) < NEAR:
                 return False
         return True
