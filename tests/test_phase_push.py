@@ -48,6 +48,29 @@ def test_push_fans_out_to_the_nearest_reachable_direction_and_refuses_when_there
         make("push", frame="left_tool", object="cube", target="cube_target").start(view)
 
 
+@pytest.mark.parametrize("square", [0.06, 0.0])
+def test_a_slanted_first_push_stops_short_and_finishes_from_straight_behind(square):
+    """Out of reach straight behind where it starts, the cube is pushed from 45 deg off its line; `square` short of
+    the target (where the straight approach is in reach) the tool approaches again along the line, and that
+    approach is no attempt. With `square` 0 the slanted push goes all the way."""
+    view = push_view()
+    view.reach = lambda targets: abs(yaw_of(targets[0].rot)) > 0.7 or view.bodies["cube"].pos[0] > 0.55
+    phase = make("push", frame="left_tool", object="cube", target="cube_target", square=square)
+    phase.start(view)
+    assert abs(phase.info["direction"][1]) == pytest.approx(np.sin(0.7854), abs=1e-4)  # slanted: 45 deg
+    dists = []
+    push = pushed_along_the_tool_face(view)
+    run_until_done(phase, view, each=lambda c: (push(c), dists.append(
+        float(np.linalg.norm(view.bodies["cube"].pos[:2] - [0.70, 0.0])) if phase.stage == "transit" else 1.0)))
+    if square:
+        assert phase.info["squared"] == 1 and phase.info["attempts"] == 1  # the straight approach is no attempt
+        assert abs(phase.info["direction"][1]) < 0.1  # the second approach: along the line from where it stopped
+        assert min(dists) == pytest.approx(square, abs=0.003)  # it stopped `square` out, then approached again
+    else:
+        assert "squared" not in phase.info and min(dists) > 0.3  # no approach after the first: none stopped short
+    assert phase.info["object_error_xy_m"] <= 0.002
+
+
 def knocked_aside_after_the_first_push(view, phase, dy=0.006):
     push, knocked = pushed_along_the_tool_face(view), []
 

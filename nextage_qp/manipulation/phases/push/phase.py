@@ -166,6 +166,8 @@ class Push(Phase):
     z_bias: float  # the push height's integral correction [m]
     blind_m: float  # how far the tool pushed unseen [m]
     blind_stop: bool  # the push stopped to look, not to be judged
+    slanted: bool  # the first push's approach deviates more than correction_fan from its line: it stops `square` out
+    square_stop: bool  # the push stopped to approach again square behind the object, not to be judged
     last_obj: np.ndarray | None  # the object's last planar position [m]
     obj_v: np.ndarray  # low-pass planar velocity of the object [m/s]
     hold_from: float  # when the hold began [s]
@@ -249,6 +251,8 @@ class Push(Phase):
         self.d, self.lift, self.goal_yaw, self.planned, self.push_z = plan[:5]
         if self.approaches == 1:
             self.raised = plan.raised
+            square = c.square > 0 and not self.info.get("squared")  # once: the square approach is no slanted one
+            self.slanted = square and abs(angle2(self.d, d_goal)) > c.correction_fan + 1e-6
         self.info["direction"] = self.d.round(4).tolist()
         self.stage, self.lifting = Stage.TRANSIT, True
 
@@ -351,7 +355,9 @@ class Push(Phase):
         self._turn_tool(view)
         d, n = self.d, np.array([-self.d[1], self.d[0]])
         remaining = float((tgt - obj)[:2] @ d)
-        stop = remaining <= (c.standoff if self.approaches == 1 and self.nudges == 0 else 0.2 * c.tolerance)
+        first = self.approaches == 1 and self.nudges == 0
+        self.square_stop = first and self.slanted and self.touched and dist <= c.square
+        stop = self.square_stop or remaining <= (c.standoff if first else 0.2 * c.tolerance)
         blind = self.blind_m > c.blind or unseen > BLIND_S  # pushed unseen too far or long
         self.blind_stop = not stop and self.touched and blind  # stop and look
         if stop or self.blind_stop:
@@ -412,6 +418,9 @@ class Push(Phase):
             self._begin_push(touched=True)
             return self._command(allow=True)
         obj, tgt, err = self._planar(view)
+        if self.square_stop:  # the slanted push's end: approach again from behind the object's line, no new attempt
+            self.next_d = unit2((tgt - obj)[:2])
+            return self._start_retreat(final=False)
         self.info["object_error_xy_m"] = err
         e = (tgt - obj)[:2]
         verdict = judge(e, self.d, c, self.nudges, self.approaches)
@@ -542,6 +551,9 @@ class Push(Phase):
             self.blind_stop = False
         if self.final:
             return self._command(allow=False, done=view.settled())
+        if self.square_stop:  # (a look after it may have judged it instead: then it is an attempt)
+            self.square_stop, self.approaches, self.full = False, self.approaches - 1, True
+            self.info["squared"] = 1
         self._approach(view, self.next_d, full=self.full)
         if self.plan_failed and not self.full:  # no reachable side within the correction fan: try the whole fan
             self.approaches -= 1
