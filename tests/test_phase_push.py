@@ -48,11 +48,12 @@ def test_push_fans_out_to_the_nearest_reachable_direction_and_refuses_when_there
         make("push", frame="left_tool", object="cube", target="cube_target").start(view)
 
 
-@pytest.mark.parametrize("square", [0.06, 0.0])
-def test_a_slanted_first_push_stops_short_and_finishes_from_straight_behind(square):
+@pytest.mark.parametrize(("square", "squares"), [(0.06, True), (0.0, False), (0.2, False)])
+def test_a_slanted_first_push_stops_short_and_finishes_from_straight_behind(square, squares):
     """Out of reach straight behind where it starts, the cube is pushed from 45 deg off its line; `square` short of
     the target (where the straight approach is in reach) the tool approaches again along the line, and that
-    approach is no attempt. With `square` 0 the slanted push goes all the way."""
+    approach is no attempt. With `square` 0, or a cube starting within twice `square` (0.37 m < 0.4 m), the slanted
+    push goes all the way."""
     view = push_view()
     view.reach = lambda targets: abs(yaw_of(targets[0].rot)) > 0.7 or view.bodies["cube"].pos[0] > 0.55
     phase = make("push", frame="left_tool", object="cube", target="cube_target", square=square)
@@ -62,7 +63,7 @@ def test_a_slanted_first_push_stops_short_and_finishes_from_straight_behind(squa
     push = pushed_along_the_tool_face(view)
     run_until_done(phase, view, each=lambda c: (push(c), dists.append(
         float(np.linalg.norm(view.bodies["cube"].pos[:2] - [0.70, 0.0])) if phase.stage == "transit" else 1.0)))
-    if square:
+    if squares:
         assert phase.info["squared"] == 1 and phase.info["attempts"] == 1  # the straight approach is no attempt
         assert abs(phase.info["direction"][1]) < 0.1  # the second approach: along the line from where it stopped
         assert min(dists) == pytest.approx(square, abs=0.003)  # it stopped `square` out, then approached again

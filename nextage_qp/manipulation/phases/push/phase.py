@@ -251,7 +251,8 @@ class Push(Phase):
         self.d, self.lift, self.goal_yaw, self.planned, self.push_z = plan[:5]
         if self.approaches == 1:
             self.raised = plan.raised
-            square = c.square > 0 and not self.info.get("squared")  # once: the square approach is no slanted one
+            far = self._planar(view)[2] > 2 * c.square  # nearer, a slanted push would stop almost where it starts
+            square = c.square > 0 and far and not self.info.get("squared")  # once: the square approach is not slanted
             self.slanted = square and abs(angle2(self.d, d_goal)) > c.correction_fan + 1e-6
         self.info["direction"] = self.d.round(4).tolist()
         self.stage, self.lifting = Stage.TRANSIT, True

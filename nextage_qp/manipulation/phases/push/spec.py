@@ -109,8 +109,9 @@ class PushSpec(Spec):
                             description="The first push stops this short of the target; a short push aimed from "
                                         "the side the error then points to finishes the job [m].")
     square: float = Field(default=0.06, ge=0, le=0.5,
-                          description="A first push whose reachable approach deviates more than correction_fan from "
-                                      "its line to the target stops this far [m] from the target, and the tool "
+                          description="A first push from more than twice this far whose reachable approach "
+                                      "deviates more than correction_fan from its line to the target stops this far "
+                                      "[m] from the target, and the tool "
                                       "approaches again from straight behind the object's line then (no new attempt): "
                                       "a long slanted push leaves an error across the line that only a sideways "
                                       "correction removes. 0: the slanted push goes all the way.")
