@@ -257,6 +257,23 @@ class Push(Phase):
         self.info["direction"] = self.d.round(4).tolist()
         self.stage, self.lifting = Stage.TRANSIT, True
 
+    def _square_reachable(self, view: View, obj: np.ndarray, tgt: np.ndarray) -> bool:
+        """Whether a tool reaches an approach within ``correction_fan`` of the object's line to the target from here.
+
+        Asked once, where a slanted first push would stop ``square`` short: stopped where no square approach is in
+        reach, the object would be left short with only slanted sides to push it from.
+        """
+        c = self.spec
+        wanted = unit2((tgt - obj)[:2])
+        fan = tuple(a for a in c.fan if a <= c.correction_fan)
+        for frame in (self.frame, *c.other_frames):
+            target = functools.partial(self._target, frame=frame)
+            tool = view.commanded_pose(frame).pos
+            if plan_approach(view, c, tool, wanted, fan, target, higher=self.raised) is not None:
+                return True
+        self.info["square_unreachable"] = 1
+        return False
+
     def _command(self, allow: bool, done: bool = False) -> Command:
         target = self._target(self.sp.pos.copy(), self.tool_yaw)
         return Command((target,), allow=frozenset({self.spec.object}) if allow else frozenset(), done=done)
@@ -323,6 +340,7 @@ class Push(Phase):
     def _begin_push(self, touched: bool) -> None:
         self.stage, self.v, self.touched, self.bias, self.pressed = Stage.PUSH, 0.0, touched, 0.0, False
         self.blind_m, self.blind_stop = 0.0, False  # how far the tool pushed unseen [m]; whether it stopped to look
+        self.square_stop = False  # whether it stopped to approach again square behind the object
         self.contact.restart()  # the last push's contact is stale: _felt reads it before this push's first reading
         self.last_obj: np.ndarray | None = None
         self.obj_v = np.zeros(2)
@@ -357,7 +375,9 @@ class Push(Phase):
         d, n = self.d, np.array([-self.d[1], self.d[0]])
         remaining = float((tgt - obj)[:2] @ d)
         first = self.approaches == 1 and self.nudges == 0
-        self.square_stop = first and self.slanted and self.touched and dist <= c.square
+        if first and self.slanted and self.touched and dist <= c.square:  # stop here only if the arm reaches behind
+            self.square_stop = self._square_reachable(view, obj, tgt)
+            self.slanted = self.square_stop  # else the slanted push goes all the way
         stop = self.square_stop or remaining <= (c.standoff if first else 0.2 * c.tolerance)
         blind = self.blind_m > c.blind or unseen > BLIND_S  # pushed unseen too far or long
         self.blind_stop = not stop and self.touched and blind  # stop and look
