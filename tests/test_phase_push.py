@@ -72,6 +72,18 @@ def test_a_slanted_first_push_stops_short_and_finishes_from_straight_behind(squa
     assert phase.info["object_error_xy_m"] <= 0.002
 
 
+def test_a_slanted_push_goes_all_the_way_where_no_square_approach_is_in_reach():
+    """Reached only at a slant all the way to the target, the push does not stop `square` short (the object would be
+    left there with slanted sides alone): it asks once, then goes on."""
+    view = push_view(reach=lambda targets: abs(yaw_of(targets[0].rot)) > 0.7)
+    phase = make("push", frame="left_tool", object="cube", target="cube_target", square=0.06)
+    phase.start(view)
+    push = pushed_along_the_tool_face(view)
+    run_until_done(phase, view, each=push)
+    assert phase.info["square_unreachable"] == 1 and "squared" not in phase.info
+    assert phase.info["attempts"] == 1 and phase.info["object_error_xy_m"] <= 0.002
+
+
 def knocked_aside_after_the_first_push(view, phase, dy=0.006):
     push, knocked = pushed_along_the_tool_face(view), []
 

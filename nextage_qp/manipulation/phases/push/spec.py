@@ -109,14 +109,12 @@ class PushSpec(Spec):
                             description="The first push stops this short of the target; a short push aimed from "
                                         "the side the error then points to finishes the job [m].")
     square: float = Field(default=0.0, ge=0, le=0.5,
-                          description="A first push from more than twice this far whose reachable approach "
-                                      "deviates more than correction_fan from its line to the target stops this far "
-                                      "[m] from the target, and the tool "
-                                      "approaches again from straight behind the object's line then (no new attempt): "
-                                      "a long slanted push leaves an error across the line that only a sideways "
-                                      "correction removes. Only where a tool reaches an approach within correction_fan of the "
-                                      "line there (else the slanted push goes on). 0: off, the slanted push goes all "
-                                      "the way.")
+                          description="A first push from more than twice this far whose reachable approach deviates "
+                                      "more than correction_fan from its line to the target stops this far [m] from "
+                                      "the target, where a tool reaches an approach within correction_fan of the "
+                                      "line, and the tool approaches again from straight behind the object's line "
+                                      "(no new attempt): a long slanted push leaves an error across the line that "
+                                      "only a sideways correction removes. 0: off, the slanted push goes all the way.")
     blind: float = Field(default=0.12, gt=0, le=5.0,
                          description="Longest push no camera sees (the hand hides the object) [m]: it then stops, "
                                      "looks, and goes on from where the object is (not a new attempt).")
