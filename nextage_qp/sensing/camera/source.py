@@ -37,6 +37,10 @@ from nextage_qp.sensing.camera.stereo import MARGIN, PAD, WHOLE_EVERY, StereoMat
 from nextage_qp.sensing.camera.visible import occlusion
 from nextage_qp.sensing.perception_config import PerceptionConfig
 
+FIT_NOISE = {"rendered": 0.001, "stereo": 0.002}
+"""Default ``perception.noise_pos_m`` per depth source [m]: the position noise the filter assumes of a clear view's fit.
+A rendered depth frame's fit of a resting or pushed object scatters about 0.8 mm RMS in 3-D (docs/perception.md); an
+assumed noise well above that makes the filter average a pushed object's slow sideways drift into a lag."""
 COVER_SPREAD = {"rendered": 0.0, "stereo": 8.0}
 """Default ``perception.cover_spread`` per depth source: the filter's assumed noise grows by 1 + spread x the share
 of the object a fit does not see. Stereo fits degrade fast as the hand covers an object (block matching smears the
