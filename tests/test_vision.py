@@ -592,6 +592,14 @@ def test_cover_spread_reaches_the_measurer_and_a_clear_view_barely_spreads() -> 
 
 
 @needs_gl
+@pytest.mark.parametrize(("sets", "assumed"), [([], 0.001), (["perception.noise_pos_m=0.003"], 0.003)])
+def test_the_filter_assumes_the_rendered_depth_fit_s_noise_unless_told(sets: list[str], assumed: float) -> None:
+    """With rendered depth the object filter assumes 1 mm per axis of a fit (``FIT_NOISE``), or what the config says."""
+    runner = Runner(load_config(PUSH, ["perception.source=camera", "perception.hand_cameras=[]", *sets]), str(PUSH))
+    assert runner.sensors is not None and runner.sensors.filter_noise == (assumed, 0.02)
+
+
+@needs_gl
 def test_a_prediction_too_high_is_fitted_where_the_object_rests() -> None:
     """A tracked object predicted 7 cm high (its top face taken for the bottom of one standing on it) is found where
     it rests on the table."""
