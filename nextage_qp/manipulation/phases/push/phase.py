@@ -563,7 +563,7 @@ class Push(Phase):
                 self.final = True
             elif self.approaches >= c.attempts and not (self.blind_stop and seen):
                 return self._finish(err, "" if seen else f": the camera has not seen {c.object} for "
-                                    f"{view.unseen_s(c.object):.0f} s, looking from aside")
+                                    f"{view.unseen_s(c.object):.1f} s, looking from aside")
             else:
                 self.next_d = unit2((tgt - obj)[:2])
                 if self.blind_stop and seen:  # it stopped to look, not to be judged: the next approach is no new one
