@@ -99,14 +99,14 @@ def attach_camera(cfg: Any, sensors: FaultySensors, robot: Any, data: mujoco.MjD
     """
     if source_of(cfg) != "camera":
         return
-    from nextage_qp.sensing.camera.source import FIT_NOISE, CameraMeasurer
+    from nextage_qp.sensing.camera.source import CameraMeasurer
 
     def joints(t: float) -> Any:  # the measured joints (the same draw the PD law and the phases get at t)
         return sensors.joints(t, robot.get_q(data), robot.get_qd(data))[0]
 
     pc = cfg.perception
-    noise = FIT_NOISE[pc.depth] if pc.noise_pos_m is None else pc.noise_pos_m
-    sensors.use_camera(CameraMeasurer(pc, robot, data, joints, cfg.seed, source, places), noise, pc.noise_rot_rad)
+    measurer = CameraMeasurer(pc, robot, data, joints, cfg.seed, source, places)
+    sensors.use_camera(measurer, measurer.noise_pos, pc.noise_rot_rad)
 
 
 def log_estimates(sensors: FaultySensors, recorder: Any) -> None:

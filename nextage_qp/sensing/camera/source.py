@@ -124,6 +124,8 @@ class CameraMeasurer:
         self.spread: dict[str, float] = {}
         """The latest frame's fits' noise relative to a clear view's (``perception.cover_spread``)."""
         self.cover_spread = COVER_SPREAD[cfg.depth] if cfg.cover_spread is None else cfg.cover_spread
+        self.noise_pos = FIT_NOISE[cfg.depth] if cfg.noise_pos_m is None else cfg.noise_pos_m
+        """The position noise [m] the filter assumes of a clear view's fit (``perception.noise_pos_m``)."""
         self.mapper = ObstacleMapper(robot, radii, places) if mapped else None
         names = hand_camera_names(robot, cfg.hand_cameras, source) if cfg.hand_cameras is not None or not stereo else ()
         self.hands = HandCameras(names, robot, shapes, seed) if names else None
