@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import mujoco
@@ -101,6 +103,11 @@ def axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
     x, y, z = axis
     k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
     return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+
+
+def path_length(points: Sequence[np.ndarray]) -> float:
+    """Length of the polyline through ``points`` [m]."""
+    return float(sum(np.linalg.norm(np.asarray(b) - np.asarray(a)) for a, b in itertools.pairwise(points)))
 
 
 def clamp(x: float, lo: float, hi: float) -> float:

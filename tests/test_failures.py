@@ -3,6 +3,7 @@
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from nextage_qp.loop.diagnosis import at_limits, limit_violation, saturated, what_holds
 from nextage_qp.manipulation.config import load_config
@@ -84,3 +85,17 @@ def test_saturated_joints_and_joints_at_a_limit_are_named():
     text = what_holds([("L5", "table", 173.0), ("L4", "cube", 0.2)], [("A", 0.9)], [("C", "lower")])
     assert text == "in contact: L5-table 173 N; torque saturated: A 90 % of the phase; at a limit: C (lower)"
     assert what_holds([], [], []) == ""
+
+
+def test_a_phase_without_a_timeout_times_out_after_its_budget_and_says_so(tmp_path):
+    """The stalled move has no timeout: it gets twice its budget (the line at its speed, then a rest), and the
+    message says where the figure came from and which key sets it."""
+    path = tmp_path / "press.yaml"
+    path.write_text(PRESS.replace("    timeout: 2.0\n", "").replace("speed: 0.2", "speed: 0.02"))
+    result = Runner(load_config(path), str(path)).run()
+    record = result.phases[0]
+    budget = record["budget_s"]
+    assert 16.0 < budget < 19.0  # the hand's line of 0.33 m at 0.02 m/s, then 1 s to come to rest
+    assert record["timeout_s"] == pytest.approx(2 * budget, abs=0.1)
+    assert f"timed out after {record['timeout_s']:.3g} s of simulated time (unset: 2 x its budget of {budget:.1f} s, " \
+           "at least 10 s; phases[0].timeout sets it)" in result.error

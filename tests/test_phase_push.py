@@ -33,6 +33,27 @@ def test_push_plans_a_lifted_approach_then_pushes_the_object_onto_the_target():
     assert view.frames["left_tool"].pos[2] > 0.945  # retreated and lifted off the cube
 
 
+def test_a_push_without_a_timeout_gets_one_from_its_distances_and_speeds():
+    """Twice the budget: the transit, the push at its speeds and every further approach. The scripted push that
+    succeeds on its first approach takes less than the budget; a farther object or a slower push gets more time,
+    a timeout written in the spec is kept as it is."""
+    def budget(cube_x=0.33, **fields):
+        view = push_view()
+        view.bodies["cube"] = pose(cube_x, 0.0, 0.91)
+        phase = make("push", frame="left_tool", object="cube", target="cube_target", **fields)
+        phase.start(view)
+        return phase, view, phase.time_limit(view)
+
+    phase, view, (limit, first) = budget()
+    assert first is not None and limit == pytest.approx(max(10.0, 2 * first))
+    run_until_done(phase, view, each=pushed_along_the_tool_face(view))
+    assert phase.info["attempts"] == 1 and view.t < first
+    assert budget(cube_x=0.23)[2][1] > first + 0.1 / 0.05  # 10 cm more at push_speed, at least
+    assert budget(push_speed=0.025)[2][1] > first
+    assert budget(attempts=8)[2][1] > first
+    assert budget(timeout=5.0)[2] == (5.0, None)
+
+
 def test_push_fans_out_to_the_nearest_reachable_direction_and_refuses_when_there_is_none():
     view = push_view(reach=lambda targets: abs(yaw_of(targets[0].rot)) > 0.1)  # the straight line is out of reach
     phase = make("push", frame="left_tool", object="cube", target="cube_target")

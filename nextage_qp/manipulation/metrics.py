@@ -29,7 +29,10 @@ LIMIT_TOLERANCE = 1e-3
 
 @dataclass
 class PhaseRecord:
-    """Outcome of one phase: name, kind, status (done / failed / skipped / running), start and duration [s]."""
+    """Outcome of one phase: name, kind, status (done / failed / skipped / running), start, duration and timeout [s].
+
+    ``budget_s``: the budget a timeout the spec does not give was derived from (:meth:`Phase.budget`), else None.
+    """
 
     name: str
     kind: str
@@ -37,11 +40,15 @@ class PhaseRecord:
     start_s: float = 0.0
     duration_s: float = 0.0
     info: dict[str, Any] = field(default_factory=dict)
+    timeout_s: float | None = None
+    budget_s: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """The record as it appears in the result's ``phases`` list."""
         return {"name": self.name, "kind": self.kind, "status": self.status, "start_s": round(self.start_s, 3),
-                "duration_s": round(self.duration_s, 3), **self.info}
+                "duration_s": round(self.duration_s, 3),
+                **({} if self.timeout_s is None else {"timeout_s": round(self.timeout_s, 1)}),
+                **({} if self.budget_s is None else {"budget_s": round(self.budget_s, 1)}), **self.info}
 
 
 CONTACT_WATCH = 0.02

@@ -21,6 +21,7 @@ from typing import Literal, get_args
 import numpy as np
 
 from nextage_qp.errors import PhaseError
+from nextage_qp.geometry import path_length
 from nextage_qp.ik import FrameTarget
 from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import Setpoint, View
@@ -109,6 +110,12 @@ class PlannedRoute:
             return False
         self.vias[k] = [np.asarray(p) for p in path.path[1:]]
         return True
+
+    def length(self, start: np.ndarray) -> float:
+        """The route's length [m] for its first frame, from ``start`` through the waypoints as planned (0 before
+        :meth:`plan` succeeds): straight lines between them, however the joints go.
+        """  # noqa: D205
+        return path_length([start, *(p[0] for p in self.planned)])
 
     @property
     def done(self) -> bool:

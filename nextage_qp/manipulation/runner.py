@@ -29,6 +29,7 @@ from nextage_qp.manipulation.config import ManipulationConfig
 from nextage_qp.manipulation.joint_checks import check_angles
 from nextage_qp.manipulation.metrics import OutcomeMonitor, PhaseRecord, RunResult, summarize
 from nextage_qp.manipulation.phases import Phase, build, names_in
+from nextage_qp.manipulation.phases.base import DEFAULT_TIMEOUT, TIMEOUT_MARGIN
 from nextage_qp.manipulation.phases.grasp.spec import GraspSpec
 from nextage_qp.manipulation.phases.push.spec import FULL_ORIENT_JOINTS, PushSpec
 from nextage_qp.manipulation.placement import Placement, check_placement, free_spots
@@ -463,6 +464,8 @@ class Runner:
                 self._phase = (rec.name, spec.kind, self.sim.time)
                 clamped0, steps0 = self.sim.pd.saturated_ticks.copy(), self.sim.pd.ticks  # the phase's own, below
                 self._start(phase)
+                phase.timeout, rec.budget_s = phase.time_limit(view)
+                rec.timeout_s = phase.timeout
                 view.grip = phase.grip(view.grip)
                 while True:
                     command = phase.update(view)
@@ -472,15 +475,18 @@ class Runner:
                         on_tick(self, phase)
                     if command.done:
                         break
-                    if self.sim.time - rec.start_s > spec.timeout:
+                    if self.sim.time - rec.start_s > phase.timeout:
                         rec.info = dict(phase.info)
                         cause = phase.stalled(view)
                         held = self.ik.collision.violated(self.ik.model, HELD_SLACK) if self.ik.collision else []
                         held = ["; held by ik.collision_pairs: " + ", ".join(h.removeprefix("collision pair ")
                                                                              for h in held[:3])] if held else []
                         holds = self._what_holds(clamped0, steps0)
-                        raise PhaseError(f"phase {rec.name!r} ({spec.kind}) timed out after {spec.timeout:g} s "
-                                         f"of simulated time{': ' + cause if cause else ''}; "
+                        given = "" if rec.budget_s is None else (
+                            f" (unset: {TIMEOUT_MARGIN:g} x its budget of {rec.budget_s:.1f} s, at least "
+                            f"{DEFAULT_TIMEOUT:g} s; phases[{i}].timeout sets it)")
+                        raise PhaseError(f"phase {rec.name!r} ({spec.kind}) timed out after {phase.timeout:.3g} s "
+                                         f"of simulated time{given}{': ' + cause if cause else ''}; "
                                          f"last state: {_brief(phase.info)}"
                                          f"{''.join(held)}{'; ' + holds if holds else ''}", phase=rec.name)
                 rec.status, rec.duration_s, rec.info = "done", self.sim.time - rec.start_s, dict(phase.info)

@@ -12,6 +12,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator
 from typing import Any, ClassVar
 
+import numpy as np
 from pydantic import BaseModel, Field, model_validator
 
 from nextage_qp.errors import InfeasibleError, NextageQPError, PhaseError
@@ -23,6 +24,13 @@ from nextage_qp.manipulation.clamp import Clamp
 from nextage_qp.manipulation.context import Grip, View, refusal
 
 __all__ = ["MAX_SECONDS", "NameKind", "Phase", "Spec", "name_field"]
+
+DEFAULT_TIMEOUT = 10.0
+"""A phase's timeout [s] when none is given and its kind estimates no budget; the least timeout derived from one."""
+TIMEOUT_MARGIN = 2.0
+"""A phase without a ``timeout`` times out after this many times its budget (:meth:`Phase.budget`)."""
+SETTLE_S = 1.0
+"""Time [s] a budget allows for the robot to come to rest after a motion."""
 
 
 def plan_field() -> Any:
@@ -41,7 +49,11 @@ class Spec(YamlModel):
 
     kind: str
     name: str | None = Field(default=None, description="Label in progress and results (default: kind + index).")
-    timeout: float = Field(default=10.0, gt=0, le=MAX_SECONDS, description="Simulated time before the phase fails [s].")
+    timeout: float | None = Field(
+        default=None, gt=0, le=MAX_SECONDS,
+        description=f"Simulated time before the phase fails [s]. Unset: {TIMEOUT_MARGIN:g} times the phase's budget, "
+                    "the time its distances take at its speeds with every try it may make, worked out when it starts "
+                    f"(at least {DEFAULT_TIMEOUT:g} s; {DEFAULT_TIMEOUT:g} s for a kind that has no budget).")
 
     @model_validator(mode="after")
     def _object_is_not_its_own_goal(self) -> Spec:
@@ -105,6 +117,7 @@ class Phase(ABC):
     def __init__(self, spec: Any, name: str) -> None:
         self.spec, self.name = spec, name
         self.t0 = 0.0
+        self.timeout = DEFAULT_TIMEOUT if spec.timeout is None else float(spec.timeout)  # the runner's, at the start
         self.info: dict[str, Any] = {}
 
     @abstractmethod
@@ -114,6 +127,27 @@ class Phase(ABC):
     @abstractmethod
     def update(self, view: View) -> Command:
         """This tick's command; ``done=True`` ends the phase after the tick."""
+
+    def budget(self, view: View) -> float | None:
+        """The simulated time [s] the phase takes when every try it may make is used, from the distances it has to
+        cover and the speeds its spec gives; asked once, right after :meth:`start`. None (the default): no estimate.
+
+        A phase without a ``timeout`` fails after :data:`TIMEOUT_MARGIN` times this (:meth:`time_limit`), so a task
+        written once gets the time its scene needs on any robot: a farther target, a slower speed, more tries.
+        """  # noqa: D205
+        return None
+
+    def time_limit(self, view: View) -> tuple[float, float | None]:
+        """The phase's timeout [s] and the budget it was derived from (None: the spec's ``timeout``, or no budget).
+
+        Asked once, right after :meth:`start`.
+        """
+        if self.spec.timeout is not None:
+            return float(self.spec.timeout), None
+        budget = self.budget(view)
+        if budget is None or not np.isfinite(budget):
+            return DEFAULT_TIMEOUT, None
+        return min(MAX_SECONDS, max(DEFAULT_TIMEOUT, TIMEOUT_MARGIN * budget)), float(budget)
 
     def grip(self, current: Grip | None) -> Grip | None:
         """The clamp in force after this phase's start or latest update (default: unchanged)."""

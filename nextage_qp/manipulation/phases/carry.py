@@ -7,11 +7,11 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from nextage_qp.geometry import yaw_of
+from nextage_qp.geometry import path_length, yaw_of
 from nextage_qp.io.schema import YamlModel
 from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import Setpoint, View, resolve_point
-from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
+from nextage_qp.manipulation.phases.base import SETTLE_S, Phase, Spec, name_field
 
 Vec3 = tuple[float, float, float]
 
@@ -67,6 +67,11 @@ class Carry(Phase):
         self.nominal = list(self.goals)
         self.leg, self.leg_from, self.yaw = 0, (obj.copy(), yaw0), yaw0
         self.corrections = 0
+
+    def budget(self, view: View) -> float:
+        """The path through the waypoints at ``speed``, then coming to rest at it and at each correction."""
+        points = [self.sp.pos, *(g for g, _ in self.goals)]
+        return path_length(points) / self.spec.speed + (1 + self.spec.corrections) * SETTLE_S
 
     def update(self, view: View) -> Command:  # noqa: D102
         c = self.spec

@@ -29,7 +29,7 @@ from nextage_qp.geometry import rot_z
 from nextage_qp.ik import FrameTarget
 from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import View, reference
-from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
+from nextage_qp.manipulation.phases.base import SETTLE_S, Phase, Spec, name_field
 from nextage_qp.mobile.build import BASE_BODY
 from nextage_qp.mobile.drive_models import Pose2, relative
 from nextage_qp.mobile.drive_paths import Motion, around, dubins, polyline_motion
@@ -63,9 +63,6 @@ class DriveSpec(Spec):
     yaw_tolerance: float = Field(default=0.03, gt=0.0, le=1.0,
                                  description="Largest yaw error, by the odometry, at the end [rad].")
     cost: float = Field(default=20.0, gt=0.0, le=1e4, description="Weight of the base's pose target [1/m, 1/rad].")
-    timeout: float = Field(default=90.0, gt=0.0, le=3600.0,
-                           description="Simulated time before the phase fails [s] (longer than other phases': a "
-                                       "drive covers metres).")
 
 
 class Drive(Phase):
@@ -112,6 +109,14 @@ class Drive(Phase):
         self.info.update(path_m=round(sum(abs(leg.length) for leg in legs), 3),
                          planned_s=round(self.motion.duration, 2))
 
+    def budget(self, view: View) -> float:
+        """The planned motion's duration, the time it may then take to reach the goal, and coming to rest."""
+        return self.motion.duration + self._late() + SETTLE_S
+
+    def _late(self) -> float:
+        """How long [s] after the planned motion ends the base may still be short of its goal."""
+        return max(5.0, 0.5 * self.motion.duration)
+
     def update(self, view: View) -> Command:  # noqa: D102
         c = self.spec
         pose = view.base_pose()
@@ -124,7 +129,7 @@ class Drive(Phase):
         dist, turn = math.hypot(error.x, error.y), abs(error.yaw)
         self.info.update(error_m=round(dist, 4), yaw_error_rad=round(turn, 4))
         done = t >= self.motion.duration and dist <= c.tolerance and turn <= c.yaw_tolerance and view.settled()
-        if t > self.motion.duration + max(5.0, 0.5 * self.motion.duration) and not done:
+        if t > self.motion.duration + self._late() and not done:
             raise self.failure(f"the base is {dist * 1e3:.0f} mm and "
                              f"{math.degrees(turn):.1f} deg from its goal {self.motion.duration:.1f} s after the "
                              "plan ended (odometry)")

@@ -12,7 +12,7 @@ from nextage_qp.errors import InfeasibleError
 from nextage_qp.io.schema import YamlModel
 from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import Setpoint, View, frame_target, resolve_point
-from nextage_qp.manipulation.phases.base import Phase, Spec, name_field
+from nextage_qp.manipulation.phases.base import SETTLE_S, Phase, Spec, name_field
 
 Vec3 = tuple[float, float, float]
 Metres = Annotated[float, Field(ge=-10.0, le=10.0)]
@@ -90,6 +90,12 @@ class Move(Phase):
                 view.check_reach(t.frame, resolve_point(view, t)[0], t.frame)
             except InfeasibleError as exc:
                 raise self.failure(str(exc), InfeasibleError) from None
+
+    def budget(self, view: View) -> float:
+        """The farthest frame's line to its goal at ``speed``, then coming to rest."""
+        far = max(float(np.linalg.norm(resolve_point(view, t)[0] - sp.pos))
+                  for t, sp in zip(self.spec.targets, self.points, strict=True))
+        return far / self.spec.speed + SETTLE_S
 
     def update(self, view: View) -> Command:  # noqa: D102
         targets, done = [], True

@@ -34,7 +34,6 @@ The pads follow the setpoint through the grip's offsets and keep squeezing at th
 
 from __future__ import annotations
 
-import itertools
 import time
 from collections.abc import Callable
 from typing import Literal
@@ -42,10 +41,10 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from nextage_qp.geometry import clamp, nearest_equivalent, wrap, yaw_of
+from nextage_qp.geometry import clamp, nearest_equivalent, path_length, wrap, yaw_of
 from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import ROUND_HEADINGS, Setpoint, View
-from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec, name_field, plan_field
+from nextage_qp.manipulation.phases.base import MAX_SECONDS, SETTLE_S, Phase, Spec, name_field, plan_field
 from nextage_qp.manipulation.route import PlanMode
 
 CONTACT = 0.001
@@ -149,6 +148,15 @@ class Place(Phase):
         if c.plan != "never":
             self._route(view, obj)
 
+    def budget(self, view: View) -> float:
+        """The route's legs at ``speed`` and its turn at ``turn_rate``, the descent from ``hover`` at
+        ``descend_speed``, and a rest of ``settle`` at the hover and at each correction.
+        """  # noqa: D205
+        c = self.spec
+        turn = abs(wrap(self.goal_yaw - self.yaw)) / c.turn_rate
+        return (path_length([self.sp.pos, *self.legs]) / c.speed + turn + c.hover / c.descend_speed
+                + (1 + c.corrections) * (c.settle + SETTLE_S))
+
     def _route(self, view: View, obj: np.ndarray) -> None:
         """Check the route over the obstacles; where it is blocked, take the shortest free lower or sideways one.
 
@@ -207,7 +215,7 @@ class Place(Phase):
     def _length(self, obj: np.ndarray, height: float, via: np.ndarray | None) -> float:
         """A route's length [m]."""
         corners = [obj, *self._corners(obj, height, via)[0]]
-        return float(sum(np.linalg.norm(b - a) for a, b in itertools.pairwise(corners)))
+        return path_length(corners)
 
     def _check(self, view: View, legs: list[np.ndarray], yaws: list[float],
                at_goal: float) -> tuple[list[np.ndarray], list[float], list[np.ndarray]] | str:

@@ -10,7 +10,7 @@ from pydantic import Field
 from nextage_qp.ik import FrameTarget
 from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import Forces, Grip, Setpoint, View
-from nextage_qp.manipulation.phases.base import Phase, Spec, name_field, plan_field
+from nextage_qp.manipulation.phases.base import SETTLE_S, Phase, Spec, name_field, plan_field
 from nextage_qp.manipulation.phases.grasp.phase import SIDES, squeeze_force
 from nextage_qp.manipulation.route import PlanMode
 
@@ -76,6 +76,14 @@ class Release(Phase):
         # The IK's posture target stays the joints the release starts from: going back to the default posture at
         # once would swing the arms through the null space while the pads still touch the object.
         self.posture = view.joint_positions(view.joint_names())
+
+    def budget(self, view: View) -> float:
+        """Unloading by ``unload``, easing the squeeze, backing away by ``gap`` at ``open_speed`` and rising by
+        ``lift`` at ``speed``, then coming to rest.
+        """  # noqa: D205
+        c = self.spec
+        return (c.unload / UNLOAD_SPEED + MAX_EASE_TRAVEL / EASE_SPEED + c.gap / c.open_speed + c.lift / c.speed
+                + SETTLE_S)
 
     def _open(self, view: View) -> None:
         """The open stage's moves from where the pads are now: back away along the clamp axis, then rise.

@@ -8,7 +8,7 @@ from pydantic import Field, model_validator
 
 from nextage_qp.loop.servo import HOLD, Command
 from nextage_qp.manipulation.context import View
-from nextage_qp.manipulation.phases.base import MAX_SECONDS, Phase, Spec
+from nextage_qp.manipulation.phases.base import DEFAULT_TIMEOUT, MAX_SECONDS, Phase, Spec
 
 
 class WaitSpec(Spec):
@@ -24,8 +24,8 @@ class WaitSpec(Spec):
 
         A wait whose timeout ends first could only time out.
         """
-        if "timeout" not in self.model_fields_set:
-            object.__setattr__(self, "timeout", max(self.timeout, self.duration + 1.0))  # frozen model
+        if self.timeout is None:
+            object.__setattr__(self, "timeout", max(DEFAULT_TIMEOUT, self.duration + 1.0))  # frozen model
         elif self.timeout <= self.duration:
             raise ValueError(f"timeout ({self.timeout:g} s) must exceed duration ({self.duration:g} s)")
         return self

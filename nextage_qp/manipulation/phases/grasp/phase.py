@@ -31,7 +31,7 @@ from nextage_qp.geometry import rot_z, wrap, yaw_of
 from nextage_qp.ik import FrameTarget, RelativeTarget
 from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import ROUND_HEADINGS, Forces, Geometry, Grip, Poses, View
-from nextage_qp.manipulation.phases.base import Phase
+from nextage_qp.manipulation.phases.base import SETTLE_S, Phase
 from nextage_qp.manipulation.phases.grasp.spec import (
     APPROACH_TOL,
     GRIP_MARGIN,
@@ -274,6 +274,15 @@ class Grasp(Phase):
     def forces(self, view: View) -> list[float]:
         """Measured squeeze force on each pad [N]."""
         return [squeeze_force(view, f, s, self.lateral) for f, s in zip(self.frames, SIDES, strict=True)]
+
+    def budget(self, view: View) -> float:
+        """The approach route at its straight legs' speed with a rest at each waypoint, closing by ``gap`` and up to
+        ``max_squeeze`` at ``close_speed``, and the ``hold``.
+        """  # noqa: D205
+        c, route = self.spec, self.route
+        start = view.commanded_pose(route.waypoints[0][0].frame).pos if route.waypoints else np.zeros(3)
+        return (route.length(start) / route.speed + len(route.waypoints) * SETTLE_S
+                + (c.gap + c.max_squeeze) / c.close_speed + c.hold + SETTLE_S)
 
     def update(self, view: View) -> Command:  # noqa: D102
         c = self.spec

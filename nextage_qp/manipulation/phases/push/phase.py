@@ -44,7 +44,7 @@ from nextage_qp.geometry import Pose, angle2, clamp, rot_of, rot_z, rotate2, tur
 from nextage_qp.ik import FrameTarget
 from nextage_qp.loop.servo import Command
 from nextage_qp.manipulation.context import Poses, RunState, Setpoint, View
-from nextage_qp.manipulation.phases.base import Phase
+from nextage_qp.manipulation.phases.base import SETTLE_S, Phase
 from nextage_qp.manipulation.phases.push.approach import plan_approach, plan_handover
 from nextage_qp.manipulation.phases.push.contact import PushContact
 from nextage_qp.manipulation.phases.push.spec import (
@@ -133,6 +133,18 @@ def worth_correcting(error: np.ndarray, d: np.ndarray, tolerance: float, accept:
     return rest <= tolerance
 
 
+def push_time(distance: float, spec: PushSpec) -> float:
+    """Time [s] to push ``distance`` [m] at the push's speeds: ``push_speed`` (reached at ``PUSH_ACCEL``), falling in
+    proportion to the distance left over the last ``slow_down`` to ``creep_speed``, which covers the rest.
+    """  # noqa: D205
+    c = spec
+    creep_from = c.slow_down * c.creep_speed / c.push_speed  # where the falling speed meets creep_speed
+    near = min(distance, c.slow_down)
+    slowing = (c.slow_down / c.push_speed) * np.log(near / creep_from) if near > creep_from else 0.0
+    return (max(0.0, distance - c.slow_down) / c.push_speed + c.push_speed / PUSH_ACCEL + slowing
+            + min(near, creep_from) / c.creep_speed)
+
+
 class Push(Phase):
     """See the module docstring. Its state is declared here; only its own methods write it."""
 
@@ -196,9 +208,28 @@ class Push(Phase):
         if self.plan_failed:
             raise self._no_approach(view)
 
+    def budget(self, view: View) -> float:
+        """The first approach's transit and push, every further approach (``attempts``) as a retreat over the object,
+        an approach behind it and a push of ``accept``, and a stop to look every ``blind`` of the way (a camera the
+        hand hides), each at the spec's speeds. Nudges and recoveries from a knock are left to the margin.
+        """  # noqa: D205
+        c = self.spec
+        obj, _, travel = self._planar(view)
+        tool = view.commanded_pose(self.frame).pos
+        along = 2 * view.extent(c.object, np.array([*self.d, 0.0]))  # the object's depth along the push
+        tall = view.extent(c.object, np.array([0.0, 0.0, 1.0])) - (self.push_z - obj[2])  # its top over the tool
+        touch = c.approach / c.push_speed + 4 * GAP_TIME  # closing the gap slowly
+        rest = c.settle + SETTLE_S
+        first = (float(np.linalg.norm(self.lift - tool)) + self.planned.length(self.lift)) / c.speed \
+            + touch + push_time(travel, c) + rest
+        again = (2 * (max(0.0, tall) + c.clearance) + along + 2 * c.approach) / c.speed + touch \
+            + push_time(c.accept, c) + rest
+        looks = np.ceil(travel / c.blind) * (LOOK_S + SEEN_S + 2 * ASIDE / c.speed)
+        return first + (c.attempts - 1) * again + looks
+
     def stalled(self, view: View) -> str | None:  # noqa: D102
         tilted_s = self.info.get("tilt_pauses", 0) * view.dt  # ticks the push paused for a tipping object
-        if tilted_s < TIPPING_SHARE * self.spec.timeout:
+        if tilted_s < TIPPING_SHARE * self.timeout:
             return None
         tilt = np.degrees(self.spec.max_tilt)
         return (f"{self.spec.object} tipped under the tool for {tilted_s:.0f} s of it (tilted over {tilt:.0f} deg, the "
