@@ -52,8 +52,9 @@ class Spec(YamlModel):
     timeout: float | None = Field(
         default=None, gt=0, le=MAX_SECONDS,
         description=f"Simulated time before the phase fails [s]. Unset: {TIMEOUT_MARGIN:g} times the phase's budget, "
-                    "the time its distances take at its speeds with every try it may make, worked out when it starts "
-                    f"(at least {DEFAULT_TIMEOUT:g} s; {DEFAULT_TIMEOUT:g} s for a kind that has no budget).")
+                    "the time its distances take at its speeds with every approach or correction it may make, worked "
+                    f"out when it starts (at least {DEFAULT_TIMEOUT:g} s; {DEFAULT_TIMEOUT:g} s for a kind that has "
+                    "no budget).")
 
     @model_validator(mode="after")
     def _object_is_not_its_own_goal(self) -> Spec:
@@ -129,8 +130,8 @@ class Phase(ABC):
         """This tick's command; ``done=True`` ends the phase after the tick."""
 
     def budget(self, view: View) -> float | None:
-        """The simulated time [s] the phase takes when every try it may make is used, from the distances it has to
-        cover and the speeds its spec gives; asked once, right after :meth:`start`. None (the default): no estimate.
+        """The simulated time [s] the phase takes with every approach or correction it may make, from the distances it
+        has to cover and the speeds its spec gives; asked once, right after :meth:`start`. None (the default): none.
 
         A phase without a ``timeout`` fails after :data:`TIMEOUT_MARGIN` times this (:meth:`time_limit`), so a task
         written once gets the time its scene needs on any robot: a farther target, a slower speed, more tries.
