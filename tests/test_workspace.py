@@ -113,9 +113,12 @@ def test_robot_check_names_a_workspace_the_robot_cannot_work_in(tmp_path, old, n
 
 @needs_robosuite
 def test_robot_init_drafts_a_robot_ready_for_the_shared_push(tmp_path, capsys):
-    """The YuMi's model, never seen by a robot file: tools, a workspace, a ready home, and the push runs on it."""
+    """The YuMi's model, never seen by a robot file: tools, a workspace where a tool reaches behind an object from
+    every side, a ready home, and the push runs on it."""
     import mujoco
 
+    from nextage_qp.ik import QPIK, FrameTarget
+    from nextage_qp.ik.config import IKConfig
     from nextage_qp.robots.model import Robot
     from nextage_qp.robots.modelfile import self_contacts
 
@@ -134,6 +137,13 @@ def test_robot_init_drafts_a_robot_ready_for_the_shared_push(tmp_path, capsys):
     note = next(line for line in out.read_text().splitlines() if "manipulability" in line)
     values = [float(v) for v in out.read_text().split("each tool)")[1].split("\nkeyframes")[0].replace("#", "").split(",")]
     assert note and min(values) > 1e-3  # away from singularities
+    ik, home, ws = QPIK(robot, IKConfig()), robot.keyframe_q("home"), desc.workspace
+    for sx, sy in ((-1, -1), (-1, 1), (1, -1), (1, 1)):  # at each corner, a push's approach from every side
+        corner = np.array([ws.centre[0] + sx * ws.size[0], ws.centre[1] + sy * ws.size[1], ws.top + 0.035])
+        for facing in np.array([[1.0, 0, 0], [-1.0, 0, 0], [0, 1.0, 0], [0, -1.0, 0]]):
+            behind = corner - facing * (0.035 + 0.04)  # behind a 7 cm cube, the push's approach gap back
+            assert any(ik.solve([FrameTarget(tool, pos=behind, axis=np.array([1.0, 0, 0]), direction=facing)],
+                                home).pos_err_m <= 0.005 for tool in ("left_tool", "right_tool")), (corner, facing)
     result = Runner(load_config(ACROSS, [f"robot={out}"]), str(ACROSS)).run()
     assert result["success"], result.get("error")
     assert result["object_error_xy_m"] <= 0.005

@@ -8,7 +8,9 @@ draft in a task scene and adds what a table task needs, each derived from the mo
 * **push_face**: the lowest height over a :data:`CUBE` m cube's centre at which both tools, level, reach the work
   region's centre with their arms :data:`TABLE_GAP` off the table;
 * **workspace**: the table top's height (among a few below the shoulders) over which both tools, level and facing the
-  middle, reach the largest rectangle of a grid in front of the robot; the table stands clear of the robot's body;
+  middle, reach the best rectangle of a grid in front of the robot (:func:`_score`) where, besides, a tool reaches
+  behind an object from each of its four sides (a push's approach: corrections in every direction); the table stands
+  clear of the robot's body;
 * a **ready home**: both tools :data:`READY_HEIGHT` over the work region, level, facing each other, solved by the IK
   from the draft's home, kept only when free of self-contact; one the motors hold against gravity wins, then the least
   singular; its manipulability is reported.
@@ -54,6 +56,12 @@ MIN_TOP = 0.05
 """Lowest table top [m] tried (the floor is z = 0)."""
 PITCHES = (0.0, 0.2, 0.4)
 """Pitches [rad] of the tool (its face's normal tipped down) at which the push height is sought, level first."""
+DEEP_CELLS = 3
+"""Grid cells (:data:`GRID` apart) a work region spans each way before a larger area counts for more."""
+APPROACH_GAP = 0.04
+"""Gap [m] between a pushing tool and the object's face before a push (the push phase's default ``approach``)."""
+SIDE_FACINGS = tuple(np.array(f) for f in ((1.0, 0.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, -1.0, 0.0)))
+"""The directions along the table a tool faces behind an object, one per side, for the work region."""
 READY_HEIGHT = 0.20
 """The ready home holds the tools this far [m] over the table top."""
 TABLE_TOP = "table_top"
@@ -116,8 +124,8 @@ def tool_frames(m: mujoco.MjModel, d: mujoco.MjData, desc: RobotDescription) -> 
 
 
 def _largest_rectangle(ok: np.ndarray) -> tuple[int, int, int, int] | None:
-    """The largest all-True axis-aligned block of a boolean grid: (i0, i1, j0, j1), inclusive, or None."""
-    best, found = 0, None
+    """The best all-True axis-aligned block of a boolean grid (:func:`_score`): (i0, i1, j0, j1), inclusive, or None."""
+    best, found = (0, 0), None
     n, k = ok.shape
     for i0, j0 in itertools.product(range(n), range(k)):
         if not ok[i0, j0]:
@@ -128,9 +136,9 @@ def _largest_rectangle(ok: np.ndarray) -> tuple[int, int, int, int] | None:
             for j1 in range(j0, k):
                 if not ok[i0:i1 + 1, j0:j1 + 1].all():
                     break
-                area = (i1 - i0 + 1) * (j1 - j0 + 1)
-                if area > best:
-                    best, found = area, (i0, i1, j0, j1)
+                score = _score((i0, i1, j0, j1))
+                if score > best:
+                    best, found = score, (i0, i1, j0, j1)
     return found
 
 
@@ -159,33 +167,56 @@ def make_ready(desc: RobotDescription) -> Ready:
     ik = QPIK(robot, IKConfig())
     faces = {arm.tool: np.array([0.0, -1.0 if k == 0 else 1.0, 0.0]) for k, arm in enumerate(arms)}
 
+    last: dict[tuple[str, tuple[float, ...]], np.ndarray] = {}  # per tool and facing, the last point's solution
+
+    def reached(tool: str, p: np.ndarray, facing: np.ndarray) -> bool:
+        """From the last point's joints (the grid is walked row by row), else from home: no random restarts."""
+        key = (tool, tuple(facing))
+        target = [FrameTarget(tool, pos=p, axis=np.array([1.0, 0.0, 0.0]), direction=facing)]
+        for start in ([last[key]] if key in last else []) + [home]:
+            result = ik.solve(target, start, restarts=0)
+            if result.pos_err_m <= REACH_TOL:
+                last[key] = np.asarray(result.q)
+                return True
+        return False
+
     def reaches(points: list[np.ndarray]) -> bool:
-        return all(ik.solve([FrameTarget(tool, pos=p, axis=np.array([1.0, 0.0, 0.0]), direction=faces[tool])],
-                            home, restarts=0).pos_err_m <= REACH_TOL for tool, p in zip(faces, points, strict=False))
+        return all(reached(tool, p, faces[tool]) for tool, p in zip(faces, points, strict=False))
+
+    def every_side(p: np.ndarray) -> bool:  # a push's approach behind an object at p, from each side
+        return all(any(reached(tool, p - f * (CUBE / 2 + APPROACH_GAP), f) for tool in faces) for f in SIDE_FACINGS)
 
     own = robot_bodies(robot)
     arm_bodies = {b for arm in arms for b in descendants(m, int(m.jnt_bodyid[m.joint(arm.joints[1]).id]))}
     body_geoms = _colliding(m, sorted(own - arm_bodies))
     shoulders = float(np.mean([d.xanchor[m.joint(a.joints[0]).id][2] for a in arms]))
-    best = None
+    found: list[tuple | None] = [None, None]  # the largest region reached from every side; facing the middle only
     bases = [d.xanchor[m.joint(a.joints[0]).id] for a in arms]
     behind = min(float(b[0]) for b in bases)  # the table's edge where nothing but the arms stands low
     tops = [shoulders - drop for drop in DROPS]  # below the shoulders; else at the arms' bases (arms on the table)
     for top in [*tops, min(float(b[2]) for b in bases) - BASE_DROP]:
-        if top < MIN_TOP or (best is not None and top not in tops):
+        if top < MIN_TOP or (any(found) and top not in tops):
             continue
         under = [g for g in body_geoms if -_support(m, d, g, np.array([0.0, 0.0, -1.0])) < top + 0.05]
         edge = (max(_support(m, d, g, np.array([1.0, 0.0, 0.0])) for g in under) if under else behind) + EDGE_GAP
         xs = edge + GRID * np.arange(1, 13)
         ys = GRID * np.arange(-7, 8)
-        ok = np.zeros((len(xs), len(ys)), dtype=bool)
+        ok, sides = np.zeros((len(xs), len(ys)), dtype=bool), np.zeros((len(xs), len(ys)), dtype=bool)
         for i, x in enumerate(xs):
             for j, y in enumerate(ys):
                 p = np.array([x, y, top + CUBE / 2])
                 ok[i, j] = reaches([p, p])
-        rect = _largest_rectangle(ok)
-        if rect is not None and (best is None or _area(rect) > _area(best[0])):
-            best = (rect, top, edge, xs, ys)
+                sides[i, j] = ok[i, j] and every_side(p)
+        for k, grid in enumerate((sides, ok)):
+            rect, largest = _largest_rectangle(grid), found[k]
+            if rect is not None and (largest is None or _score(rect) > _score(largest[0])):
+                found[k] = (rect, top, edge, xs, ys)
+    best = found[0]
+    ready.every_side = best is not None and _score(best[0])[0] >= DEEP_CELLS
+    if not ready.every_side:  # none, or too shallow to push in: where both reach
+        best = found[1] or best
+        ready.notes.append(f"no region {(DEEP_CELLS - 1) * GRID * 100:.0f} cm across where a tool reaches behind an "
+                           "object from every side: the work region is where both tools reach, facing the middle")
     if best is None:
         ready.notes.append("no table height found where both tools reach a point of the table, level")
         return ready
@@ -231,9 +262,14 @@ def _lowest_push(ik, arms, faces, centre, top, home) -> tuple[float, float]:
     return CUBE / 4, 0.0
 
 
-def _area(rect: tuple[int, int, int, int]) -> int:
+def _score(rect: tuple[int, int, int, int]) -> tuple[int, int]:
+    """How good a work region is: its shorter side, up to :data:`DEEP_CELLS` cells, then its area in cells.
+
+    A strip one cell deep leaves no room to push across it, however long.
+    """
     i0, i1, j0, j1 = rect
-    return (i1 - i0 + 1) * (j1 - j0 + 1)
+    rows, cols = i1 - i0 + 1, j1 - j0 + 1
+    return min(rows, cols, DEEP_CELLS), rows * cols
 
 
 def _manipulability(robot, q: np.ndarray, frames: list[str]) -> list[float]:

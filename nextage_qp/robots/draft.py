@@ -48,6 +48,8 @@ class Ready:
     push_height: float = 0.0
     push_pitch: float = 0.0
     workspace: WorkspaceFile | None = None
+    every_side: bool = False
+    """A tool reaches behind an object from each of its sides all over the work region (else both tools reach it)."""
     home: dict[str, float] | None = None
     notes: list[str] = field(default_factory=list)
 
@@ -174,8 +176,10 @@ def draft_text(s: Survey, out: Path, ready: Ready | None = None) -> str:
                 f"arms {TABLE_GAP * 1e3:g} mm off the table [m]") if not ready.push_pitch else (
                 f"push_face: {{height: {ready.push_height:.4f}, pitch: {ready.push_pitch:g}}}  # the lowest both tools "
                 f"reach, tipped down, with the arms {TABLE_GAP * 1e3:g} mm off the table (level, none does) [m], [rad]")
+        where = ("where a tool reaches behind an object from every side" if ready.every_side
+                 else "where both tools, level, reach the table")
         lines += [face,
-                  "workspace:  # where both tools, level, reach the table (task configs with scene.frame: workspace)",
+                  f"workspace:  # {where} (task configs with scene.frame: workspace)",
                   f"  centre: [{ws.centre[0]!r}, {ws.centre[1]!r}]  # world x-y [m]",
                   f"  size: [{ws.size[0]!r}, {ws.size[1]!r}]  # half-extent [m]",
                   f"  top: {ws.top!r}  # the table top [m]",
