@@ -96,7 +96,12 @@ def test_robot_check_judges_the_workspace_reach_and_table():
     from nextage_qp.experiments.table_ready import check_at_table
 
     report = check_at_table(ROOT / "robots" / "nextage.yaml")
-    assert not [f for f in report.findings if f.topic == "workspace"]
+    found = [f for f in report.findings if f.topic == "workspace"]
+    assert len(found) == 1 and found[0].level == "info", found  # the table and the tools' reach are right
+    # the work region's far corners cannot be pushed back towards the robot; its centre and near corners every way
+    message = found[0].message
+    assert "corner (+1, -1) towards -x" in message and "corner (+1, +1) towards -x" in message, message
+    assert "centre" not in message and "corner (-1" not in message, message
 
 
 @pytest.mark.parametrize("old, new, says", [

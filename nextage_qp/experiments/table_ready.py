@@ -62,6 +62,11 @@ APPROACH_GAP = 0.04
 """Gap [m] between a pushing tool and the object's face before a push (the push phase's default ``approach``)."""
 SIDE_FACINGS = tuple(np.array(f) for f in ((1.0, 0.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, -1.0, 0.0)))
 """The directions along the table a tool faces behind an object, one per side, for the work region."""
+SIDE_RESTARTS = 2
+"""Random restarts of the IK that seeks a side's approach (after the descent from home): an approach out of reach
+costs all of them."""
+SIDE_NAMES = ("+x", "-x", "+y", "-y")
+"""The push directions of :data:`SIDE_FACINGS`, as ``robot check`` names them."""
 READY_HEIGHT = 0.20
 """The ready home holds the tools this far [m] over the table top."""
 TABLE_TOP = "table_top"
@@ -384,7 +389,7 @@ def workspace_reach(desc: RobotDescription) -> list[Finding]:
     region's centre and its four corners, :data:`WORKSPACE_HEIGHT` over the table top (position only, from home).
     """
     from nextage_qp.ik import QPIK, FrameTarget
-    from nextage_qp.ik.config import IKConfig
+    from nextage_qp.ik.config import CollisionPairConfig, IKConfig
     from nextage_qp.robots.model import Robot
     from nextage_qp.scene.files import BodyPose, SceneOverrides
 
@@ -418,7 +423,49 @@ def workspace_reach(desc: RobotDescription) -> list[Finding]:
             found.append(Finding(level, "workspace",
                                  f"{arm.name} arm's {arm.tool} falls short of the work region's {', '.join(short)}",
                                  "move workspace.centre or shrink workspace.size to where the tools reach"))
+    tools, groups = [arm.tool for arm in desc.arms], robot.collision_geoms()
+    kept = QPIK(robot, IKConfig(collision_pairs=tuple(  # the arms kept off the body, as a task's pairs keep them
+        CollisionPairConfig(a=f"{arm.name}_arm", b="torso") for arm in desc.arms
+        if f"{arm.name}_arm" in groups and "torso" in groups)))
+    one_way = []
+    for name, (x, y) in points.items():
+        missing = unreached_sides(robot, kept, home, tools, np.array([x, y, ws.top + CUBE / 2]))
+        if missing:
+            one_way.append(f"{name} towards {', '.join(missing)}")
+    if one_way:
+        found.append(Finding("info", "workspace", "no tool reaches behind a 7 cm object to push it at the work "
+                                                  f"region's {'; '.join(one_way)}: a push that ends off the target "
+                                                  "there cannot be corrected that way",
+                             "move workspace.centre or shrink workspace.size to where a tool reaches every side "
+                             "(robot init drafts such a region)"))
     return found
+
+
+def unreached_sides(robot, ik, home: np.ndarray, tools: list[str], p: np.ndarray) -> list[str]:
+    """The push directions (:data:`SIDE_NAMES`) in which no tool reaches behind a :data:`CUBE` object at ``p``.
+
+    A tool reaches when the IK (from ``home``, with :data:`SIDE_RESTARTS` restarts) brings it :data:`APPROACH_GAP` off
+    the object's face, facing along the push, with the robot's bodies free of contact with each other.
+    """
+    from nextage_qp.ik import FrameTarget
+
+    m = robot.model
+    d = mujoco.MjData(m)
+    own = {m.body(b).name for b in robot_bodies(robot)}
+    missing = []
+    for name, f in zip(SIDE_NAMES, SIDE_FACINGS, strict=True):
+        for tool in tools:
+            result = ik.solve([FrameTarget(tool, pos=p - f * (CUBE / 2 + APPROACH_GAP), axis=np.array([1.0, 0.0, 0.0]),
+                                           direction=f)], home, restarts=SIDE_RESTARTS)
+            if result.pos_err_m > REACH_TOL:
+                continue
+            qpos = d.qpos.copy()
+            qpos[robot.qpos_idx] = result.q
+            if not [c for c in self_contacts(m, d, qpos) if own.issuperset(c)]:
+                break
+        else:
+            missing.append(name)
+    return missing
 
 
 def clamp_ready(desc: RobotDescription) -> list[Finding]:
