@@ -97,5 +97,5 @@ def test_a_phase_without_a_timeout_times_out_after_its_budget_and_says_so(tmp_pa
     budget = record["budget_s"]
     assert 16.0 < budget < 19.0  # the hand's line of 0.33 m at 0.02 m/s, then 1 s to come to rest
     assert record["timeout_s"] == pytest.approx(2 * budget, abs=0.1)
-    assert f"timed out after {record['timeout_s']:.3g} s of simulated time (unset: 2 x its budget of {budget:.1f} s, " \
+    assert f"timed out after {record['timeout_s']:.1f} s of simulated time (unset: 2 x its budget of {budget:.1f} s, " \
            "at least 10 s; phases[0].timeout sets it)" in result.error

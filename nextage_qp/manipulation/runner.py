@@ -485,7 +485,8 @@ class Runner:
                         given = "" if rec.budget_s is None else (
                             f" (unset: {TIMEOUT_MARGIN:g} x its budget of {rec.budget_s:.1f} s, at least "
                             f"{DEFAULT_TIMEOUT:g} s; phases[{i}].timeout sets it)")
-                        raise PhaseError(f"phase {rec.name!r} ({spec.kind}) timed out after {phase.timeout:.3g} s "
+                        after = _seconds(phase.timeout)
+                        raise PhaseError(f"phase {rec.name!r} ({spec.kind}) timed out after {after} s "
                                          f"of simulated time{given}{': ' + cause if cause else ''}; "
                                          f"last state: {_brief(phase.info)}"
                                          f"{''.join(held)}{'; ' + holds if holds else ''}", phase=rec.name)
@@ -631,6 +632,11 @@ def plan_report(plans: Sequence[PathPlan]) -> dict[str, Any]:
     """The run's transit checks and plans: how many legs were checked, planned, and found no path."""
     return {"legs_checked": len(plans), "legs_planned": sum(p.status == "planned" for p in plans),
             "legs_without_path": sum(not p.found for p in plans)}
+
+
+def _seconds(t: float) -> str:
+    """``t`` [s] to a tenth, without a trailing zero: 90, 87.7, 1500.3."""
+    return f"{t:.1f}".rstrip("0").rstrip(".")
 
 
 def _brief(info: dict[str, Any]) -> str:
