@@ -253,3 +253,22 @@ def test_robot_check_says_whether_the_robot_can_clamp(tmp_path):
     numb.write_text(numb.read_text() + "frames:\n  left_elbow_pad: {body: LARM_JOINT2_Link, pos: [0.0, 0.0, 0.0]}\n")
     said = [f for f in check_at_table(numb).problems if f.topic == "clamp"]
     assert len(said) == 1 and "'LARM_JOINT2_Link', which has no force/torque sensor" in said[0].message
+
+
+def test_a_hand_tipped_down_leads_into_an_object_with_its_upper_rim():
+    """A box hand pitched 0.3 rad about y (its +x face's normal tipped down): along +x its upper front edge leads, at
+    the height of that edge; level, the face's centre."""
+    from types import SimpleNamespace
+
+    import mujoco
+
+    from nextage_qp.experiments.table_ready import _leading_height
+
+    def lead(pitch: float) -> float:
+        m = mujoco.MjModel.from_xml_string(f"""<mujoco><compiler angle="radian"/><worldbody><body name="hand" pos="0 0 1">
+            <geom type="box" size="0.01 0.03 0.03" euler="0 {pitch} 0"/></body></worldbody></mujoco>""")
+        robot = SimpleNamespace(model=m, qpos_idx=np.zeros(0, dtype=int), frame_body=lambda _: m.body("hand").id)
+        return _leading_height(robot, np.zeros(0), "tool", np.array([1.0, 0.0, 0.0]))
+
+    assert lead(0.0) == pytest.approx(1.0, abs=1e-9)
+    assert lead(0.3) == pytest.approx(1.0 - 0.01 * np.sin(0.3) + 0.03 * np.cos(0.3), abs=1e-9)

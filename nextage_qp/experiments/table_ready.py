@@ -56,6 +56,8 @@ MIN_TOP = 0.05
 """Lowest table top [m] tried (the floor is z = 0)."""
 PITCHES = (0.0, 0.2, 0.4)
 """Pitches [rad] of the tool (its face's normal tipped down) at which the push height is sought, level first."""
+LEAD_STEP = 0.01
+"""Tip [unit vector share] of the push direction up and down by which a hand's leading point is found."""
 DEEP_CELLS = 3
 """Grid cells (:data:`GRID` apart) a work region spans each way before a larger area counts for more."""
 APPROACH_GAP = 0.04
@@ -250,21 +252,50 @@ def _lowest_push(ik, arms, faces, centre, top, home) -> tuple[float, float]:
     """The lowest tool height over a :data:`CUBE` cube's centre at which every tool reaches the region's centre.
 
     Returns the height [m] and the tool's pitch [rad] there. Each tool facing the middle, its arm kept
-    :data:`TABLE_GAP` off the table by the IK; level first, then pitched down by each of :data:`PITCHES` in turn (a
-    long hand whose arm meets the table before its tip comes low enough, level, reaches lower tipped down); at most
-    a quarter of the cube over its centre.
+    :data:`TABLE_GAP` off the table by the IK; level first; where no height is reached level, each of the
+    :data:`PITCHES` tipped down (a long hand whose arm meets the table before its tip comes low enough, level, reaches
+    lower tipped down), and of those the one whose hands lead into the cube lowest (:func:`_leading_height`: a face
+    tipped down meets the cube with its upper rim, which tips a cube pushed too high); at most a quarter of the cube
+    over its centre.
     """
     from nextage_qp.ik import FrameTarget
 
+    best: tuple[float, float, float] | None = None  # (leading height, tool height, pitch)
     for pitch in PITCHES:
         down = np.array([0.0, 0.0, -np.sin(pitch)])
         for height in np.arange(0.0, CUBE / 4 + 1e-9, 0.002):
             p = np.array([centre[0], centre[1], top + CUBE / 2 + height])
-            if all(ik.solve([FrameTarget(arm.tool, pos=p, axis=np.array([1.0, 0.0, 0.0]),
-                                         direction=np.cos(pitch) * faces[arm.tool] + down)],
-                            home).pos_err_m <= REACH_TOL for arm in arms):
-                return float(height), float(pitch)
-    return CUBE / 4, 0.0
+            solved = [(arm.tool, ik.solve([FrameTarget(arm.tool, pos=p, axis=np.array([1.0, 0.0, 0.0]),
+                                                       direction=np.cos(pitch) * faces[arm.tool] + down)], home))
+                      for arm in arms]
+            if all(result.pos_err_m <= REACH_TOL for _, result in solved):
+                if pitch == 0.0:
+                    return float(height), 0.0
+                lead = max(_leading_height(ik.robot, np.asarray(r.q), tool, faces[tool]) for tool, r in solved)
+                if best is None or lead < best[0]:
+                    best = (lead, float(height), float(pitch))
+                break
+    return (best[1], best[2]) if best is not None else (CUBE / 4, 0.0)
+
+
+def _leading_height(robot, q: np.ndarray, tool: str, push: np.ndarray) -> float:
+    """The height [m] of the hand's point that leads along ``push`` at the joints ``q``: where it meets an object.
+
+    The hand is the tool frame's body and those below it; the point is the gradient of the hand's support function
+    (a central difference tipping ``push`` up and down), so a flat face square to ``push`` gives its centre's height.
+    """
+    m = robot.model
+    d = mujoco.MjData(m)
+    d.qpos[robot.qpos_idx] = q
+    mujoco.mj_kinematics(m, d)
+    geoms = _colliding(m, descendants(m, robot.frame_body(tool)))
+
+    def reach(v: np.ndarray) -> float:
+        n = float(np.linalg.norm(v))
+        return n * max(support(geom_part(m, g, d.geom_xpos[g], d.geom_xmat[g].reshape(3, 3)), v / n) for g in geoms)
+
+    up = np.array([0.0, 0.0, LEAD_STEP])
+    return (reach(push + up) - reach(push - up)) / (2 * LEAD_STEP)
 
 
 def _score(rect: tuple[int, int, int, int]) -> tuple[int, int]:

@@ -174,8 +174,9 @@ def draft_text(s: Survey, out: Path, ready: Ready | None = None) -> str:
         ws = ready.workspace
         face = (f"push_face: {{height: {ready.push_height:.4f}}}  # the lowest both tools reach, level, with the "
                 f"arms {TABLE_GAP * 1e3:g} mm off the table [m]") if not ready.push_pitch else (
-                f"push_face: {{height: {ready.push_height:.4f}, pitch: {ready.push_pitch:g}}}  # the lowest both tools "
-                f"reach, tipped down, with the arms {TABLE_GAP * 1e3:g} mm off the table (level, none does) [m], [rad]")
+                f"push_face: {{height: {ready.push_height:.4f}, pitch: {ready.push_pitch:g}}}  # tipped down where the "
+                f"hands lead into a cube lowest, the lowest both tools reach with the arms {TABLE_GAP * 1e3:g} mm off "
+                "the table (level, none does) [m], [rad]")
         where = ("where a tool reaches behind an object from every side" if ready.every_side
                  else "where both tools, level, reach the table")
         lines += [face,
