@@ -265,13 +265,17 @@ def _lowest_push(ik, arms, faces, centre, top, home) -> tuple[float, float]:
         down = np.array([0.0, 0.0, -np.sin(pitch)])
         for height in np.arange(0.0, CUBE / 4 + 1e-9, 0.002):
             p = np.array([centre[0], centre[1], top + CUBE / 2 + height])
-            solved = [(arm.tool, ik.solve([FrameTarget(arm.tool, pos=p, axis=np.array([1.0, 0.0, 0.0]),
-                                                       direction=np.cos(pitch) * faces[arm.tool] + down)], home))
-                      for arm in arms]
-            if all(result.pos_err_m <= REACH_TOL for _, result in solved):
+            solved = []  # each tool's joints there, until one misses
+            for arm in arms:
+                result = ik.solve([FrameTarget(arm.tool, pos=p, axis=np.array([1.0, 0.0, 0.0]),
+                                               direction=np.cos(pitch) * faces[arm.tool] + down)], home)
+                if result.pos_err_m > REACH_TOL:
+                    break
+                solved.append((arm.tool, np.asarray(result.q)))
+            else:
                 if pitch == 0.0:
                     return float(height), 0.0
-                lead = max(_leading_height(ik.robot, np.asarray(r.q), tool, faces[tool]) for tool, r in solved)
+                lead = max(_leading_height(ik.robot, q, tool, faces[tool]) for tool, q in solved)
                 if best is None or lead < best[0]:
                     best = (lead, float(height), float(pitch))
                 break

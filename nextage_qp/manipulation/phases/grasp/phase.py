@@ -279,8 +279,8 @@ class Grasp(Phase):
         """The approach route at its straight legs' speed with a rest at each waypoint, closing by ``gap`` and up to
         ``max_squeeze`` at ``close_speed``, and the ``hold``.
         """  # noqa: D205
-        c, route = self.spec, self.route
-        start = view.commanded_pose(route.waypoints[0][0].frame).pos if route.waypoints else np.zeros(3)
+        c, route = self.spec, self.route  # start() found a route, or it refused the grasp
+        start = view.commanded_pose(route.waypoints[0][0].frame).pos
         return (route.length(start) / route.speed + len(route.waypoints) * SETTLE_S
                 + (c.gap + c.max_squeeze) / c.close_speed + c.hold + SETTLE_S)
 
