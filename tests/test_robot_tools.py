@@ -315,6 +315,28 @@ def test_a_floating_robot_with_its_motors_in_another_order_stands_fixed_and_reac
     assert code == 0 and json.loads(text)["reached"]
 
 
+def test_init_raises_motor_limits_that_cannot_hold_the_arm_up(tmp_path, capsys):
+    """Motors weaker than the arm's gravity torque: the draft takes the joint's actuator-force range where the model
+    gives one, else the default rule, and says so; motors strong enough keep the model's limits."""
+    joints = ["waist", "head_pan", "l_shoulder_pitch", "l_shoulder_roll", "l_elbow", "l_wrist", "r_shoulder_pitch",
+              "r_shoulder_roll", "r_elbow", "r_wrist"]
+    weak = {"l_shoulder_pitch", "r_shoulder_pitch"}
+    motors = "".join(f"<motor joint='{j}' ctrlrange='{'-0.01 0.01' if j in weak else '-50 50'}'/>" for j in joints)
+    model = model_variant(tmp_path, "</worldbody>", f"</worldbody><actuator>{motors}</actuator>")
+    text = model.read_text()
+    at = text.index('name="l_shoulder_pitch"')
+    model.write_text(text[:at] + 'actuatorfrcrange="-33 33" ' + text[at:])
+    out = tmp_path / "weak.yaml"
+    assert cli(capsys, "robot", "init", str(model), "--out", str(out))[0] == 0
+    assert "cannot hold the arm up" in out.read_text()
+    robot = Robot.from_scene("scene", robot=out)
+    limit = dict(zip(robot.joint_names, robot.torque_limit, strict=True))
+    assert limit["l_shoulder_pitch"] == 33.0  # the joint's own range
+    assert limit["r_shoulder_pitch"] >= 5.0  # the default rule: 3 x its gravity torque, at least 5 N m
+    assert limit["l_elbow"] == 50.0  # strong enough: the model's
+    assert "gravity torque" not in "".join(topics(check_robot(out)).get("torque", []))
+
+
 def test_init_refuses_to_overwrite(tmp_path, capsys):
     out = tmp_path / "two.yaml"
     out.write_text("keep me\n")

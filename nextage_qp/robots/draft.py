@@ -4,8 +4,8 @@ What the draft holds (see :mod:`nextage_qp.robots.survey` for how each is found)
 end-effector frame; the shared joints as ``torso`` and other branches as groups; collision groups per arm
 (``NAME_arm``, ``NAME_upper_arm``, ``NAME_forearm``, ``NAME_hand``) and ``torso``; ``home`` (the model's keyframe,
 else a pose free of self-contact); the pairs still in contact there as ``exclude``; gains from the rule; torque
-limits where the model gives none; ``angle: radian`` where the MJCF needs it; a mount that puts the lowest collision
-geometry on the floor.
+limits where the model gives none, or less than holding the arm up takes; ``angle: radian`` where the MJCF needs it;
+a mount that puts the lowest collision geometry on the floor.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import re
 import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
@@ -85,21 +86,38 @@ def collision_groups(s: Survey) -> dict[str, dict[str, list[str]]]:
     return groups
 
 
-def torque_limits(s: Survey) -> tuple[dict[str, float], dict[str, float]]:
-    """Torque limits [N m] the robot file must give.
+class TorqueLimits(NamedTuple):
+    """Torque limits [N m] the draft writes, by where each comes from (joint name to limit)."""
 
-    Returns:
-        The model's own limits (a URDF's effort) of the joints without an actuator (the motor added for them takes
-        its limit from the robot file), and defaults (:func:`default_torque_limit`) where the model gives none.
+    from_model: dict[str, float]
+    """The model's own limits (a URDF's effort) of the joints without an actuator: the motor added takes its limit
+    from the robot file."""
+    defaults: dict[str, float]
+    """Where the model gives none: :func:`default_torque_limit`."""
+    raised: dict[str, float]
+    """Where the model's limit is below the joint's largest gravity torque (its motors cannot hold the arm up): the
+    joint's own actuator-force range where that is larger, else :func:`default_torque_limit`."""
+
+
+def torque_limits(s: Survey) -> TorqueLimits:
+    """Torque limits [N m] the robot file must give (:class:`TorqueLimits`).
+
+    Gravity torques are the largest over home and a few random poses (:func:`static_torques`).
     """
     m = s.model
     driven = {int(m.actuator_trnid[a, 0]) for a in range(m.nu)
               if int(m.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT)}
-    given = {m.joint(j).name: limit for j in s.joints if j not in driven
-             and (limit := model_torque_limit(m, j)) is not None}
-    missing = [j for j in s.joints if model_torque_limit(m, j) is None]
-    peaks = static_torques(m, missing, s.home.qpos) if missing else np.zeros(0)
-    return given, {m.joint(j).name: default_torque_limit(float(p)) for j, p in zip(missing, peaks, strict=True)}
+    limits = {j: model_torque_limit(m, j) for j in s.joints}
+    given = {m.joint(j).name: limit for j, limit in limits.items() if j not in driven and limit is not None}
+    peaks = dict(zip(s.joints, static_torques(m, list(s.joints), s.home.qpos), strict=True))
+    defaults = {m.joint(j).name: default_torque_limit(float(peaks[j])) for j, limit in limits.items() if limit is None}
+    raised = {}
+    for j, limit in limits.items():
+        if limit is None or limit >= peaks[j]:
+            continue
+        own = float(np.max(np.abs(m.jnt_actfrcrange[j]))) if m.jnt_actfrclimited[j] else 0.0
+        raised[m.joint(j).name] = own if own > peaks[j] else default_torque_limit(float(peaks[j]))
+    return TorqueLimits(given, defaults, raised)
 
 
 def _scalar(value: object) -> str:
@@ -201,8 +219,8 @@ def draft_text(s: Survey, out: Path, ready: Ready | None = None) -> str:
     rule = GainRule()
     lines += ["# gains: kp = I w^2, kd = 2 zeta I w - d on each joint's reflected inertia I at home",
               f"gains: {{bandwidth: {rule.bandwidth!r}, damping_ratio: {rule.damping_ratio!r}}}"]
-    from_model, defaults = torque_limits(s)
-    if from_model or defaults:
+    from_model, defaults, raised = torque_limits(s)
+    if from_model or defaults or raised:
         lines.append("torque_limits:  # [N m]")
     if from_model:
         lines.append("  # the model's own limits (a URDF's effort) for the joints it gives no actuator")
@@ -212,6 +230,12 @@ def draft_text(s: Survey, out: Path, ready: Ready | None = None) -> str:
             f"the model gives these joints no limit: {TORQUE_FACTOR:g} x the largest gravity torque over home and 8 "
             f"random poses, at least {TORQUE_FLOOR_NM:g} N m; replace them with the real ones")]
         lines += [f"  {_scalar(k)}: {v!r}" for k, v in defaults.items()]
+    if raised:
+        lines += [f"  {c}" for c in _comment(
+            "the model's limits on these joints are below their largest gravity torque over home and 8 random "
+            f"poses (its motors cannot hold the arm up): the joint's actuator-force range where larger, else "
+            f"{TORQUE_FACTOR:g} x that torque, at least {TORQUE_FLOOR_NM:g} N m; check them against the real motors")]
+        lines += [f"  {_scalar(k)}: {v!r}" for k, v in raised.items()]
     text = "\n".join(lines) + "\n"
     validate(RobotFile, load_yaml(text), str(out))  # what is written must read back
     return text
