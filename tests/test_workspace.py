@@ -154,6 +154,22 @@ def test_robot_init_drafts_a_robot_ready_for_the_shared_push(tmp_path, capsys):
     assert result["object_error_xy_m"] <= 0.005
 
 
+@needs_robosuite
+def test_the_aloha_draft_pushes_unedited(tmp_path, capsys):
+    """The ALOHA's model drives its wrists with +-1 N m motors, less than their gravity torque: the draft raises them
+    (and says so), and the shared push runs on the draft as written."""
+    model = Path(importlib.util.find_spec("robosuite_models").origin).parent / "assets" / "robots" / "aloha" / "robot.xml"
+    out = tmp_path / "aloha.yaml"
+    assert main(["robot", "init", str(model), "--out", str(out)]) == 0
+    assert "robot check finds no problems" in capsys.readouterr().out
+    desc = load_robot(out)
+    assert isinstance(desc.torque_limits, dict) and all(desc.torque_limits[f"{s}/wrist_angle"] >= 5.0
+                                                       for s in ("left", "right"))
+    result = Runner(load_config(ACROSS, [f"robot={out}"]), str(ACROSS)).run()
+    assert result["success"], result.get("error")
+    assert result["object_error_xy_m"] <= 0.005
+
+
 def test_robot_init_says_why_a_model_gets_no_workspace(tmp_path, capsys):
     out = tmp_path / "two_arms.yaml"
     assert main(["robot", "init", str(ROOT / "tests" / "data" / "robots" / "two_arms.xml"), "--out", str(out)]) == 0
