@@ -315,6 +315,14 @@ def test_a_floating_robot_with_its_motors_in_another_order_stands_fixed_and_reac
     assert code == 0 and json.loads(text)["reached"]
 
 
+def test_a_model_with_an_unnamed_texture_composes(tmp_path):
+    """A skybox without a name in the robot's model, as the scene has one: neither is renamed, no geom loses its mesh."""
+    sky = '<asset><texture type="skybox" builtin="flat" rgb1="1 1 1" width="8" height="8"/></asset><worldbody>'
+    model = model_variant(tmp_path, "<worldbody>", sky)
+    robot = Robot.from_scene("scene", robot=robot_file(tmp_path, model=model))
+    assert robot.model.ntex == 3  # the scene's skybox and ground, the robot's skybox
+
+
 def test_init_raises_motor_limits_that_cannot_hold_the_arm_up(tmp_path, capsys):
     """Motors weaker than the arm's gravity torque: the draft takes the joint's actuator-force range where the model
     gives one, else the default rule, and says so; motors strong enough keep the model's limits."""

@@ -181,7 +181,7 @@ def _rename_clashing_assets(child: mujoco.MjSpec, parent: mujoco.MjSpec, robot: 
     renamed: dict[str, str] = {}
     for kind in _ASSETS:
         for asset in getattr(child, kind):
-            if asset.name in taken:
+            if asset.name and asset.name in taken:  # an unnamed asset is referred to by no name
                 new = f"{robot}/{asset.name}"
                 renamed[asset.name] = new
                 asset.name = new
