@@ -158,11 +158,16 @@ def lever_bounds(model: mujoco.MjModel) -> np.ndarray:
     """Lever arms (ngeom, nv) [m] that hold in every configuration.
 
     Each entry bounds the distance from a hinge dof's anchor to any point of a geom it moves (the sum of
-    the offsets along the chain); 0 where the dof does not move the geom, inf for a non-hinge dof.
+    the offsets along the chain, and of the travel of the slide joints between); 1 for a slide dof (it moves every
+    point by its own travel), 0 where the dof does not move the geom, inf for a ball or free joint's.
     """
     lever = np.zeros((model.ngeom, model.nv))
     norm = np.linalg.norm  # per vector, as along the chain: each offset's norm computed once
-    body_len = [float(norm(p)) for p in model.body_pos]
+    slide = (model.jnt_type == mujoco.mjtJoint.mjJNT_SLIDE).tolist()
+    travel = [(float(np.abs(r).max()) if lim else np.inf) if sl else 0.0  # how far a slide joint moves its body
+              for r, lim, sl in zip(model.jnt_range, model.jnt_limited.tolist(), slide, strict=True)]
+    body_len = [float(norm(p)) + sum(travel[j] for j in range(a, a + n))
+                for p, a, n in zip(model.body_pos, model.body_jntadr.tolist(), model.body_jntnum.tolist(), strict=True)]
     joint_len = [float(norm(p)) for p in model.jnt_pos]
     hinge = (model.jnt_type == mujoco.mjtJoint.mjJNT_HINGE).tolist()
     parent, dofadr, dofnum, dof_jnt = (a.tolist() for a in (model.body_parentid, model.body_dofadr,
@@ -174,7 +179,7 @@ def lever_bounds(model: mujoco.MjModel) -> np.ndarray:
         while body > 0:
             for dof in range(dofadr[body], dofadr[body] + dofnum[body]):
                 jnt = dof_jnt[dof]
-                row[dof] = length + joint_len[jnt] if hinge[jnt] else np.inf
+                row[dof] = length + joint_len[jnt] if hinge[jnt] else 1.0 if slide[jnt] else np.inf
             length += body_len[body]
             body = parent[body]
     return lever
