@@ -288,3 +288,60 @@ def test_a_hand_tipped_down_leads_into_an_object_with_its_upper_rim():
 
     assert lead(0.0) == pytest.approx(1.0, abs=1e-9)
     assert lead(0.3) == pytest.approx(1.0 - 0.01 * np.sin(0.3) + 0.03 * np.cos(0.3), abs=1e-9)
+
+
+def test_the_work_region_is_centred_between_the_arms():
+    """Of the blocks a tool reaches, the work region is the best one centred on the middle column (the midline
+    between the arms, where a clamp or a hand-over meets): a larger block to one side loses; none there gives None."""
+    from nextage_qp.experiments.table_ready import _largest_rectangle
+
+    ok = np.zeros((5, 9), dtype=bool)
+    ok[:5, :4] = True  # 5 x 4 cells left of the middle column 4
+    ok[:3, 3:6] = True  # 3 x 3 around it
+    assert _largest_rectangle(ok) == (0, 4, 0, 4 - 1)  # the larger block, off the middle
+    assert _largest_rectangle(ok, middle=4) == (0, 2, 3, 5)
+    ok[1, 4] = False  # a hole on the midline: a strip of one row on either side of it
+    assert _largest_rectangle(ok, middle=4) == (0, 0, 3, 5)
+    ok[:, 4] = False
+    assert _largest_rectangle(ok, middle=4) is None
+
+
+def test_the_shoulder_is_the_first_joint_turning_about_a_level_axis():
+    """A pan joint at the foot of a tall link (a Baxter's) stands below the shoulder: the table tops are sought under
+    the pitch joint above it; an arm of upright joints only has its first joint as the shoulder."""
+    import mujoco
+
+    from nextage_qp.experiments.table_ready import _shoulder
+
+    m = mujoco.MjModel.from_xml_string("""<mujoco><worldbody><body name="a" pos="0 0 0.2"><joint name="pan"/>
+        <geom size="0.05"/><body name="b" pos="0 0 0.3" euler="90 0 0"><joint name="pitch"/><geom size="0.05"/>
+        <body name="c" pos="0 0 0.3"><joint name="wrist" axis="1 0 0"/><geom size="0.05"/></body></body></body>
+        </worldbody></mujoco>""")
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
+    assert _shoulder(m, d, ["pan", "pitch", "wrist"])[2] == pytest.approx(0.5)
+    assert _shoulder(m, d, ["pan"])[2] == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize("axis", ["1 0 0", "0 1 0"])
+def test_a_hand_faces_where_it_points_whether_its_last_joint_rolls_or_flexes_it(axis):
+    """The tool's face normal (its x) points out of the hand: along the last joint's axis where that joint rolls the
+    hand (a spherical wrist's), square to it where it flexes the hand (a TIAGo's); on the hand's outermost point."""
+    from types import SimpleNamespace
+
+    import mujoco
+
+    from nextage_qp.experiments.table_ready import tool_frames
+
+    m = mujoco.MjModel.from_xml_string(f"""<mujoco><worldbody><body name="fore"><joint name="elbow" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/><body name="hand" pos="0.3 0 0">
+        <joint name="wrist" axis="{axis}"/><geom type="box" size="0.05 0.02 0.02" pos="0.05 0 0"/></body></body>
+        </worldbody></mujoco>""")
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
+    ready = tool_frames(m, d, SimpleNamespace(arms=[SimpleNamespace(name="left", joints=("elbow", "wrist"))]))
+    frame = ready.frames["left_tool"]
+    rot = np.zeros(9)
+    mujoco.mju_quat2Mat(rot, np.array(frame.quat))
+    assert frame.body == "hand" and frame.pos == pytest.approx((0.1, 0.0, 0.0))
+    assert rot.reshape(3, 3)[:, 0] == pytest.approx([1.0, 0.0, 0.0], abs=1e-6)

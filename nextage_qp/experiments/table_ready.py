@@ -8,9 +8,9 @@ draft in a task scene and adds what a table task needs, each derived from the mo
 * **push_face**: the lowest height over a :data:`CUBE` m cube's centre at which both tools, level, reach the work
   region's centre with their arms :data:`TABLE_GAP` off the table;
 * **workspace**: the table top's height (among a few below the shoulders) over which both tools, level and facing the
-  middle, reach the best rectangle of a grid in front of the robot (:func:`_score`) where, besides, a tool reaches
-  behind an object from each of its four sides (a push's approach: corrections in every direction); the table stands
-  clear of the robot's body;
+  middle, reach the best rectangle of a grid in front of the robot (:func:`_score`), centred on the midline between
+  the arms (where a clamp or a hand-over meets), where, besides, a tool reaches behind an object from each of its
+  four sides (a push's approach: corrections in every direction); the table stands clear of the robot's body;
 * a **ready home**: both tools :data:`READY_HEIGHT` over the work region, level, facing each other, solved by the IK
   from the draft's home, kept only when free of self-contact; one the motors hold against gravity wins, then the least
   singular; its manipulability is reported.
@@ -43,7 +43,7 @@ REACH_TOL = 0.005
 """A tool reaches a point when the IK brings it this near [m] (where its axis is a target of the IK too, that is not
 judged): for the draft's table and home, and for ``robot check``'s work region."""
 DROPS = (0.2, 0.3, 0.4)
-"""Table tops tried, this far [m] below the shoulders (the arms' first joints)."""
+"""Table tops tried, this far [m] below the shoulders (:func:`_shoulder`)."""
 BASE_DROP = 0.01
 """A table top tried this far [m] under the arms' first joints (arms mounted on the table, as an ALOHA's)."""
 EDGE_GAP = 0.02
@@ -71,6 +71,9 @@ SIDE_NAMES = ("+x", "-x", "+y", "-y")
 """The push directions of :data:`SIDE_FACINGS`, as ``robot check`` names them."""
 READY_HEIGHT = 0.20
 """The ready home holds the tools this far [m] over the table top."""
+FLEX_COS = 0.5
+"""An arm's last joint whose axis is within 60 deg of square to the way the arm runs out to the hand flexes the hand
+(a TIAGo's wrist): the tool faces where the hand points, not along that axis."""
 TABLE_TOP = "table_top"
 """The geom of the bundled scenes' table body that is its top."""
 
@@ -95,7 +98,10 @@ def _perpendicular(axis: np.ndarray, *wanted: np.ndarray) -> np.ndarray:
 
 
 def tool_frames(m: mujoco.MjModel, d: mujoco.MjData, desc: RobotDescription) -> Ready:
-    """Each arm's tool frame on its hand's outermost surface along its last joint's axis (see the module doc)."""
+    """Each arm's tool frame on its hand's outermost surface (see the module doc).
+
+    Along the arm's last joint's axis; where that joint flexes the hand (:data:`FLEX_COS`), where the hand points.
+    """
     ready = Ready()
     for arm in desc.arms:
         joint = m.joint(arm.joints[-1]).id
@@ -114,6 +120,9 @@ def tool_frames(m: mujoco.MjModel, d: mujoco.MjData, desc: RobotDescription) -> 
             out = np.mean([d.geom_xpos[g] for g in geoms], axis=0) - anchor
         if out @ axis < 0:
             axis = -axis
+        if abs(axis @ out) < FLEX_COS * np.linalg.norm(out):  # a last joint that flexes the hand: its face is square
+            out = out - (out @ axis) * axis  # to where the hand points, not to the flex axis
+            axis = out / np.linalg.norm(out)
         reach = max(_support(m, d, g, axis) for g in geoms) - anchor @ axis
         point = anchor + reach * axis
         up = _perpendicular(axis, np.array([0.0, 0.0, 1.0]), *d.xmat[body].reshape(3, 3).T)
@@ -130,12 +139,15 @@ def tool_frames(m: mujoco.MjModel, d: mujoco.MjData, desc: RobotDescription) -> 
     return ready
 
 
-def _largest_rectangle(ok: np.ndarray) -> tuple[int, int, int, int] | None:
-    """The best all-True axis-aligned block of a boolean grid (:func:`_score`): (i0, i1, j0, j1), inclusive, or None."""
+def _largest_rectangle(ok: np.ndarray, middle: int | None = None) -> tuple[int, int, int, int] | None:
+    """The best all-True axis-aligned block of a boolean grid (:func:`_score`): (i0, i1, j0, j1), inclusive, or None.
+
+    ``middle``: a column the block is centred on (its columns ``j0`` and ``j1`` equally far from it).
+    """
     best, found = (0, 0), None
     n, k = ok.shape
     for i0, j0 in itertools.product(range(n), range(k)):
-        if not ok[i0, j0]:
+        if not ok[i0, j0] or (middle is not None and j0 > middle):
             continue
         for i1 in range(i0, n):
             if not ok[i1, j0]:
@@ -143,6 +155,8 @@ def _largest_rectangle(ok: np.ndarray) -> tuple[int, int, int, int] | None:
             for j1 in range(j0, k):
                 if not ok[i0:i1 + 1, j0:j1 + 1].all():
                     break
+                if middle is not None and j0 + j1 != 2 * middle:
+                    continue
                 score = _score((i0, i1, j0, j1))
                 if score > best:
                     best, found = score, (i0, i1, j0, j1)
@@ -196,9 +210,10 @@ def make_ready(desc: RobotDescription) -> Ready:
     own = robot_bodies(robot)
     arm_bodies = {b for arm in arms for b in descendants(m, int(m.jnt_bodyid[m.joint(arm.joints[1]).id]))}
     body_geoms = _colliding(m, sorted(own - arm_bodies))
-    shoulders = float(np.mean([d.xanchor[m.joint(a.joints[0]).id][2] for a in arms]))
+    shoulders = float(np.mean([_shoulder(m, d, a.joints)[2] for a in arms]))
     found: list[tuple | None] = [None, None]  # the largest region reached from every side; facing the middle only
     bases = [d.xanchor[m.joint(a.joints[0]).id] for a in arms]
+    middle = float(np.mean([b[1] for b in bases]))  # dual-arm tasks (a clamp, a hand-over) meet between the arms
     behind = min(float(b[0]) for b in bases)  # the table's edge where nothing but the arms stands low
     tops = [shoulders - drop for drop in DROPS]  # below the shoulders; else at the arms' bases (arms on the table)
     for top in [*tops, min(float(b[2]) for b in bases) - BASE_DROP]:
@@ -207,7 +222,7 @@ def make_ready(desc: RobotDescription) -> Ready:
         under = [g for g in body_geoms if -_support(m, d, g, np.array([0.0, 0.0, -1.0])) < top + 0.05]
         edge = (max(_support(m, d, g, np.array([1.0, 0.0, 0.0])) for g in under) if under else behind) + EDGE_GAP
         xs = edge + GRID * np.arange(1, 13)
-        ys = GRID * np.arange(-7, 8)
+        ys = middle + GRID * np.arange(-7, 8)  # centred on the midline between the arms
         ok, sides = np.zeros((len(xs), len(ys)), dtype=bool), np.zeros((len(xs), len(ys)), dtype=bool)
         for i, x in enumerate(xs):
             for j, y in enumerate(ys):
@@ -215,7 +230,7 @@ def make_ready(desc: RobotDescription) -> Ready:
                 ok[i, j] = reaches([p, p])
                 sides[i, j] = ok[i, j] and every_side(p)
         for k, grid in enumerate((sides, ok)):
-            rect, largest = _largest_rectangle(grid), found[k]
+            rect, largest = _largest_rectangle(grid, middle=7), found[k]
             if rect is not None and (largest is None or _score(rect) > _score(largest[0])):
                 found[k] = (rect, top, edge, xs, ys)
     best = found[0]
@@ -246,6 +261,19 @@ def make_ready(desc: RobotDescription) -> Ready:
     ready.home, note = _ready_home(placed, QPIK(placed, IKConfig()), arms, faces, centre, size, top, home)
     ready.notes.append(note)
     return ready
+
+
+def _shoulder(m: mujoco.MjModel, d: mujoco.MjData, joints: tuple[str, ...] | list[str]) -> np.ndarray:
+    """Where the arm's upper arm pivots: its first joint turning about an axis nearer level than upright.
+
+    A pan joint on a tall link under it, as a Baxter's, stands well below the shoulder; the first joint where no
+    joint turns about a level axis.
+    """
+    for name in joints:
+        j = m.joint(name).id
+        if abs(float(d.xaxis[j][2])) < np.sqrt(0.5):
+            return np.asarray(d.xanchor[j])
+    return np.asarray(d.xanchor[m.joint(joints[0]).id])
 
 
 def _lowest_push(ik, arms, faces, centre, top, home) -> tuple[float, float]:
