@@ -345,3 +345,28 @@ def test_a_hand_faces_where_it_points_whether_its_last_joint_rolls_or_flexes_it(
     mujoco.mju_quat2Mat(rot, np.array(frame.quat))
     assert frame.body == "hand" and frame.pos == pytest.approx((0.1, 0.0, 0.0))
     assert rot.reshape(3, 3)[:, 0] == pytest.approx([1.0, 0.0, 0.0], abs=1e-6)
+
+
+def test_a_hand_without_geometry_pushes_with_the_first_link_up_the_arm_that_has_some():
+    """A model whose hand links carry no collision geometry (a GR1's without its hands): the tool is on the forearm's
+    end face, facing along it, not the empty wrist."""
+    from types import SimpleNamespace
+
+    import mujoco
+
+    from nextage_qp.experiments.table_ready import tool_frames
+
+    m = mujoco.MjModel.from_xml_string("""<mujoco><worldbody><body name="fore"><joint name="roll" axis="1 0 0"/>
+        <geom type="box" size="0.1 0.03 0.03" pos="0.1 0 0"/><body name="wrist" pos="0.25 0 0">
+        <joint name="yaw" axis="0 0 1"/><inertial pos="0 0 0" mass="0.1" diaginertia="1e-4 1e-4 1e-4"/>
+        <body name="hand"><joint name="pitch" axis="0 1 0"/>
+        <geom type="box" size="0.05 0.02 0.02" pos="0.05 0 0" contype="0" conaffinity="0"/></body></body></body>
+        </worldbody></mujoco>""")
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
+    arm = SimpleNamespace(name="left", joints=("roll", "yaw", "pitch"))
+    frame = tool_frames(m, d, SimpleNamespace(arms=[arm])).frames["left_tool"]
+    rot = np.zeros(9)
+    mujoco.mju_quat2Mat(rot, np.array(frame.quat))
+    assert frame.body == "fore" and frame.pos == pytest.approx((0.2, 0.0, 0.0))
+    assert rot.reshape(3, 3)[:, 0] == pytest.approx([1.0, 0.0, 0.0], abs=1e-6)

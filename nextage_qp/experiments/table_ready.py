@@ -104,17 +104,23 @@ def tool_frames(m: mujoco.MjModel, d: mujoco.MjData, desc: RobotDescription) -> 
     """
     ready = Ready()
     for arm in desc.arms:
-        joint = m.joint(arm.joints[-1]).id
+        k = len(arm.joints) - 1
+        joint = m.joint(arm.joints[k]).id
         body = int(m.jnt_bodyid[joint])
         geoms = _colliding(m, descendants(m, body))
         if not geoms:  # a hand without geometry (a gripper left out): the link it hangs from carries the face
             body = int(m.body_parentid[body])
             geoms = _colliding(m, descendants(m, body))
+        while not geoms and k > 0:  # a wrist without geometry either: the first link up the arm with some (a GR1's
+            k -= 1  # forearm)
+            joint = m.joint(arm.joints[k]).id
+            body = int(m.jnt_bodyid[joint])
+            geoms = _colliding(m, descendants(m, body))
         if not geoms:
-            ready.notes.append(f"{arm.name}: no collision geometry below {m.body(body).name}: the wrist is the tool")
+            ready.notes.append(f"{arm.name}: no collision geometry on the arm: the wrist is the tool")
             continue
         anchor, axis = d.xanchor[joint].copy(), d.xaxis[joint].copy()
-        before = d.xanchor[m.joint(arm.joints[-2]).id] if len(arm.joints) > 1 else d.xpos[int(m.body_parentid[body])]
+        before = d.xanchor[m.joint(arm.joints[k - 1]).id] if k > 0 else d.xpos[int(m.body_parentid[body])]
         out = anchor - before  # along the arm, out to the hand (a spherical wrist: towards the hand's geometry)
         if abs(out @ axis) < 0.01:
             out = np.mean([d.geom_xpos[g] for g in geoms], axis=0) - anchor
