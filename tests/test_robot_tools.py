@@ -18,6 +18,7 @@ from nextage_qp.robots.check_report import check_robot
 from nextage_qp.robots.model import Robot
 from nextage_qp.robots.modelfile import self_contacts
 from nextage_qp.robots.poses import find_home
+from nextage_qp.sensing.sensors import WrenchSensor, unsensed
 
 DATA = Path(__file__).parent / "data" / "robots"
 TWO_ARMS = DATA / "two_arms.xml"
@@ -278,6 +279,8 @@ def test_init_two_arms(tmp_path, capsys):
     assert not self_contacts(m, mujoco.MjData(m), qpos)  # the hands touch at qpos0; home is free
     assert self_contacts(m, mujoco.MjData(m), m.qpos0)
     assert "mount:" not in out.read_text() and "torque_limits:" in out.read_text()
+    pads = [arm.pad for arm in robot.arms]  # the tools' faces clamp, with the force/torque sensors the file adds
+    assert pads == ["left_pad", "right_pad"] and not unsensed(robot, pads)
     assert cli(capsys, "robot", "check", str(out))[0] == 0
     # it runs: a reach from home (motors added in model order) and a step with the rule's gains
     d = mujoco.MjData(robot.model)
@@ -313,6 +316,19 @@ def test_a_floating_robot_with_its_motors_in_another_order_stands_fixed_and_reac
     code, text, _ = cli(capsys, "reach", "--robot", str(out), "--frame", "l_grip", "--duration", "2",
                         "--pos", *map(str, target), "--json")
     assert code == 0 and json.loads(text)["reached"]
+
+
+def test_wrench_sensors_give_a_site_a_force_and_a_torque_sensor(tmp_path):
+    """A model without force/torque sensors: the robot file adds them at a frame; a name that is no site is one
+    line naming the sites there are."""
+    path = robot_file(tmp_path, "torque_limits: 10.0", "torque_limits: 10.0\nwrench_sensors: [l_tip]")
+    robot = Robot.from_scene("scene", robot=path)
+    assert [robot.model.body(s.body).name for s in WrenchSensor.of_model(robot.model)] == ["l_hand"]
+    assert not unsensed(robot, ["l_tip"]) and unsensed(robot, ["r_grip"])
+    bad = robot_file(tmp_path, "torque_limits: 10.0", "torque_limits: 10.0\nwrench_sensors: [l_nope]", name="b.yaml")
+    with pytest.raises(ConfigError, match=r"wrench_sensors\[0\]: 'l_nope' is not a site of the model or a frame of "
+                                          r"the file; sites: .*l_tip"):
+        Robot.from_scene("scene", robot=bad)
 
 
 def test_a_model_with_an_unnamed_texture_composes(tmp_path):

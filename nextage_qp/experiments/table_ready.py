@@ -102,8 +102,11 @@ def tool_frames(m: mujoco.MjModel, d: mujoco.MjData, desc: RobotDescription) -> 
 
     Along the arm's last joint's axis; where that joint flexes the hand (:data:`FLEX_COS`), where the hand points.
     """
+    from nextage_qp.sensing.sensors import WrenchSensor
+
     ready = Ready()
-    for arm in desc.arms:
+    sensed = {s.body for s in WrenchSensor.of_model(m)}
+    for k_arm, arm in enumerate(desc.arms):
         k = len(arm.joints) - 1
         joint = m.joint(arm.joints[k]).id
         body = int(m.jnt_bodyid[joint])
@@ -142,6 +145,15 @@ def tool_frames(m: mujoco.MjModel, d: mujoco.MjData, desc: RobotDescription) -> 
         w, qx, qy, qz = (round(float(v), 6) for v in quat)
         ready.frames[name] = FrameFile(body=m.body(body).name, pos=(px, py, pz), quat=(w, qx, qy, qz))
         ready.tools[arm.name] = name
+        if k_arm < 2:  # the clamp's pad on the same face: its y axis along the clamp's, the robot's +y
+            side = 1.0 if k_arm == 0 else -1.0  # the first arm's face looks towards -y, the second's towards +y
+            pad = local @ np.array([[0.0, -side, 0.0], [side, 0.0, 0.0], [0.0, 0.0, 1.0]])  # about z by side x 90 deg
+            mujoco.mju_mat2Quat(quat, pad.ravel())
+            w, qx, qy, qz = (round(float(v), 6) for v in quat)
+            ready.frames[f"{arm.name}_pad"] = FrameFile(body=m.body(body).name, pos=(px, py, pz), quat=(w, qx, qy, qz))
+            ready.pads[arm.name] = f"{arm.name}_pad"
+            if body not in sensed:
+                ready.wrench_sensors.append(f"{arm.name}_pad")
     return ready
 
 

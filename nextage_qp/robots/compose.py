@@ -62,7 +62,27 @@ def robot_spec(desc: RobotDescription) -> mujoco.MjSpec:
         spec.add_exclude(bodyname1=pair[0], bodyname2=pair[1])
     _add_missing_actuators(spec, desc)
     add_cameras(spec, dict(desc.cameras), desc.source)
+    _add_wrench_sensors(spec, desc)
     return spec
+
+
+def _add_wrench_sensors(spec: mujoco.MjSpec, desc: RobotDescription) -> None:
+    """A force and a torque sensor (``SITE_force``, ``SITE_torque``) at each site of ``wrench_sensors``.
+
+    MuJoCo's sensors read what the site's body and its parent exert on each other
+    (:class:`~nextage_qp.sensing.sensors.WrenchSensor` turns that into the contact wrench).
+    """
+    sites = sorted(s.name for s in spec.sites if s.name)
+    sensors = {s.name for s in spec.sensors if s.name}
+    for i, site in enumerate(desc.wrench_sensors):
+        if spec.site(site) is None:
+            raise ConfigError(f"{desc.source}: wrench_sensors[{i}]: {site!r} is not a site of the model or a frame "
+                              f"of the file; sites: {', '.join(sites) or 'none'}")
+        for kind, sensor in (("force", mujoco.mjtSensor.mjSENS_FORCE), ("torque", mujoco.mjtSensor.mjSENS_TORQUE)):
+            name = f"{site}_{kind}"
+            if name in sensors:
+                raise ConfigError(f"{desc.source}: wrench_sensors[{i}]: the model has a sensor {name!r} already")
+            spec.add_sensor(name=name, type=sensor, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site)
 
 
 def _add_missing_actuators(spec: mujoco.MjSpec, desc: RobotDescription) -> None:

@@ -72,6 +72,7 @@ class RobotDescription:
     torque_limits: float | Mapping[str, float] | None
     velocity_limits: float | Mapping[str, float] | None
     cameras: Mapping[str, CameraFile] = field(default_factory=dict)
+    wrench_sensors: tuple[str, ...] = ()
     base: BaseFile | None = None
     workspace: WorkspaceFile | None = None
     push_face: PushFaceFile = field(default_factory=PushFaceFile)
@@ -233,6 +234,7 @@ def load_robot(ref: str | Path | None = None) -> RobotDescription:
         torque_limits=doc.torque_limits,
         velocity_limits=doc.velocity_limits,
         cameras=dict(doc.cameras),
+        wrench_sensors=doc.wrench_sensors,
         base=doc.base,
         workspace=doc.workspace,
         push_face=doc.push_face,

@@ -46,6 +46,10 @@ class Ready:
 
     frames: dict[str, FrameFile] = field(default_factory=dict)
     tools: dict[str, str] = field(default_factory=dict)
+    pads: dict[str, str] = field(default_factory=dict)
+    """Each of the first two arms' pad: its tool's face, turned to the clamp's frame (y along the robot's +y)."""
+    wrench_sensors: list[str] = field(default_factory=list)
+    """The pads on bodies without a force/torque sensor: the robot file gives them one."""
     push_height: float = 0.0
     push_pitch: float = 0.0
     workspace: WorkspaceFile | None = None
@@ -171,15 +175,21 @@ def draft_text(s: Survey, out: Path, ready: Ready | None = None) -> str:
         if arm.name in ready.tools:
             lines.append(f"    tool: {_scalar(ready.tools[arm.name])}  # the hand's outermost face along its last "
                          "joint's axis")
+        if arm.name in ready.pads:
+            lines.append(f"    pad: {_scalar(ready.pads[arm.name])}  # that face, clamping")
     groups = ({"torso": s.arms.torso} if s.arms.torso else {}) | s.arms.groups
     if groups:
         lines.append("joint_groups:")
         lines += [f"  {k}: {_flow([_scalar(n) for n in joint_names(s, v)], len(k) + 4)}" for k, v in groups.items()]
     if ready.frames:
-        lines.append("frames:  # x: the face's normal, out of the hand; z: as near up as the hand at home allows")
+        lines.append("frames:  # tools: x the face's normal, out of the hand, z as near up as the hand at home allows;"
+                     " pads: y along +y")
         for name, f in ready.frames.items():
             lines.append(f"  {name}: {{body: {_scalar(f.body)}, pos: [{', '.join(map(repr, f.pos))}], "
                          f"quat: [{', '.join(map(repr, f.quat))}]}}")
+    if ready.wrench_sensors:
+        lines.append(f"wrench_sensors: {_flow([_scalar(n) for n in ready.wrench_sensors], 16)}  # the model senses no "
+                     "force at the pads: a force/torque sensor at each")
     lines.append("collision_groups:")
     for name, group in collision_groups(s).items():
         key, names = next(iter(group.items()))

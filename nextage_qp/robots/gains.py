@@ -161,10 +161,10 @@ def robot_gains(robot: Robot) -> Gains:
     return rule_gains(robot, spec)
 
 
-PROFILES = {"stiff_wrist": 2.0}
+PROFILES = {"default": 1.0, "stiff_wrist": 2.0}
 """Named gains a task config may ask of any robot (``gains: NAME``) where its robot file has no file of that name:
-the rule's gains with the last three joints of each arm (forearm roll and wrist) this many times faster, so the hand
-holds its pose under contact forces."""
+the rule's gains with the last three joints of each arm (forearm roll and wrist) this many times faster (a stiff
+wrist holds the hand's pose under contact forces; ``default``: the rule's own)."""
 
 
 def config_gains(name: str, robot: Robot) -> Gains:

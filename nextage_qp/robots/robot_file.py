@@ -28,6 +28,7 @@ A robot file names the model (MJCF or URDF) and says what the framework needs to
     torque_limits: 40.0              # N m, one value or per joint; the file's value wins over the model's
     velocity_limits: 2.0             # rad/s, one value or per joint: caps the trajectory's limits
     cameras: {head: {body: head_link, pos: [0.1, 0, 0.05], pitch: 0.3, fovx: 70}}  # see nextage_qp.robots.cameras
+    wrench_sensors: [l_pad]          # a force/torque sensor at each of these sites, where the model has none
     base: {type: diff_drive, wheel_radius: 0.1, track: 0.7}   # a wheeled base under it: nextage_qp.mobile.base_file
 """
 
@@ -181,6 +182,11 @@ class RobotFile(YamlModel):
     )
     cameras: dict[Name, CameraFile] = Field(
         default_factory=dict, description="Cameras on the robot (nextage_qp.robots.cameras), by name."
+    )
+    wrench_sensors: tuple[Name, ...] = Field(
+        default=(), description="Sites (the model's, or frames of this file) that get a force and a torque sensor: "
+                                "wrist force/torque sensing for a model that has none (a clamp's pads feel its "
+                                "squeeze through them)."
     )
     base: BaseFile | None = Field(default=None, description="A wheeled base under the robot (nextage_qp.mobile).")
     push_face: PushFaceFile = Field(
