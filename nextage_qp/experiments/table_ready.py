@@ -72,8 +72,8 @@ SIDE_NAMES = ("+x", "-x", "+y", "-y")
 READY_HEIGHT = 0.20
 """The ready home holds the tools this far [m] over the table top."""
 FLEX_COS = 0.5
-"""An arm's last joint whose axis is within 60 deg of square to the way the arm runs out to the hand flexes the hand
-(a TIAGo's wrist): the tool faces where the hand points, not along that axis."""
+"""An arm's last joint whose axis is within 60 deg of square to the way from it to its hand's geometry flexes the
+hand (a TIAGo's wrist): the tool faces where the hand points, not along that axis."""
 TABLE_TOP = "table_top"
 """The geom of the bundled scenes' table body that is its top."""
 
@@ -129,9 +129,10 @@ def tool_frames(m: mujoco.MjModel, d: mujoco.MjData, desc: RobotDescription) -> 
             out = np.mean([d.geom_xpos[g] for g in geoms], axis=0) - anchor
         if out @ axis < 0:
             axis = -axis
-        if abs(axis @ out) < FLEX_COS * np.linalg.norm(out):  # a last joint that flexes the hand: its face is square
-            out = out - (out @ axis) * axis  # to where the hand points, not to the flex axis
-            axis = out / np.linalg.norm(out)
+        hand = np.mean([d.geom_xpos[g] for g in geoms], axis=0) - anchor  # where the hand's geometry lies
+        if abs(axis @ hand) < FLEX_COS * np.linalg.norm(hand):  # a last joint that flexes the hand: its face is
+            hand = hand - (hand @ axis) * axis  # square to where the hand points, not to the flex axis
+            axis = hand / np.linalg.norm(hand)
         reach = max(_support(m, d, g, axis) for g in geoms) - anchor @ axis
         point = anchor + reach * axis
         up = _perpendicular(axis, np.array([0.0, 0.0, 1.0]), *d.xmat[body].reshape(3, 3).T)
