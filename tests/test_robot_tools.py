@@ -216,6 +216,16 @@ def test_check_torque_limits(tmp_path):
     assert any("gravity torque" in f and "l_shoulder_pitch" in f for f in found["torque"])
 
 
+def test_check_names_joints_whose_damping_outruns_their_motors(tmp_path):
+    """A joint damped at 100 N m s/rad behind a 10 N m motor moves at 0.1 rad/s at most (less its gravity load): the
+    check says so and gives the velocity limit to write; the other joints are not named."""
+    model = model_variant(tmp_path, '<joint name="l_elbow"', '<joint name="l_elbow" damping="100"')
+    said = [f for f in check_robot(robot_file(tmp_path, model=model)).findings if "damping" in f.message]
+    assert len(said) == 1 and said[0].level == "info" and "l_elbow (100 N m s/rad, 10 N m: 0.0" in said[0].message
+    assert said[0].fix.startswith("velocity_limits: {l_elbow: 0.0") and "r_elbow" not in said[0].message
+    assert not [f for f in topics(check_robot(robot_file(tmp_path))).get("torque", []) if "damping" in f]
+
+
 def test_check_angle_given_where_the_model_states_it(tmp_path):
     found = topics(check_robot(robot_file(tmp_path, "torque_limits", "angle: radian\ntorque_limits")))
     assert found["angle"][0].startswith("info") and "repeats" in found["angle"][0]

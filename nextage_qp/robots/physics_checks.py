@@ -14,6 +14,9 @@ from nextage_qp.robots.modelfile import model_torque_limit, self_contacts
 
 MIN_MASS = 1e-6
 """[kg] and [kg m^2]: a moving body lighter than this, or with a principal moment below it, is flagged."""
+SPEED = 1.0
+"""[rad/s]: the joint speed the shipped task configs allow (their trajectories' ``max_velocity``): a joint whose
+damping at this speed takes more torque than its motor has left after holding home is named."""
 
 
 def inertias(spec: mujoco.MjSpec, model: mujoco.MjModel, refused: str | None,
@@ -151,3 +154,32 @@ def gravity_load(model: mujoco.MjModel, desc: RobotDescription, qpos: np.ndarray
     return [Finding("problem", "torque", f"holding home takes more gravity torque than the limit: {', '.join(weak)}; "
                     "these joints sag under PD control", "give them larger torque_limits in the robot file (they "
                     "override the model's) if the real actuators allow it, or choose another home")]
+
+
+def damping_load(model: mujoco.MjModel, desc: RobotDescription, qpos: np.ndarray) -> list[Finding]:
+    """Robot joints whose viscous damping at :data:`SPEED` takes more than their motor has left after gravity at home.
+
+    Such a joint lags references at that speed (the TIAGo of robosuite: 100 N m s/rad on a +-50 N m shoulder); the
+    fix a robot file can make is a velocity limit at the speed the motor can still drive.
+    """
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_forward(model, data)
+    slow = {}
+    for name in desc.joints:
+        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        limit = file_or_model_limit(model, j, desc.torque_limits) if j >= 0 else None
+        if limit is None:
+            continue
+        damping = float(model.dof_damping[model.jnt_dofadr[j]])
+        spare = limit - abs(float(data.qfrc_bias[model.jnt_dofadr[j]]))
+        if damping * SPEED > spare and spare > 0:
+            slow[name] = (damping, limit, np.floor(100 * spare / damping) / 100)  # rounded down: it holds
+    if not slow:
+        return []
+    named = ", ".join(f"{n} ({d:g} N m s/rad, {lim:g} N m: {v:g} rad/s)" for n, (d, lim, v) in slow.items())
+    limits = ", ".join(f"{n}: {v:g}" for n, (_, _, v) in slow.items())
+    return [Finding("info", "torque", f"at {SPEED:g} rad/s the damping of these joints takes more torque than their "
+                    f"motors have left after holding home, so they lag faster references: {named}",
+                    f"velocity_limits: {{{limits}}} [rad/s] in the robot file, or lower damping where the model "
+                    "overstates it")]
