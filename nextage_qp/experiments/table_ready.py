@@ -124,12 +124,12 @@ def tool_frames(m: mujoco.MjModel, d: mujoco.MjData, desc: RobotDescription) -> 
             continue
         anchor, axis = d.xanchor[joint].copy(), d.xaxis[joint].copy()
         before = d.xanchor[m.joint(arm.joints[k - 1]).id] if k > 0 else d.xpos[int(m.body_parentid[body])]
+        hand = np.mean([d.geom_xpos[g] for g in geoms], axis=0) - anchor  # where the hand's geometry lies
         out = anchor - before  # along the arm, out to the hand (a spherical wrist: towards the hand's geometry)
         if abs(out @ axis) < 0.01:
-            out = np.mean([d.geom_xpos[g] for g in geoms], axis=0) - anchor
+            out = hand
         if out @ axis < 0:
             axis = -axis
-        hand = np.mean([d.geom_xpos[g] for g in geoms], axis=0) - anchor  # where the hand's geometry lies
         if abs(axis @ hand) < FLEX_COS * np.linalg.norm(hand):  # a last joint that flexes the hand: its face is
             hand = hand - (hand @ axis) * axis  # square to where the hand points, not to the flex axis
             axis = hand / np.linalg.norm(hand)
@@ -249,7 +249,7 @@ def make_ready(desc: RobotDescription) -> Ready:
                 ok[i, j] = reaches([p, p])
                 sides[i, j] = ok[i, j] and every_side(p)
         for k, grid in enumerate((sides, ok)):
-            rect, largest = _largest_rectangle(grid, middle=7), found[k]
+            rect, largest = _largest_rectangle(grid, middle=len(ys) // 2), found[k]
             if rect is not None and (largest is None or _score(rect) > _score(largest[0])):
                 found[k] = (rect, top, edge, xs, ys)
     best = found[0]

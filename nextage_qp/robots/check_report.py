@@ -94,8 +94,7 @@ def check_robot(ref: str | Path) -> CheckReport:
         found += checks.fused_mjcf_bodies(desc.model, model)
     found += physics_checks.inertias(spec, model, refused, own)
     home, home_problem = home_qpos(model, desc)
-    found += home_problem + physics_checks.self_contact(model, home) + physics_checks.gravity_load(model, desc, home)
-    found += physics_checks.damping_load(model, desc, home)
+    found += home_problem + physics_checks.self_contact(model, home) + physics_checks.home_load(model, desc, home)
     found += checks.reach(model, desc) + checks.left_out(model, desc) + physics_checks.actuators(model, desc)
     if Path(ref).suffix.lower() not in (".xml", ".urdf") and not any(f.level == "problem" for f in found):
         found += _as_the_commands_load_it(ref)

@@ -134,52 +134,40 @@ def file_or_model_limit(model: mujoco.MjModel, joint: int, given: float | Mappin
     return model_torque_limit(model, joint)
 
 
-def gravity_load(model: mujoco.MjModel, desc: RobotDescription, qpos: np.ndarray) -> list[Finding]:
-    """Robot joints whose torque limit is below the gravity torque of holding home: they sag."""
-    data = mujoco.MjData(model)
-    data.qpos[:] = qpos
-    mujoco.mj_forward(model, data)
-    given = desc.torque_limits
-    weak = []
-    for name in desc.joints:
-        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
-        if j < 0:
-            continue
-        limit = file_or_model_limit(model, j, given)
-        load = abs(float(data.qfrc_bias[model.jnt_dofadr[j]]))
-        if limit is not None and load > limit:
-            weak.append(f"{name} ({load:.3g} > {limit:g} N m)")
-    if not weak:
-        return []
-    return [Finding("problem", "torque", f"holding home takes more gravity torque than the limit: {', '.join(weak)}; "
-                    "these joints sag under PD control", "give them larger torque_limits in the robot file (they "
-                    "override the model's) if the real actuators allow it, or choose another home")]
+def home_load(model: mujoco.MjModel, desc: RobotDescription, qpos: np.ndarray) -> list[Finding]:
+    """Robot joints whose motors cannot hold home (they sag: a problem) or lag references at :data:`SPEED`.
 
-
-def damping_load(model: mujoco.MjModel, desc: RobotDescription, qpos: np.ndarray) -> list[Finding]:
-    """Robot joints whose viscous damping at :data:`SPEED` takes more than their motor has left after gravity at home.
-
-    Such a joint lags references at that speed (the TIAGo of robosuite: 100 N m s/rad on a +-50 N m shoulder); the
-    fix a robot file can make is a velocity limit at the speed the motor can still drive.
+    Both from each joint's torque limit and its gravity torque at home: the damping finding names joints whose
+    viscous damping at that speed takes more than the motor has left after gravity (the TIAGo of robosuite: 100 N m
+    s/rad on a +-50 N m shoulder), with the velocity limit at which the motor still drives them.
     """
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
     mujoco.mj_forward(model, data)
-    slow = {}
+    weak, slow = [], {}
     for name in desc.joints:
         j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
         limit = file_or_model_limit(model, j, desc.torque_limits) if j >= 0 else None
         if limit is None:
             continue
-        damping = float(model.dof_damping[model.jnt_dofadr[j]])
-        spare = limit - abs(float(data.qfrc_bias[model.jnt_dofadr[j]]))
-        if damping * SPEED > spare and spare > 0:
+        dof = model.jnt_dofadr[j]
+        load = abs(float(data.qfrc_bias[dof]))
+        if load > limit:
+            weak.append(f"{name} ({load:.3g} > {limit:g} N m)")
+        damping, spare = float(model.dof_damping[dof]), limit - load
+        if damping * SPEED > spare > 0:
             slow[name] = (damping, limit, np.floor(100 * spare / damping) / 100)  # rounded down: it holds
-    if not slow:
-        return []
-    named = ", ".join(f"{n} ({d:g} N m s/rad, {lim:g} N m: {v:g} rad/s)" for n, (d, lim, v) in slow.items())
-    limits = ", ".join(f"{n}: {v:g}" for n, (_, _, v) in slow.items())
-    return [Finding("info", "torque", f"at {SPEED:g} rad/s the damping of these joints takes more torque than their "
-                    f"motors have left after holding home, so they lag faster references: {named}",
-                    f"velocity_limits: {{{limits}}} [rad/s] in the robot file, or lower damping where the model "
-                    "overstates it")]
+    out = []
+    if weak:
+        out.append(Finding("problem", "torque", f"holding home takes more gravity torque than the limit: "
+                           f"{', '.join(weak)}; these joints sag under PD control", "give them larger torque_limits "
+                           "in the robot file (they override the model's) if the real actuators allow it, or choose "
+                           "another home"))
+    if slow:
+        named = ", ".join(f"{n} ({d:g} N m s/rad, {lim:g} N m: {v:g} rad/s)" for n, (d, lim, v) in slow.items())
+        limits = ", ".join(f"{n}: {v:g}" for n, (_, _, v) in slow.items())
+        out.append(Finding("info", "torque", f"at {SPEED:g} rad/s the damping of these joints takes more torque than "
+                           f"their motors have left after holding home, so they lag faster references: {named}",
+                           f"velocity_limits: {{{limits}}} [rad/s] in the robot file, or lower damping where the "
+                           "model overstates it"))
+    return out
