@@ -253,3 +253,30 @@ def test_the_maps_voxels_land_on_the_pixels_a_pinhole_projection_gives_them() ->
         lo, hi = LO + rng.uniform(0.0, 0.2, 3), HI - rng.uniform(0.0, 0.2, 3)
         inside = np.all((grid.centres >= lo) & (grid.centres <= hi), axis=1).reshape(grid.shape)
         np.testing.assert_array_equal(grid.region(lo, hi), inside)
+
+
+def test_a_round_pieces_strip_boxes_hold_every_voxel_and_cut_the_single_boxs_corners() -> None:
+    """A disc of voxels (a cylinder 9 cm across): its three strip boxes hold every voxel's corners, and the union
+    reaches less far out from the piece than the one box around it."""
+    vmap = VoxelMap(np.zeros(3), np.array([0.3, 0.3, 0.15]), cell=0.015)
+    centre = np.array([0.15, 0.15])
+    idx = np.argwhere(np.ones(vmap.shape, dtype=bool))
+    xy = vmap.lo[:2] + (idx[:, :2] + 0.5) * vmap.cell
+    cells = idx[(np.linalg.norm(xy - centre, axis=1) <= 0.045) & (idx[:, 2] >= 2) & (idx[:, 2] <= 5)]
+    one = vmap.oriented_box(cells)
+    strips = vmap.strip_boxes(cells, 3)
+    assert len(strips) == 3
+
+    def inside(box, points) -> np.ndarray:
+        c, half, yaw = box
+        turn = np.array([[np.cos(yaw), np.sin(yaw)], [-np.sin(yaw), np.cos(yaw)]])
+        return np.all(np.abs((points - c[:2]) @ turn.T) <= half[:2] + 1e-9, axis=1)
+
+    square = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])
+    corners = (vmap.lo[:2] + ((cells[:, None, :2] + square[None]) * vmap.cell)).reshape(-1, 2)
+    assert np.all(np.any([inside(b, corners) for b in strips], axis=0))  # every voxel held
+    grid = np.stack(np.meshgrid(*[np.linspace(0.0, 0.3, 121)] * 2, indexing="ij"), axis=-1).reshape(-1, 2)
+    held = np.any([inside(b, grid) for b in strips], axis=0)
+    reach = np.linalg.norm(grid - centre, axis=1)
+    assert reach[held].max() < reach[inside(one, grid)].max() - 0.008  # the corners cut by 8 mm or more
+    assert held.sum() < inside(one, grid).sum()

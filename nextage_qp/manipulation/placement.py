@@ -234,6 +234,16 @@ def free_spots(robot: Robot, obj: str, yaw: float, region: tuple[tuple[float, fl
                               "clearance")
 
 
+def spot_room(robot: Robot, obj: str, yaw: float, xy: np.ndarray) -> float:
+    """Smallest distance [m] from ``obj`` standing on the table at ``xy`` and ``yaw`` to the obstacles beside it
+    (capped at 0.1 m): what :func:`free_spots` judges a spot by.
+    """  # noqa: D205
+    data = mujoco.MjData(robot.model)
+    mujoco.mj_forward(robot.model, data)
+    pos = np.array([xy[0], xy[1], rest_height(robot, data, obj)])
+    return clearance_at(robot, data, obj, pos, yaw, robot.obstacle_groups(), beside=True)[0]
+
+
 def obstacle_clearance(robot: Robot, data: mujoco.MjData, obj: str) -> float:
     """Smallest distance [m] from ``obj`` as it is in ``data`` to the obstacles beside it (capped at 0.1 m)."""
     geoms = robot.collision_geoms()

@@ -32,7 +32,7 @@ from nextage_qp.manipulation.phases import Phase, build, names_in
 from nextage_qp.manipulation.phases.base import DEFAULT_TIMEOUT, TIMEOUT_MARGIN
 from nextage_qp.manipulation.phases.grasp.spec import GraspSpec
 from nextage_qp.manipulation.phases.push.spec import FULL_ORIENT_JOINTS, PushSpec
-from nextage_qp.manipulation.placement import Placement, check_placement, free_spots
+from nextage_qp.manipulation.placement import FREE_SPOT_MARGIN, Placement, check_placement, free_spots, spot_room
 from nextage_qp.manipulation.sim_view import SimView
 from nextage_qp.manipulation.workspace import to_world
 from nextage_qp.mobile.build import BASE_BODY
@@ -137,6 +137,21 @@ class PlacedSpot:
             return False
         self.refused.append(why)
         self.pos, self.clearance = nxt
+        self.put(models)
+        return True
+
+    def move(self, spots: Iterator[tuple[np.ndarray, float]], models: Sequence[mujoco.MjModel], why: str) -> bool:
+        """Take the spots of ``spots`` from now on (this one no longer serves: ``why``) and move to the first; False,
+        and no move, if ``spots`` has none.
+        """  # noqa: D205
+        try:
+            nxt = next(spots, None)
+        except InfeasibleError:
+            return False
+        if nxt is None:
+            return False
+        self.refused.append(why)
+        self.spots, (self.pos, self.clearance) = spots, nxt
         self.put(models)
         return True
 
@@ -323,6 +338,8 @@ class Runner:
         self.seen = SeenBoxes() if cfg.perception.obstacles == "camera" else None
         self.free_spots: dict[str, PlacedSpot] = {}
         self._unplaced: list[FreeSpotRequest] = []
+        self._spot_requests: dict[str, FreeSpotRequest] = {}
+        """The free-spot targets chosen from the camera's map, by name: judged again at each later phase naming them."""
         """Free-spot targets placed once the camera has looked (at the start of the first phase naming them)."""
         if self.seen is None:
             self.free_spots = place_free_spots(cfg, self.robot, source)
@@ -426,12 +443,15 @@ class Runner:
         """  # noqa: D205
         spec = phase.spec
         named = {getattr(spec, "target", None), getattr(spec, "place_at", None)}
+        for name in [n for n in self.free_spots if n in named and n in self._spot_requests]:
+            self._check_spot(name)  # chosen by an earlier phase: the map has seen more since
         for request in [r for r in self._unplaced if r[0] in named]:  # among the obstacles the camera has seen
             self._unplaced.remove(request)
             try:
                 self.free_spots[request[0]] = place_spot(self.controlled, request, self._target_models, self.source)
             except InfeasibleError as exc:
                 raise PhaseError(f"{exc} (among the obstacles the camera has seen)") from None
+            self._spot_requests[request[0]] = request
             self._moved_target()
         spots = [p for name, p in self.free_spots.items() if name in named]
         while True:
@@ -442,6 +462,36 @@ class Runner:
                 if not any(p.take_next(self._target_models, str(exc)) for p in spots):
                     raise
                 self._moved_target()
+
+    def _spot_robot(self) -> Robot:
+        """The controller's robot on a copy of its model whose obstacles are those a chosen free spot is judged
+        against again: the camera map's seen obstacles grown into the space the robot hides beside them
+        (:meth:`~nextage_qp.sensing.camera.seen.ObstacleMapper.boxes`), and the never-seen space.
+        """  # noqa: D205
+        if self.mapper is None:
+            return self.controlled
+        twin = self.controlled.blinded_copy()
+        boxes = SeenBoxes()
+        boxes.set(self.mapper.boxes(hidden=True),
+                  self.mapper.unknown_boxes() if self.cfg.perception.unknown == "occupied" else [])
+        boxes.sync(twin.model)
+        return twin
+
+    def _check_spot(self, name: str) -> None:
+        """Judge a free spot chosen from the camera's map again on the map as it is now; where it no longer keeps its
+        clearance, move it to the nearest spot that does (the phase's start then judges that one).
+        """  # noqa: D205
+        placed, (_, obj, yaw, spot) = self.free_spots[name], self._spot_requests[name]
+        twin = self._spot_robot()
+        room = spot_room(twin, obj, yaw, placed.pos)
+        if room >= spot.clearance + FREE_SPOT_MARGIN:
+            return
+        where = f"{self.source}: scene.poses.{name}.free_spot"
+        spots = free_spots(twin, obj, yaw, spot.region, (float(placed.pos[0]), float(placed.pos[1])), spot.clearance,
+                           where)
+        if placed.move(spots, self._target_models, f"the map now keeps {obj} {room * 1e3:.0f} mm from an obstacle at "
+                                                   f"({placed.pos[0]:.3f}, {placed.pos[1]:.3f})"):
+            self._moved_target()
 
     def _moved_target(self) -> None:
         """A target took a new place: the physics' poses follow (nothing else moved), and its placement is checked."""

@@ -39,6 +39,10 @@ UNKNOWN, FREE, OCCUPIED_STATE = -1, 0, 1
 """Voxel states of :meth:`VoxelMap.state`."""
 
 
+MAX_STRIPS = 4
+"""The most boxes :meth:`VoxelMap.strip_boxes` cuts a cluster into by default."""
+
+
 class VoxelMap:
     """Voxels of ``cell`` [m] filling the box ``lo``-``hi`` [m] (world frame), all unknown at first."""
 
@@ -212,24 +216,97 @@ class VoxelMap:
         return out
 
     def oriented_boxes(self, pad: float = 0.0, min_voxels: int = 1, step: float = np.radians(3.0),
-                       above: float | None = None) -> list[tuple[np.ndarray, np.ndarray, float]]:
+                       above: float | None = None,
+                       strips: int = 1) -> list[tuple[np.ndarray, np.ndarray, float]]:
         """Obstacles as boxes turned about the vertical (centre [m], half-sizes [m], yaw [rad]), one per cluster.
 
         Each is the smallest-footprint rectangle (yaw searched in ``step``s over a quarter turn) holding every corner
         of the cluster's voxels, over their height, grown by ``pad``: a piece standing at an angle is no longer
-        bounded by the axis-aligned box of its voxels, which is up to twice its footprint. ``above`` [m]: only the
-        voxels whose centres lie higher count. While the occupied voxels stay those of the last call, its boxes are
-        given again without labelling the map anew.
+        bounded by the axis-aligned box of its voxels, which is up to twice its footprint. With ``strips`` more than
+        one, each cluster is up to that many boxes (:meth:`strip_boxes`). ``above`` [m]: only the voxels whose
+        centres lie higher count. While the occupied voxels stay those of the last call, its boxes are given again
+        without labelling the map anew.
         """
         solid = self.state() == OCCUPIED_STATE
         if above is not None:
             solid &= (self.centres[:, 2] > above).reshape(self.shape)
-        key = (pad, min_voxels, step, above)
+        key = (pad, min_voxels, step, above, strips)
         if self._oriented is not None and self._oriented[1] == key and np.array_equal(self._oriented[0], solid):
             return list(self._oriented[2])  # the occupied voxels as last time: the same boxes
-        out = [self.oriented_box(cells, pad, step) for cells in self._clusters_of(solid, min_voxels)]
+        clusters = self._clusters_of(solid, min_voxels)
+        out = [box for cells in clusters for box in self.strip_boxes(cells, strips, pad, step)]
         self._oriented = (solid, key, out)
         return list(out)
+
+    def strip_boxes(self, cells: np.ndarray, most: int = MAX_STRIPS, pad: float = 0.0,
+                    step: float = np.radians(3.0)) -> list[tuple[np.ndarray, np.ndarray, float]]:
+        """Up to ``most`` boxes turned about the vertical whose union holds the voxels ``cells``, hugging them.
+
+        The voxels are binned a voxel wide across the longer side of the cluster's :meth:`oriented_box`, and the bins
+        cut into at most ``most`` runs of neighbouring bins whose boxes (at the same yaw, each holding every corner of
+        its voxels over their own height, grown by ``pad``) have the least footprint in all. A round piece's one box
+        stands out past it at its corners by up to 40 % of its radius; the runs cut the corners to steps.
+        """
+        centre, half, yaw = self.oriented_box(cells, pad, step)
+        along = 0 if half[0] >= half[1] else 1
+        c, s = np.cos(yaw), np.sin(yaw)
+        axis = np.array([c, s]) if along == 0 else np.array([-s, c])
+        mid = (self.lo[:2] + (cells[:, :2] + 0.5) * self.cell) @ axis
+        bins = np.floor((mid - mid.min()) / self.cell + 1e-9).astype(int)
+        n = int(bins.max()) + 1
+        if most <= 1 or n <= 1:
+            return [(centre, half, yaw)]
+        boxes = {(a, b): self._box_at(cells[(bins >= a) & (bins <= b)], yaw, pad)
+                 for a in range(n) for b in range(a, n) if np.any((bins >= a) & (bins <= b))}
+        area = {key: float(box[1][0] * box[1][1]) for key, box in boxes.items()}
+        # least footprint of bins 0..b in k runs, and where the last run begins
+        best: dict[tuple[int, int], tuple[float, int]] = {}
+        for b in range(n):
+            if (0, b) in area:
+                best[(1, b)] = (area[(0, b)], 0)
+            for k in range(2, most + 1):
+                options = [(best[(k - 1, a - 1)][0] + area[(a, b)], a) for a in range(1, b + 1)
+                           if (k - 1, a - 1) in best and (a, b) in area]
+                if options:
+                    best[(k, b)] = min(options)
+        k = min((key for key in best if key[1] == n - 1), key=lambda key: best[key][0])[0]
+        out, b = [], n - 1
+        while k >= 1:
+            a = best[(k, b)][1]
+            out.append(boxes[(a, b)])
+            b, k = a - 1, k - 1
+        return out[::-1]
+
+    def _box_at(self, cells: np.ndarray, yaw: float, pad: float) -> tuple[np.ndarray, np.ndarray, float]:
+        """The box at ``yaw`` (centre [m], half-sizes [m], yaw [rad]) holding every corner of the voxels ``cells``,
+        over their height, grown by ``pad``.
+        """  # noqa: D205
+        square = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])
+        flat = np.unique(cells[:, :2], axis=0)
+        corners = (self.lo[:2] + ((flat[:, None, :] + square[None]) * self.cell).reshape(-1, 2))
+        c, s = np.cos(yaw), np.sin(yaw)
+        u, v = corners @ np.array([c, s]), corners @ np.array([-s, c])
+        mu, mv = (u.min() + u.max()) / 2, (v.min() + v.max()) / 2
+        z0 = self.lo[2] + cells[:, 2].min() * self.cell
+        z1 = self.lo[2] + (cells[:, 2].max() + 1) * self.cell
+        half = np.array([(u.max() - u.min()) / 2, (v.max() - v.min()) / 2, (z1 - z0) / 2]) + pad
+        return np.array([mu * c - mv * s, mu * s + mv * c, (z0 + z1) / 2]), half, yaw
+
+    def grown_clusters(self, solid: np.ndarray, into: np.ndarray, steps: int,
+                       min_voxels: int = 1) -> list[np.ndarray]:
+        """The voxel indices (n, 3) of each 26-connected cluster of ``solid`` voxels, grown ``steps`` voxels (face
+        neighbours, step by step) into the mask ``into``: what may lie on beyond what was seen of it.
+        """  # noqa: D205
+        out = []
+        for cells in self._clusters_of(solid, min_voxels):
+            mask = np.zeros(self.shape, dtype=bool)
+            mask[tuple(cells.T)] = True
+            lo = np.maximum(cells.min(axis=0) - steps, 0)
+            hi = np.minimum(cells.max(axis=0) + steps + 1, self.shape)
+            block = tuple(slice(a, b) for a, b in zip(lo, hi, strict=True))
+            grown = ndimage.binary_dilation(mask[block], iterations=max(steps, 1), mask=mask[block] | into[block])
+            out.append(np.argwhere(grown) + lo)
+        return out
 
     def unknown_clusters(self, within: np.ndarray, apart: np.ndarray, min_voxels: int = 1) -> list[np.ndarray]:
         """The voxel indices (n, 3) of each connected cluster of never-seen voxels in the mask ``within`` and outside
@@ -253,15 +330,7 @@ class VoxelMap:
         u = corners @ np.stack([c, s])  # (points, yaws): along each candidate's first axis
         v = corners @ np.stack([-s, c])
         area = (u.max(0) - u.min(0)) * (v.max(0) - v.min(0))
-        best = int(np.argmin(area))
-        yaw = float(yaws[best])
-        lo_u, hi_u, lo_v, hi_v = u[:, best].min(), u[:, best].max(), v[:, best].min(), v[:, best].max()
-        mu, mv = (lo_u + hi_u) / 2, (lo_v + hi_v) / 2
-        xy = np.array([mu * c[best] - mv * s[best], mu * s[best] + mv * c[best]])
-        z0 = self.lo[2] + cells[:, 2].min() * self.cell
-        z1 = self.lo[2] + (cells[:, 2].max() + 1) * self.cell
-        half = np.array([(hi_u - lo_u) / 2, (hi_v - lo_v) / 2, (z1 - z0) / 2]) + pad
-        return np.array([*xy, (z0 + z1) / 2]), half, yaw
+        return self._box_at(cells, float(yaws[int(np.argmin(area))]), pad)
 
 
 SELF_PAD = 3

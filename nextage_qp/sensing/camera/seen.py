@@ -40,8 +40,15 @@ HEIGHT = 0.35
 BOX_PAD = 0.0
 """The controller's obstacle boxes are each cluster's voxels grown by this [m]: none, a voxel that holds a point of a
 surface is whole in the box, so the box already bounds what was seen by up to a voxel's edge."""
+STRIPS = 3
+"""The most boxes a cluster is given (:meth:`~.occupancy.VoxelMap.strip_boxes`): a round piece's single box stands out
+past it at its corners."""
 MIN_VOXELS = 2
 """Clusters of fewer voxels are depth noise, not obstacles."""
+HIDDEN_REACH = CELL
+"""How far [m] a seen obstacle may reach on into never-seen space the robot's links or a tracked object hide beside
+it, when a free spot chosen earlier is judged again (:meth:`ObstacleMapper.boxes`): a piece half behind an arm is seen
+only up to the arm's edge."""
 FLOOR = 2 * CELL
 """Space within this [m] of the table top is the table's for the map's coverage and its unknown space: a ray ends on
 the table a cell behind the voxels just over it, which are never seen through."""
@@ -98,19 +105,29 @@ class ObstacleMapper:
             r_lo, r_hi = np.maximum(r_lo, lo), np.minimum(r_hi, hi)
         return self.map.seen_share(r_lo, r_hi) if np.all(r_hi > r_lo) else 1.0
 
-    def boxes(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    def boxes(self, hidden: bool = False) -> list[tuple[np.ndarray, np.ndarray, float]]:
         """The map's obstacles as boxes turned about the vertical (centre [m], half-sizes [m], yaw [rad]) for the
-        controller (:meth:`VoxelMap.oriented_boxes`).
+        controller (:meth:`VoxelMap.oriented_boxes`), up to ``STRIPS`` per cluster.
 
         Each reaches down to the table: a camera above sees an obstacle's top and the faces turned to it, and the
         steep faces only at grazing angles (a few points per voxel, which the rays past them carve free); what lies
         under a seen surface is hidden from it, and counts as occupied. The voxels within a cell of the table top are
         left out of the clusters: the table's own points a plane's error lifts over its band fill them, and would join
         every piece on the table into one.
+
+        With ``hidden``, each cluster is first grown by up to ``HIDDEN_REACH`` into the never-seen space beside it that
+        the robot's links or the tracked objects hide: where the rest of a piece seen only up to an arm's edge may
+        stand (what a free spot is judged against once chosen, :class:`~nextage_qp.manipulation.runner.Runner`).
         """  # noqa: D205
         floor = float(self.map.lo[2])
-        return [_down_to(box, floor) for box in self.map.oriented_boxes(pad=BOX_PAD, min_voxels=MIN_VOXELS,
-                                                                        above=self.table + CELL)]
+        if not hidden:
+            return [_down_to(box, floor) for box in self.map.oriented_boxes(pad=BOX_PAD, min_voxels=MIN_VOXELS,
+                                                                            above=self.table + CELL, strips=STRIPS)]
+        over = (self.map.centres[:, 2] > self.table + CELL).reshape(self.map.shape)
+        solid = (self.map.state() == OCCUPIED_STATE) & over
+        steps = max(round(HIDDEN_REACH / self.map.cell), 1)
+        clusters = self.map.grown_clusters(solid, self.apart & ~self.map.seen & over, steps, MIN_VOXELS)
+        return [_down_to(box, floor) for cells in clusters for box in self.map.strip_boxes(cells, STRIPS, BOX_PAD)]
 
     def unknown_boxes(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
         """The never-seen space over ``places`` as boxes: for planning, what the camera never saw is occupied.
