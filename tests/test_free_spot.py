@@ -81,6 +81,27 @@ def test_a_spot_the_first_phase_refuses_is_replaced_by_the_next(runner):
         m.body("box_target").pos[:2] = first
 
 
+def test_a_spot_judged_again_moves_to_the_nearest_that_keeps_the_clearance_or_stays(runner):
+    """A spot a later phase judges again on a fuller map moves to the nearest spot of a new search that keeps the
+    clearance, the reason kept; a search with no spot leaves it where it is."""
+    spot = runner.free_spots["box_target"]
+    first, refused = spot.pos.copy(), len(spot.refused)
+    m = runner.robot.model
+    try:
+        again = free_spots(runner.robot, "box", 0.785398, REGION, tuple(first), 0.06, "test")
+        assert spot.move(again, (m,), "the map now keeps box 80 mm from an obstacle")
+        assert np.linalg.norm(spot.pos - first) <= FREE_SPOT_STEP + 1e-9  # the nearest: the spot or beside it
+        assert np.allclose(m.body("box_target").pos[:2], spot.pos)
+        assert spot.report()["spots_refused"] == refused + 1
+        x, y = m.body("clutter_0").pos[:2]
+        none = free_spots(runner.robot, "box", 0.0, ((x - 0.01, y - 0.01), (x + 0.01, y + 0.01)), (x, y), 0.03, "t")
+        before = spot.pos.copy()
+        assert not spot.move(none, (m,), "no room")
+        assert np.allclose(spot.pos, before) and spot.report()["spots_refused"] == refused + 1
+    finally:  # the module's runner again as it was
+        m.body("box_target").pos[:2] = first
+
+
 def test_a_region_with_no_room_is_refused_naming_the_roomiest_spot(runner):
     x, y = runner.robot.model.body("clutter_0").pos[:2]
     around = ((x - 0.01, y - 0.01), (x + 0.01, y + 0.01))  # on a piece of clutter: nowhere to stand

@@ -280,3 +280,19 @@ def test_a_round_pieces_strip_boxes_hold_every_voxel_and_cut_the_single_boxs_cor
     reach = np.linalg.norm(grid - centre, axis=1)
     assert reach[held].max() < reach[inside(one, grid)].max() - 0.008  # the corners cut by 8 mm or more
     assert held.sum() < inside(one, grid).sum()
+
+
+def test_a_cluster_grows_into_the_hidden_space_beside_it_by_the_steps_given_and_nowhere_else() -> None:
+    """A piece seen only up to an arm's edge: its cluster grows into the space the arm hides (three voxels on), not
+    into seen space, and a cluster with no hidden space beside it stays as it is."""
+    vmap = VoxelMap(np.zeros(3), np.array([0.3, 0.3, 0.15]), cell=0.015)
+    solid = np.zeros(vmap.shape, dtype=bool)
+    solid[5:7, 5:7, 2:5] = True  # a piece, seen up to y index 6
+    solid[15:17, 15:17, 2:5] = True  # another, all of it seen
+    hidden = np.zeros(vmap.shape, dtype=bool)
+    hidden[3:9, 7:, 0:8] = True  # the arm's shadow beyond the first piece, on to the map's edge
+    first, second = sorted(vmap.grown_clusters(solid, hidden, 3), key=lambda c: int(c[:, 0].min()))
+    assert first[:, 1].max() == 6 + 3  # three voxels on into the shadow, not to its end
+    assert first[:, 1].min() == 5 and first[:, 0].min() >= 3 and first[:, 0].max() <= 8  # not out of the shadow
+    assert {tuple(c) for c in np.argwhere(solid[:10, :10])} <= {tuple(c) for c in first}
+    assert len(second) == 2 * 2 * 3 and second[:, 0].min() == 15  # nothing hidden beside it

@@ -338,9 +338,9 @@ class Runner:
         self.seen = SeenBoxes() if cfg.perception.obstacles == "camera" else None
         self.free_spots: dict[str, PlacedSpot] = {}
         self._unplaced: list[FreeSpotRequest] = []
+        """Free-spot targets placed once the camera has looked (at the start of the first phase naming them)."""
         self._spot_requests: dict[str, FreeSpotRequest] = {}
         """The free-spot targets chosen from the camera's map, by name: judged again at each later phase naming them."""
-        """Free-spot targets placed once the camera has looked (at the start of the first phase naming them)."""
         if self.seen is None:
             self.free_spots = place_free_spots(cfg, self.robot, source)
         else:

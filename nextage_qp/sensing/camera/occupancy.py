@@ -250,30 +250,39 @@ class VoxelMap:
         centre, half, yaw = self.oriented_box(cells, pad, step)
         along = 0 if half[0] >= half[1] else 1
         c, s = np.cos(yaw), np.sin(yaw)
-        axis = np.array([c, s]) if along == 0 else np.array([-s, c])
-        mid = (self.lo[:2] + (cells[:, :2] + 0.5) * self.cell) @ axis
+        axes = np.array([[c, s], [-s, c]])  # rows: the box's own x and y in the world's
+        square = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])
+        corners = self.lo[:2] + (cells[:, None, :2] + square[None]) * self.cell  # (n, 4, 2)
+        u, v = corners @ axes[along], corners @ axes[1 - along]
+        mid = u.mean(axis=1)
         bins = np.floor((mid - mid.min()) / self.cell + 1e-9).astype(int)
         n = int(bins.max()) + 1
         if most <= 1 or n <= 1:
             return [(centre, half, yaw)]
-        boxes = {(a, b): self._box_at(cells[(bins >= a) & (bins <= b)], yaw, pad)
-                 for a in range(n) for b in range(a, n) if np.any((bins >= a) & (bins <= b))}
-        area = {key: float(box[1][0] * box[1][1]) for key, box in boxes.items()}
-        # least footprint of bins 0..b in k runs, and where the last run begins
-        best: dict[tuple[int, int], tuple[float, int]] = {}
-        for b in range(n):
-            if (0, b) in area:
-                best[(1, b)] = (area[(0, b)], 0)
-            for k in range(2, most + 1):
-                options = [(best[(k - 1, a - 1)][0] + area[(a, b)], a) for a in range(1, b + 1)
-                           if (k - 1, a - 1) in best and (a, b) in area]
-                if options:
-                    best[(k, b)] = min(options)
-        k = min((key for key in best if key[1] == n - 1), key=lambda key: best[key][0])[0]
+        inf = np.full(n, np.inf)  # each bin's extents across (a bin may be empty)
+        lo_u, hi_u, lo_v, hi_v = inf.copy(), -inf, inf.copy(), -inf
+        np.minimum.at(lo_u, bins, u.min(axis=1))
+        np.maximum.at(hi_u, bins, u.max(axis=1))
+        np.minimum.at(lo_v, bins, v.min(axis=1))
+        np.maximum.at(hi_v, bins, v.max(axis=1))
+
+        def area(a: int, b: int) -> float:
+            width = np.max(hi_u[a:b + 1]) - np.min(lo_u[a:b + 1]) + 2 * pad
+            return float(width * (np.max(hi_v[a:b + 1]) - np.min(lo_v[a:b + 1]) + 2 * pad))
+
+        # least footprint of bins 0..b in k runs, and where the last run begins (every bin ends a run: none is empty
+        # at either end, and an empty one inside is joined to a neighbour by the least footprint)
+        best: dict[tuple[int, int], tuple[float, int]] = {(1, b): (area(0, b), 0) for b in range(n)}
+        for k in range(2, most + 1):
+            for b in range(k - 1, n):
+                best[(k, b)] = min((best[(k - 1, a - 1)][0] + area(a, b), a) for a in range(k - 1, b + 1))
+        k = min(range(1, min(most, n) + 1), key=lambda j: best[(j, n - 1)][0])
         out, b = [], n - 1
         while k >= 1:
             a = best[(k, b)][1]
-            out.append(boxes[(a, b)])
+            part = cells[(bins >= a) & (bins <= b)]
+            if len(part):
+                out.append(self._box_at(part, yaw, pad))
             b, k = a - 1, k - 1
         return out[::-1]
 
