@@ -203,6 +203,7 @@ class Push(Phase):
         self.approaches, self.recoveries, self.full, self.contact = 0, 0, False, PushContact(self.frame)
         self.info.update(attempts=0, nudges=0, contact_onsets=0, contact_losses=0)
         self.raised, self.looking, self.pressed = 0.0, False, False
+        self.blind_stop = self.square_stop = False  # (a knock seen on the first approach looks before any push)
         obj, tgt, _ = self._planar(view)
         self._approach(view, unit2((tgt - obj)[:2]))
         if self.plan_failed:
