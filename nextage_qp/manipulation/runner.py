@@ -118,27 +118,24 @@ FREE_SPOT_TRIES = 6
 """Free spots a target takes in turn while a phase that names it fails at its start (out of the clamp's reach, say)."""
 
 
+FreeSpotRequest = tuple[str, str, float, Any]
+"""A target placed by ``free_spot``: its name, its object's, its yaw [rad] and the ``free_spot`` declaration."""
+
+
 @dataclasses.dataclass
 class PlacedSpot:
-    """A target placed by ``free_spot``: the spots offered in turn, the one it has, and the refusals of earlier ones."""
+    """A target placed by ``free_spot``: the spots offered in turn, the one it has, its request, the refusals so far."""
 
     body: int
     spots: Iterator[tuple[np.ndarray, float]]
     pos: np.ndarray
     clearance: float
+    request: FreeSpotRequest
     refused: list[str] = dataclasses.field(default_factory=list)
 
     def take_next(self, models: Sequence[mujoco.MjModel], why: str) -> bool:
         """Move the target to the next spot in each of ``models`` (this one refused: ``why``); False if none is left."""
-        if len(self.refused) + 1 >= FREE_SPOT_TRIES:
-            return False
-        nxt = next(self.spots, None)
-        if nxt is None:
-            return False
-        self.refused.append(why)
-        self.pos, self.clearance = nxt
-        self.put(models)
-        return True
+        return len(self.refused) + 1 < FREE_SPOT_TRIES and self.move(self.spots, models, why)
 
     def move(self, spots: Iterator[tuple[np.ndarray, float]], models: Sequence[mujoco.MjModel], why: str) -> bool:
         """Take the spots of ``spots`` from now on (this one no longer serves: ``why``) and move to the first; False,
@@ -164,10 +161,6 @@ class PlacedSpot:
         """Where the target went, the object's clearance there [m], and the spots refused before it."""
         return {"pos": [round(float(v), 4) for v in self.pos], "clearance_m": round(self.clearance, 4),
                 "spots_refused": len(self.refused)}
-
-
-FreeSpotRequest = tuple[str, str, float, Any]
-"""A target placed by ``free_spot``: its name, its object's, its yaw [rad] and the ``free_spot`` declaration."""
 
 
 def free_spot_requests(cfg: ManipulationConfig, robot: Robot, source: str) -> list[FreeSpotRequest]:
@@ -206,7 +199,7 @@ def place_spot(robot: Robot, request: FreeSpotRequest, models: Sequence[mujoco.M
     spots = free_spots(robot, obj, yaw, spot.region, spot.centre(), spot.clearance,
                        f"{source}: scene.poses.{name}.free_spot")
     xy, room = next(spots)
-    placed = PlacedSpot(robot.model.body(name).id, spots, xy, room)
+    placed = PlacedSpot(robot.model.body(name).id, spots, xy, room, request)
     placed.put(models)
     return placed
 
@@ -339,8 +332,6 @@ class Runner:
         self.free_spots: dict[str, PlacedSpot] = {}
         self._unplaced: list[FreeSpotRequest] = []
         """Free-spot targets placed once the camera has looked (at the start of the first phase naming them)."""
-        self._spot_requests: dict[str, FreeSpotRequest] = {}
-        """The free-spot targets chosen from the camera's map, by name: judged again at each later phase naming them."""
         if self.seen is None:
             self.free_spots = place_free_spots(cfg, self.robot, source)
         else:
@@ -443,15 +434,14 @@ class Runner:
         """  # noqa: D205
         spec = phase.spec
         named = {getattr(spec, "target", None), getattr(spec, "place_at", None)}
-        for name in [n for n in self.free_spots if n in named and n in self._spot_requests]:
-            self._check_spot(name)  # chosen by an earlier phase: the map has seen more since
+        for name in [n for n in self.free_spots if n in named and self.seen is not None]:
+            self._check_spot(name)  # chosen from the map by an earlier phase: the map has seen more since
         for request in [r for r in self._unplaced if r[0] in named]:  # among the obstacles the camera has seen
             self._unplaced.remove(request)
             try:
                 self.free_spots[request[0]] = place_spot(self.controlled, request, self._target_models, self.source)
             except InfeasibleError as exc:
                 raise PhaseError(f"{exc} (among the obstacles the camera has seen)") from None
-            self._spot_requests[request[0]] = request
             self._moved_target()
         spots = [p for name, p in self.free_spots.items() if name in named]
         while True:
@@ -481,7 +471,8 @@ class Runner:
         """Judge a free spot chosen from the camera's map again on the map as it is now; where it no longer keeps its
         clearance, move it to the nearest spot that does (the phase's start then judges that one).
         """  # noqa: D205
-        placed, (_, obj, yaw, spot) = self.free_spots[name], self._spot_requests[name]
+        placed = self.free_spots[name]
+        _, obj, yaw, spot = placed.request
         twin = self._spot_robot()
         room = spot_room(twin, obj, yaw, placed.pos)
         if room >= spot.clearance + FREE_SPOT_MARGIN:

@@ -39,10 +39,6 @@ UNKNOWN, FREE, OCCUPIED_STATE = -1, 0, 1
 """Voxel states of :meth:`VoxelMap.state`."""
 
 
-MAX_STRIPS = 4
-"""The most boxes :meth:`VoxelMap.strip_boxes` cuts a cluster into by default."""
-
-
 class VoxelMap:
     """Voxels of ``cell`` [m] filling the box ``lo``-``hi`` [m] (world frame), all unknown at first."""
 
@@ -238,7 +234,7 @@ class VoxelMap:
         self._oriented = (solid, key, out)
         return list(out)
 
-    def strip_boxes(self, cells: np.ndarray, most: int = MAX_STRIPS, pad: float = 0.0,
+    def strip_boxes(self, cells: np.ndarray, most: int, pad: float = 0.0,
                     step: float = np.radians(3.0)) -> list[tuple[np.ndarray, np.ndarray, float]]:
         """Up to ``most`` boxes turned about the vertical whose union holds the voxels ``cells``, hugging them.
 
