@@ -50,6 +50,8 @@ def geoms_of(model: mujoco.MjModel, body: str) -> list[int]:
 SYMMETRIES = [
     ("{shape: box, size: [0.03, 0.03, 0.05]}", math.pi / 2),
     ("{shape: box, size: [0.03, 0.04, 0.03]}", math.pi),
+    ("{shape: box, size: [0.0359, 0.0353, 0.12]}", math.pi / 2),  # sides 1.2 mm apart: no camera tells them apart
+    ("{shape: box, size: [0.0359, 0.0347, 0.12]}", math.pi),
     ("{shape: prism, sides: 6, size: [0.03, 0.02]}", math.pi / 3),
     ("{shape: prism, sides: 3, size: [0.03, 0.02]}", 2 * math.pi / 3),
     ("{shape: prism, sides: 4, size: [0.03, 0.02]}", math.pi / 2),

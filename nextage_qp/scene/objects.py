@@ -15,9 +15,9 @@ half-height]``; prism (a regular ``sides``-gon) ``[circumradius, half-height]``;
 object stands on the surface under it (its lowest point on the table top), so a new size needs no new height; its
 mass is spread over its parts by volume. An object the scene already has keeps its name, its free joint and its
 target marker; its geometry is replaced. The yaw after which it looks the same (used by the yaw criteria and
-the grasp) follows from the shape: a square box :math:`\pi/2`, an oblong one :math:`\pi`, an n-sided prism
-:math:`2\pi/n`, a cylinder, capsule or sphere any yaw (``0``), a compound none (:math:`2\pi`) unless
-``yaw_symmetry`` says otherwise.
+the grasp) follows from the shape: a square box (half-extents within ``SQUARE_TOL``) :math:`\pi/2`, an oblong one
+:math:`\pi`, an n-sided prism :math:`2\pi/n`, a cylinder, capsule or sphere any yaw (``0``), a compound none
+(:math:`2\pi`) unless ``yaw_symmetry`` says otherwise.
 """
 
 from __future__ import annotations
@@ -32,6 +32,10 @@ from nextage_qp.io.schema import YamlModel
 Shape = Literal["box", "cylinder", "capsule", "sphere", "prism"]
 SIZES = {"box": 3, "cylinder": 2, "capsule": 2, "sphere": 1, "prism": 2}
 """Entries of ``size`` per shape."""
+SQUARE_TOL = 0.001
+"""Half-extents [m] within which a box's footprint counts as square (a quarter turn looks the same): a camera's fit
+cannot tell its faces apart (it turns the estimate a quarter turn as readily as not), and a clamp closes on either
+pair alike."""
 Length = Annotated[float, Field(ge=0.001, le=1.0, allow_inf_nan=False)]
 """A size entry [m]: from 1 mm (thinner is no object a hand can push or clamp, and MuJoCo's contacts fail on it) to
 1 m."""
@@ -88,9 +92,9 @@ class ObjectDecl(YamlModel):
                        description="Colour [1]: red, green, blue and alpha, each 0 to 1 (also its parts' default).")
     yaw_symmetry: float | None = Field(
         default=None, ge=0.0, le=7.0, description="Yaw after which the object looks the same [rad]; 0: any yaw "
-                                                  "(default from the shape: square box pi/2, oblong box pi, "
-                                                  "n-sided prism 2 pi/n, cylinder, capsule, sphere 0, compound "
-                                                  "2 pi).")
+                                                  "(default from the shape: square box (half-extents within 1 mm) "
+                                                  "pi/2, oblong box pi, n-sided prism 2 pi/n, cylinder, capsule, "
+                                                  "sphere 0, compound 2 pi).")
     marker: bool = Field(default=True, description="Add a target marker NAME_target for a new object.")
     fixed: bool = Field(default=False, description="A static obstacle (a shelf's board, a bin's wall): no joint, no "
                                                    "marker; it does not move, and its name is a collision group.")
@@ -124,7 +128,7 @@ class ObjectDecl(YamlModel):
             return self.yaw_symmetry
         if self.shape == "box":
             assert self.size is not None
-            return math.pi / 2 if math.isclose(self.size[0], self.size[1], rel_tol=1e-9) else math.pi
+            return math.pi / 2 if abs(self.size[0] - self.size[1]) <= SQUARE_TOL else math.pi
         if self.shape == "prism":
             assert self.sides is not None
             return 2 * math.pi / self.sides
