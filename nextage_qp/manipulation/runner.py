@@ -114,7 +114,7 @@ def for_robot(cfg: ManipulationConfig, robot: Robot) -> ManipulationConfig:
     return cfg.model_copy(update={"phases": phases})
 
 
-FREE_SPOT_TRIES = 6
+FREE_SPOT_TRIES = 12
 """Free spots a target takes in turn while a phase that names it fails at its start (out of the clamp's reach, say)."""
 
 
